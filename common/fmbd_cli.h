@@ -1,0 +1,46 @@
+// common/fmbd_cli.h: what every program's main() shares: command line, names, exit, summary
+// SPDX-License-Identifier: MIT
+#ifndef FMBD_CLI_H
+#define FMBD_CLI_H
+
+#include <stdbool.h>
+
+/// @brief The toolchain version (the VERSION file, via -DFMBD_VERSION).
+const char *fmbd_version(void);
+
+/// @brief Start of every main(): program name for messages, the command line (kept for the
+/// command_line attribute), start of the wall/CPU timer, HDF5 error printing off.
+void fmbd_cli_init(const char *prog, int argc, char **argv);
+/// @brief The command line as one shell-quoted string (borrowed).
+const char *fmbd_cli_command_line(void);
+/// @brief Seconds of wall / CPU time since fmbd_cli_init.
+double fmbd_cli_wall_s(void);
+double fmbd_cli_cpu_s(void);
+
+/// @brief Verbosity from counted -q / -v flags: sets the log level (fmbd_log_init).
+void fmbd_cli_set_verbosity(int quiet, int verbose);
+
+/// @brief Where output goes. opt_o given: that name ("-" = standard output). opt_o NULL:
+/// "-" if standard output is not a terminal, else the input name with its ending replaced:
+/// the longest of `strip` (NULL-terminated list, e.g. {".fe.h5", ".h5", NULL}) that ends the
+/// input is cut (else the last ".ext"), then `suffix` appended ("rod.geo" -> "rod.fe.h5").
+/// Input "-" with no -o and a terminal: usage error.
+/// @param[out] out caller frees with fmbd_free
+int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
+                         const char *suffix, char **out);
+
+/// @brief Parse numbers of options; on failure a usage error naming the option.
+int fmbd_cli_parse_double(const char *opt, const char *text, double *out);
+int fmbd_cli_parse_int(const char *opt, const char *text, long *out);
+
+/// @brief End of main(): for rc != 0, flush stdout and print "prog: error: FILE:WHERE:
+/// message" (with the source location under -vv); return the exit status (0, 1 or 2).
+int fmbd_cli_finish(int rc);
+/// @brief Usage error: "prog: error: message" + "Try 'prog --help'." ; returns 2.
+int fmbd_cli_usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/// @brief The closing summary: "prog: <message>, W s wall, C s cpu".
+void fmbd_cli_summary(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/// @brief Text listing exit statuses, for the end of --help.
+const char *fmbd_cli_exit_help(void);
+
+#endif

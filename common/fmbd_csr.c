@@ -1,0 +1,370 @@
+// common/fmbd_csr.c: compressed sparse row matrices
+// SPDX-License-Identifier: MIT
+#include "fmbd_csr.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+
+int fmbd_csr_create(int64_t nrows, int64_t ncols, int64_t nnz, fmbd_csr **out) {
+  FMBD_CHECK(nrows >= 0 && ncols >= 0 && nnz >= 0, FMBD_ERR_VALUE, "negative matrix size");
+  fmbd_csr *A = fmbd_calloc(1, sizeof *A);
+  if (!A) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  A->nrows = nrows;
+  A->ncols = ncols;
+  A->indptr = fmbd_calloc((size_t)nrows + 1, sizeof(int64_t));
+  A->indices = fmbd_malloc((size_t)nnz * sizeof(int64_t));
+  A->data = fmbd_calloc((size_t)nnz, sizeof(double));
+  if (!A->indptr || !A->indices || !A->data) {
+    fmbd_csr_destroy(&A);
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory for a %lld x %lld matrix with %lld entries",
+              (long long)nrows, (long long)ncols, (long long)nnz);
+  }
+  *out = A;
+  return FMBD_OK;
+}
+
+void fmbd_csr_destroy(fmbd_csr **A) {
+  if (!A || !*A) return;
+  fmbd_free((*A)->indptr);
+  fmbd_free((*A)->indices);
+  fmbd_free((*A)->data);
+  fmbd_free(*A);
+  *A = NULL;
+}
+
+int fmbd_csr_duplicate(const fmbd_csr *A, fmbd_csr **out) {
+  int64_t nnz = fmbd_csr_nnz(A);
+  FMBD_CALL(fmbd_csr_create(A->nrows, A->ncols, nnz, out));
+  memcpy((*out)->indptr, A->indptr, (size_t)(A->nrows + 1) * sizeof(int64_t));
+  memcpy((*out)->indices, A->indices, (size_t)nnz * sizeof(int64_t));
+  memcpy((*out)->data, A->data, (size_t)nnz * sizeof(double));
+  return FMBD_OK;
+}
+
+static int cmp_i64(const void *a, const void *b) {
+  int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+  return (x > y) - (x < y);
+}
+
+int fmbd_csr_pattern_from_elements(int64_t n, int64_t nelem, int k, const int64_t *edofs,
+                                   fmbd_csr **out) {
+  int rc = FMBD_OK;
+  int64_t *start = NULL, *inc = NULL, *mark = NULL, *rowptr = NULL;
+  fmbd_csr *A = NULL;
+  // --- dof -> element incidence, itself in CSR form ---
+  FMBD_GALLOC(start = fmbd_calloc((size_t)n + 1, sizeof *start));
+  for (int64_t e = 0; e < nelem; e++) {
+    for (int a = 0; a < k; a++) {
+      int64_t d = edofs[e * k + a];
+      FMBD_GCHECK(d < n, FMBD_ERR_VALUE, "element %lld refers to dof %lld of %lld", (long long)e,
+                  (long long)d, (long long)n);
+      if (d >= 0) start[d + 1]++;
+    }
+  }
+  for (int64_t i = 0; i < n; i++) start[i + 1] += start[i];
+  FMBD_GALLOC(inc = fmbd_malloc((size_t)(start[n] ? start[n] : 1) * sizeof *inc));
+  FMBD_GALLOC(mark = fmbd_malloc((size_t)(n ? n : 1) * sizeof *mark));
+  FMBD_GALLOC(rowptr = fmbd_calloc((size_t)n + 1, sizeof *rowptr));
+  for (int64_t i = 0; i < n; i++) mark[i] = start[i];
+  for (int64_t e = 0; e < nelem; e++) {
+    for (int a = 0; a < k; a++) {
+      int64_t d = edofs[e * k + a];
+      if (d >= 0) inc[mark[d]++] = e;
+    }
+  }
+  // --- pass 0 counts the distinct columns of each row, pass 1 fills them ---
+  for (int pass = 0; pass < 2; pass++) {
+    for (int64_t i = 0; i < n; i++) mark[i] = -1;
+    for (int64_t i = 0; i < n; i++) {
+      int64_t len = 0;
+      for (int64_t p = start[i]; p < start[i + 1]; p++) {
+        const int64_t *ed = edofs + inc[p] * k;
+        for (int a = 0; a < k; a++) {
+          int64_t d = ed[a];
+          if (d >= 0 && mark[d] != i) {
+            mark[d] = i;
+            if (pass) A->indices[rowptr[i] + len] = d;
+            len++;
+          }
+        }
+      }
+      if (pass) {
+        qsort(A->indices + rowptr[i], (size_t)len, sizeof(int64_t), cmp_i64);
+      } else {
+        rowptr[i + 1] = rowptr[i] + len;
+      }
+    }
+    if (!pass) {
+      FMBD_GCALL(fmbd_csr_create(n, n, rowptr[n], &A));
+      memcpy(A->indptr, rowptr, (size_t)(n + 1) * sizeof *rowptr);
+    }
+  }
+  *out = A;
+  A = NULL;
+done:
+  fmbd_free(start);
+  fmbd_free(inc);
+  fmbd_free(mark);
+  fmbd_free(rowptr);
+  fmbd_csr_destroy(&A);
+  return rc;
+}
+
+int64_t fmbd_csr_find(const fmbd_csr *A, int64_t i, int64_t j) {
+  int64_t lo = A->indptr[i], hi = A->indptr[i + 1] - 1;
+  while (lo <= hi) {
+    int64_t mid = lo + (hi - lo) / 2, c = A->indices[mid];
+    if (c == j) return mid;
+    if (c < j) lo = mid + 1;
+    else hi = mid - 1;
+  }
+  return -1;
+}
+
+double fmbd_csr_get(const fmbd_csr *A, int64_t i, int64_t j) {
+  int64_t p = fmbd_csr_find(A, i, j);
+  return p < 0 ? 0.0 : A->data[p];
+}
+
+int fmbd_csr_add_block(fmbd_csr *A, int k, const int64_t *dofs, const double *Ke) {
+  for (int a = 0; a < k; a++) {
+    int64_t i = dofs[a];
+    if (i < 0) continue;
+    for (int b = 0; b < k; b++) {
+      int64_t j = dofs[b];
+      if (j < 0) continue;
+      int64_t p = fmbd_csr_find(A, i, j);
+      FMBD_CHECK(p >= 0, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the sparsity pattern",
+                 (long long)i, (long long)j);
+      A->data[p] += Ke[a * k + b];
+    }
+  }
+  return FMBD_OK;
+}
+
+void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s = 0.0;
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) s += A->data[p] * x[A->indices[p]];
+    y[i] = s;
+  }
+}
+
+void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
+                     int64_t ldy) {
+  for (int64_t c = 0; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
+}
+
+int fmbd_csr_submatrix(const fmbd_csr *A, int64_t nr, const int64_t *rows, int64_t nc,
+                       const int64_t *cols, fmbd_csr **out) {
+  int rc = FMBD_OK;
+  int64_t *cmap = NULL;
+  fmbd_csr *B = NULL;
+  FMBD_GALLOC(cmap = fmbd_malloc((size_t)(A->ncols ? A->ncols : 1) * sizeof *cmap));
+  for (int64_t j = 0; j < A->ncols; j++) cmap[j] = -1;
+  for (int64_t j = 0; j < nc; j++) {
+    FMBD_GCHECK(cols[j] >= 0 && cols[j] < A->ncols, FMBD_ERR_VALUE, "column %lld out of range",
+                (long long)cols[j]);
+    cmap[cols[j]] = j;
+  }
+  int64_t nnz = 0;
+  for (int64_t r = 0; r < nr; r++) {
+    int64_t i = rows[r];
+    FMBD_GCHECK(i >= 0 && i < A->nrows, FMBD_ERR_VALUE, "row %lld out of range", (long long)i);
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) nnz += cmap[A->indices[p]] >= 0;
+  }
+  FMBD_GCALL(fmbd_csr_create(nr, nc, nnz, &B));
+  nnz = 0;
+  for (int64_t r = 0; r < nr; r++) {
+    int64_t i = rows[r], s = nnz;
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = cmap[A->indices[p]];
+      if (j >= 0) {
+        B->indices[nnz] = j;
+        B->data[nnz++] = A->data[p];
+      }
+    }
+    // columns keep A's order only if cols is increasing: sort the row with its values
+    for (int64_t a = s + 1; a < nnz; a++) {
+      int64_t cj = B->indices[a];
+      double v = B->data[a];
+      int64_t b = a - 1;
+      while (b >= s && B->indices[b] > cj) {
+        B->indices[b + 1] = B->indices[b];
+        B->data[b + 1] = B->data[b];
+        b--;
+      }
+      B->indices[b + 1] = cj;
+      B->data[b + 1] = v;
+    }
+    B->indptr[r + 1] = nnz;
+  }
+  *out = B;
+  B = NULL;
+done:
+  fmbd_free(cmap);
+  fmbd_csr_destroy(&B);
+  return rc;
+}
+
+int fmbd_csr_transpose(const fmbd_csr *A, fmbd_csr **out) {
+  int64_t nnz = fmbd_csr_nnz(A);
+  fmbd_csr *B = NULL;
+  FMBD_CALL(fmbd_csr_create(A->ncols, A->nrows, nnz, &B));
+  for (int64_t p = 0; p < nnz; p++) B->indptr[A->indices[p] + 1]++;
+  for (int64_t j = 0; j < A->ncols; j++) B->indptr[j + 1] += B->indptr[j];
+  int64_t *pos = fmbd_malloc((size_t)(A->ncols ? A->ncols : 1) * sizeof *pos);
+  if (!pos) {
+    fmbd_csr_destroy(&B);
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  }
+  memcpy(pos, B->indptr, (size_t)A->ncols * sizeof *pos);
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t q = pos[A->indices[p]]++;
+      B->indices[q] = i;
+      B->data[q] = A->data[p];
+    }
+  }
+  fmbd_free(pos);
+  *out = B;
+  return FMBD_OK;
+}
+
+int fmbd_csr_matmul(const fmbd_csr *A, const fmbd_csr *B, fmbd_csr **out) {
+  FMBD_CHECK(A->ncols == B->nrows, FMBD_ERR_VALUE, "matmul: %lld columns against %lld rows",
+             (long long)A->ncols, (long long)B->nrows);
+  int rc = FMBD_OK;
+  int64_t *mark = NULL, *rowptr = NULL;
+  double *acc = NULL;
+  fmbd_csr *C = NULL;
+  int64_t n = B->ncols;
+  FMBD_GALLOC(mark = fmbd_malloc((size_t)(n ? n : 1) * sizeof *mark));
+  FMBD_GALLOC(acc = fmbd_calloc((size_t)(n ? n : 1), sizeof *acc));
+  FMBD_GALLOC(rowptr = fmbd_calloc((size_t)A->nrows + 1, sizeof *rowptr));
+  for (int pass = 0; pass < 2; pass++) {
+    for (int64_t j = 0; j < n; j++) mark[j] = -1;
+    for (int64_t i = 0; i < A->nrows; i++) {
+      int64_t len = 0, s = pass ? rowptr[i] : 0;
+      for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+        int64_t k = A->indices[p];
+        double a = A->data[p];
+        for (int64_t q = B->indptr[k]; q < B->indptr[k + 1]; q++) {
+          int64_t j = B->indices[q];
+          if (mark[j] != i) {
+            mark[j] = i;
+            if (pass) {
+              C->indices[s + len] = j;
+              acc[j] = 0.0;
+            }
+            len++;
+          }
+          if (pass) acc[j] += a * B->data[q];
+        }
+      }
+      if (pass) {
+        qsort(C->indices + s, (size_t)len, sizeof(int64_t), cmp_i64);
+        for (int64_t t = s; t < s + len; t++) C->data[t] = acc[C->indices[t]];
+      } else {
+        rowptr[i + 1] = rowptr[i] + len;
+      }
+    }
+    if (!pass) {
+      FMBD_GCALL(fmbd_csr_create(A->nrows, n, rowptr[A->nrows], &C));
+      memcpy(C->indptr, rowptr, (size_t)(A->nrows + 1) * sizeof *rowptr);
+    }
+  }
+  *out = C;
+  C = NULL;
+done:
+  fmbd_free(mark);
+  fmbd_free(acc);
+  fmbd_free(rowptr);
+  fmbd_csr_destroy(&C);
+  return rc;
+}
+
+int fmbd_csr_ptap(const fmbd_csr *A, const fmbd_csr *P, fmbd_csr **out) {
+  int rc = FMBD_OK;
+  fmbd_csr *AP = NULL, *Pt = NULL;
+  FMBD_GCALL(fmbd_csr_matmul(A, P, &AP));
+  FMBD_GCALL(fmbd_csr_transpose(P, &Pt));
+  FMBD_GCALL(fmbd_csr_matmul(Pt, AP, out));
+done:
+  fmbd_csr_destroy(&AP);
+  fmbd_csr_destroy(&Pt);
+  return rc;
+}
+
+int fmbd_csr_check(const fmbd_csr *A) {
+  FMBD_CHECK(A->nrows >= 0 && A->ncols >= 0, FMBD_ERR_FORMAT, "negative shape");
+  if (A->indptr[0] != 0) {
+    fmbd_err_context(NULL, "indptr");
+    FMBD_FAIL(FMBD_ERR_FORMAT, "indptr: does not start at 0");
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
+    if (A->indptr[i + 1] < A->indptr[i]) {
+      FMBD_FAIL(FMBD_ERR_FORMAT, "indptr: decreasing at row %lld", (long long)i);
+    }
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      if (j < 0 || j >= A->ncols) {
+        FMBD_FAIL(FMBD_ERR_FORMAT, "indices: column %lld out of range at row %lld", (long long)j,
+                  (long long)i);
+      }
+      if (p > A->indptr[i] && j <= A->indices[p - 1]) {
+        FMBD_FAIL(FMBD_ERR_FORMAT, "indices: not strictly increasing at row %lld", (long long)i);
+      }
+      if (!isfinite(A->data[p])) {
+        FMBD_FAIL(FMBD_ERR_VALUE, "data: %s at row %lld, column %lld",
+                  isnan(A->data[p]) ? "NaN" : "Inf", (long long)i, (long long)j);
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
+double fmbd_csr_max_abs(const fmbd_csr *A) {
+  double m = 0.0;
+  for (int64_t p = 0; p < fmbd_csr_nnz(A); p++) m = fmax(m, fabs(A->data[p]));
+  return m;
+}
+
+bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
+  if (bad_row) *bad_row = -1;
+  if (A->nrows != A->ncols) return false;
+  double tol = rtol * fmbd_csr_max_abs(A);
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      if (j <= i) continue;
+      int64_t q = fmbd_csr_find(A, j, i);
+      double aji = q < 0 ? 0.0 : A->data[q];
+      if (fabs(A->data[p] - aji) > tol) {
+        if (bad_row) *bad_row = i;
+        return false;
+      }
+    }
+  }
+  // entries present only in the lower triangle
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      if (j >= i) continue;
+      if (fmbd_csr_find(A, j, i) < 0 && fabs(A->data[p]) > tol) {
+        if (bad_row) *bad_row = i;
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+void fmbd_csr_diagonal(const fmbd_csr *A, double *d) {
+  int64_t n = A->nrows < A->ncols ? A->nrows : A->ncols;
+  for (int64_t i = 0; i < n; i++) d[i] = fmbd_csr_get(A, i, i);
+}

@@ -1,0 +1,119 @@
+// common/fmbd_h5.h: HDF5 files of the toolchain: reading, atomic writing, stdin/stdout images
+// SPDX-License-Identifier: MIT
+//
+// Conventions (DESIGN.md, docs/FORMAT.md):
+// - root attributes format, format_version ("MAJOR.MINOR"), creator, command_line, inputs
+//   ((n, 2) strings: name, SHA-256 hex), wall_time_s, cpu_time_s;
+// - dense arrays row-major with the shape h5py shows; large ones chunked + shuffle + deflate;
+// - sparse matrices as CSR groups (data, indices, indptr int64; attrs encoding-type =
+//   "csr_matrix", shape (2,) int64), full symmetric storage.
+// A file name "-" reads the whole file from standard input (an HDF5 file image) or writes it
+// to standard output when committed. Writing goes to "<target>.part", renamed to the target
+// by fmbd_h5_commit only when complete.
+// Every failure names the file and the HDF5 path in the error record (fmbd_err_context).
+// HDF5's own error printing is off unless fmbd_h5_debug(true).
+#ifndef FMBD_H5_H
+#define FMBD_H5_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "fmbd_csr.h"
+
+typedef struct fmbd_h5 fmbd_h5;
+
+/// @brief Turn HDF5's automatic error stack printing on (--debug) or off (default).
+void fmbd_h5_debug(bool on);
+
+// --- opening for reading -----------------------------------------------------------------
+/// @brief Open an existing file read-only ("-" = standard input). Computes the SHA-256 of
+/// the bytes read, for provenance. Fails with FMBD_ERR_IO (missing, unreadable) or
+/// FMBD_ERR_FORMAT (not HDF5, truncated).
+/// @param[out] out caller closes with fmbd_h5_close
+int fmbd_h5_open(const char *name, fmbd_h5 **out);
+/// @brief Check the root attributes: `format` equals `format` (else FMBD_ERR_FORMAT: "is a
+/// fmbd-cb file, expected fmbd-fe" or "not a toolchain file"), and `format_version` major
+/// <= `major` (else FMBD_ERR_VERSION). A newer minor is accepted.
+int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major);
+/// @brief Close (read or write handle; an uncommitted write handle is discarded). NULL ok.
+void fmbd_h5_close(fmbd_h5 **f);
+/// @brief The name given at open/create (borrowed).
+const char *fmbd_h5_name(const fmbd_h5 *f);
+/// @brief SHA-256 hex (64 chars + NUL) of the file's bytes as read (read handles only).
+const char *fmbd_h5_sha256(const fmbd_h5 *f);
+
+// --- creating ---------------------------------------------------------------------------
+/// @brief Create a file to be written: "<name>.part" (or an in-memory image for "-"),
+/// with the root attributes format, format_version, creator ("prog VERSION" from
+/// fmbd_log_prog and fmbd_version) and command_line (fmbd_cli_command_line).
+/// @param[out] out caller ends with fmbd_h5_commit or fmbd_h5_close
+int fmbd_h5_create(const char *name, const char *format, const char *format_version,
+                   fmbd_h5 **out);
+/// @brief Record one input file in the `inputs` root attribute (written at commit).
+/// sha256 may be NULL: then the file is read and hashed here ("-" not allowed then).
+int fmbd_h5_add_input(fmbd_h5 *f, const char *name, const char *sha256);
+/// @brief Flush to disk (for time series written as a run goes).
+int fmbd_h5_flush(fmbd_h5 *f);
+/// @brief Write wall_time_s / cpu_time_s, close, and rename "<name>.part" to name (or write
+/// the image to standard output). *f is NULL afterwards, also on failure (then no target).
+int fmbd_h5_commit(fmbd_h5 **f, double wall_s, double cpu_s);
+/// @brief Close a write handle but keep "<name>.part" (an interrupted run's valid prefix).
+void fmbd_h5_abandon(fmbd_h5 **f);
+
+// --- datasets ---------------------------------------------------------------------------
+/// @brief Whether an object (group or dataset) exists at path.
+bool fmbd_h5_exists(fmbd_h5 *f, const char *path);
+/// @brief Write a dense array; intermediate groups are created. dims[rank], rank 0..4.
+int fmbd_h5_write_f64(fmbd_h5 *f, const char *path, int rank, const int64_t *dims,
+                      const double *data);
+int fmbd_h5_write_i64(fmbd_h5 *f, const char *path, int rank, const int64_t *dims,
+                      const int64_t *data);
+/// @brief Read a dense array of any numeric type converted to double / int64. `rank` is the
+/// expected rank; dims[k] >= 0 on entry requires that extent (FMBD_ERR_FORMAT otherwise),
+/// -1 accepts any; on return dims holds the extents. Missing dataset: FMBD_ERR_FORMAT
+/// "missing dataset". Non-finite values: FMBD_ERR_VALUE.
+/// @param[out] data caller frees with fmbd_free
+int fmbd_h5_read_f64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, double **data);
+int fmbd_h5_read_i64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, int64_t **data);
+/// @brief Write a CSR group at path.
+int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A);
+/// @brief Read and validate (fmbd_csr_check) a CSR group. @param[out] out caller destroys
+int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
+/// @brief Names of the members of a group, sorted. @param[out] names caller frees each and
+/// the array with fmbd_free. A missing group gives n = 0 and FMBD_OK.
+int fmbd_h5_list(fmbd_h5 *f, const char *group, int *n, char ***names);
+/// @brief Create the group (and parents) if missing.
+int fmbd_h5_make_group(fmbd_h5 *f, const char *path);
+
+// --- attributes (obj is a path; "/" for the root) -----------------------------------------
+int fmbd_h5_write_attr_str(fmbd_h5 *f, const char *obj, const char *name, const char *value);
+int fmbd_h5_write_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                           const double *values);
+int fmbd_h5_write_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                           const int64_t *values);
+/// @brief Read a string attribute (fixed or variable length). @param[out] value caller frees
+int fmbd_h5_read_attr_str(fmbd_h5 *f, const char *obj, const char *name, char **value);
+/// @brief Read exactly n numbers (FMBD_ERR_FORMAT if the attribute has another size).
+int fmbd_h5_read_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n, double *values);
+int fmbd_h5_read_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n, int64_t *values);
+/// @brief Whether attribute `name` exists on obj.
+bool fmbd_h5_has_attr(fmbd_h5 *f, const char *obj, const char *name);
+
+// --- time series: extendible along the first dimension, flushed as they grow ---------------
+typedef struct fmbd_h5_series fmbd_h5_series;
+/// @brief Create an extendible f64 dataset of rows of `ncols` values (ncols == 0: a 1-D
+/// series of scalars). @param[out] out caller closes with fmbd_h5_series_close
+int fmbd_h5_series_create(fmbd_h5 *f, const char *path, int64_t ncols, fmbd_h5_series **out);
+/// @brief Append nrows rows (row-major).
+int fmbd_h5_series_append(fmbd_h5_series *s, int64_t nrows, const double *rows);
+/// @brief Rows written so far.
+int64_t fmbd_h5_series_rows(const fmbd_h5_series *s);
+void fmbd_h5_series_close(fmbd_h5_series **s);
+
+// --- hashing ----------------------------------------------------------------------------
+/// @brief SHA-256 of a byte buffer as 64 lowercase hex chars + NUL.
+void fmbd_sha256_hex(const void *data, uint64_t n, char hex[65]);
+/// @brief SHA-256 of a file's contents. FMBD_ERR_IO if it cannot be read.
+int fmbd_sha256_file(const char *path, char hex[65]);
+
+#endif

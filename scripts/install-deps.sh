@@ -1,0 +1,21 @@
+#!/bin/bash
+# scripts/install-deps.sh: install the Debian 12 packages the toolchain needs, only when missing.
+# Idempotent: a machine that has them all returns in well under a second.
+set -euo pipefail
+PKGS=(gcc g++ make pkg-config
+      libgmsh-dev gmsh libhdf5-dev hdf5-tools libopenblas-dev liblapacke-dev libarpack2-dev
+      libsuitesparse-dev libcgal-dev libyaml-dev
+      python3-h5py python3-numpy python3-scipy python3-matplotlib calculix-ccx)
+missing=()
+for p in "${PKGS[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
+    missing+=("$p")
+  fi
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+echo "install-deps: installing ${missing[*]}" >&2
+SUDO=
+if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"

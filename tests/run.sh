@@ -1,0 +1,47 @@
+#!/bin/bash
+# tests/run.sh: run every test of `make check` and print "N passed, N failed".
+#   unit tests   build/tests/tNNN-*          (C, silent when right, nonzero exit on failure)
+#   cli tests    tests/cli/*.sh              (programs on tiny inputs, expected errors)
+#   py tests     tests/py/test_*.py          (against scipy / closed form / CalculiX)
+# Environment: BUILD (build dir), PYTHON (/usr/bin/python3), TESTS (glob filter, optional).
+set -u
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+BUILD=${BUILD:-build}
+PYTHON=${PYTHON:-/usr/bin/python3}
+export BUILD PYTHON ROOT
+export PATH="$ROOT/$BUILD/bin:$ROOT/$BUILD/tools:$PATH"
+export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1}
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+# scipy/h5py in the same process as ASan would need preloading; python tests only drive programs
+LOG=$ROOT/$BUILD/test-logs
+mkdir -p "$LOG"
+pass=0 fail=0 failed=()
+run() {  # name, command...
+  local name=$1; shift
+  if [ -n "${TESTS:-}" ] && [[ $name != $TESTS ]]; then return; fi
+  local t0=$SECONDS
+  if "$@" >"$LOG/$name.log" 2>&1; then
+    pass=$((pass + 1)); printf 'PASS  %-40s %3ds\n' "$name" $((SECONDS - t0))
+  else
+    fail=$((fail + 1)); failed+=("$name"); printf 'FAIL  %-40s %3ds\n' "$name" $((SECONDS - t0))
+    tail -n 20 "$LOG/$name.log" | sed 's/^/      | /'
+  fi
+}
+for t in "$BUILD"/tests/t*; do
+  [ -x "$t" ] || continue
+  run "unit/$(basename "$t")" "$t"
+done
+for t in tests/cli/*.sh; do
+  [ -f "$t" ] || continue
+  run "cli/$(basename "$t" .sh)" bash "$t"
+done
+for t in tests/py/test_*.py; do
+  [ -f "$t" ] || continue
+  run "py/$(basename "$t" .py)" "$PYTHON" "$t"
+done
+echo
+[ $fail -gt 0 ] && printf 'failed: %s (logs in %s)\n' "${failed[*]}" "$LOG"
+echo "$pass passed, $fail failed"
+[ $fail -eq 0 ]
