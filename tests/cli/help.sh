@@ -1,0 +1,24 @@
+#!/bin/bash
+# tests/cli/help.sh: every program answers --help (ending with its exit statuses) and
+# --version, rejects an unknown option with status 2, and has a man page that man can render.
+set -u
+fail=0
+for p in mesh2fe fe2cb cbcheck gmsolve fmbd-run; do
+  [ -f "$ROOT/$p/main.c" ] || continue
+  exe="$ROOT/$BUILD/bin/$p"
+  out=$("$exe" --help 2>&1) || { echo "$p --help: exit $?"; fail=1; }
+  grep -q "Exit status" <<<"$out" || { echo "$p --help: no exit status list"; fail=1; }
+  grep -q -- "$p" <<<"$out" || { echo "$p --help: does not name the program"; fail=1; }
+  v=$("$exe" --version 2>&1) || { echo "$p --version: exit $?"; fail=1; }
+  grep -q "$(cat "$ROOT/VERSION")" <<<"$v" || { echo "$p --version: '$v' lacks the version"; fail=1; }
+  "$exe" --no-such-option >/dev/null 2>&1
+  st=$?
+  [ $st -eq 2 ] || { echo "$p --no-such-option: exit $st, expected 2"; fail=1; }
+  page="$ROOT/docs/man/$p.1"
+  if [ ! -f "$page" ]; then
+    echo "$p: no man page docs/man/$p.1"; fail=1
+  elif command -v man >/dev/null 2>&1; then
+    MANWIDTH=80 man -l "$page" 2>&1 >/dev/null | grep -i -E 'warning|error' && { echo "$p: man page warnings"; fail=1; }
+  fi
+done
+exit $fail
