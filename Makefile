@@ -75,7 +75,8 @@ $(BUILD)/%.o: %.c
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(FMBD_CPPFLAGS) $(CPPFLAGS) $(FMBD_CFLAGS) $(CFLAGS) -c -o $@ $<
 
-# CGAL stays in its own rarely-changing translation unit (~45 s, ~3 GB to compile)
+# CGAL stays in its own rarely-changing translation unit, mesh2fe/cgal_shim.cpp (~45 s, ~3 GB
+# to compile); only mesh2fe links it, so no other program pays for it
 $(BUILD)/%.o: %.cpp
 	$(call msg,CXX,$<)
 	@mkdir -p $(@D)
@@ -86,7 +87,7 @@ $(LIB): $(LIB_OBJ)
 	$(Q)rm -f $@ && ar rcs $@ $^
 
 .SECONDEXPANSION:
-$(BUILD)/bin/%: $$(patsubst %.c,$(BUILD)/%.o,$$(wildcard %/*.c)) $(LIB)
+$(BUILD)/bin/%: $$(patsubst %.c,$(BUILD)/%.o,$$(wildcard %/*.c)) $$(patsubst %.cpp,$(BUILD)/%.o,$$(wildcard %/*.cpp)) $(LIB)
 	$(call msg,LD,$@)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(filter %.o,$^) $(LIB) $(FMBD_LDLIBS) $(LDLIBS)

@@ -22,6 +22,7 @@ run() {  # name, command...
   local name=$1; shift
   if [ -n "${TESTS:-}" ] && [[ $name != $TESTS ]]; then return; fi
   local t0=$SECONDS
+  mkdir -p "$(dirname "$LOG/$name.log")"
   if "$@" >"$LOG/$name.log" 2>&1; then
     pass=$((pass + 1)); printf 'PASS  %-40s %3ds\n' "$name" $((SECONDS - t0))
   else
