@@ -1,0 +1,125 @@
+// common/fmbd_modal.h: the reduced flexible body (fmbd-rflex): modes, interface modes, FFRF
+// inertia invariants, modal stress; written by cbcheck, read by fmbd-run
+// SPDX-License-Identifier: MIT
+//
+// A `fmbd_rflex` holds the NM flexible modes kept by the secondary reduction (THEORY.md
+// section 3, [H46-H50]): p = PhiT aF, qF = T0 PhiT aF, modal mass I, modal stiffness
+// diag(chibar_1..chibar_NM); rigid-body modes are excluded. Plus what the floating-frame
+// equations need (THEORY.md section 4): the inertia invariants of BRIEF.md's `/ffrf` table,
+// evaluated with the lumped nodal masses /mesh/node_mass (Adams-style invariants).
+//
+// MEMORY LAYOUT (all arrays owned by the struct, released by fmbd_rflex_destroy):
+// dense matrices are column-major as everywhere in libfmbd; the multi-index arrays are stored
+// with the FIRST index fastest (Fortran order), i.e. the file's row-major (h5py) array fully
+// transposed. Use the inline accessors below rather than index arithmetic:
+//   shapes        ndof x nm            shapes[i + ndof*k]
+//   translation   3 x nm per interface T[a + 3*k]            (file: (3, Nm))
+//   S1            3 x nm               S1[a + 3*k]             (file: (3, Nm))
+//   XS            3 x 3 x nm           XS[a + 3*b + 9*k]       (file: (3, 3, Nm))
+//   SS            3 x 3 x nm x nm      SS[a + 3*b + 9*k + 9*nm*l]  (file: (3, 3, Nm, Nm))
+//   second_moment 3 x 3 (symmetric)    J[a + 3*b]
+//   stress        6 x nnodes x nm      stress[i + 6*p + 6*nnodes*k] (i = xx yy zz xy yz zx;
+//                                      file: (nnodes, 6, Nm)); NULL when the file has none
+//   node_xyz      3 x nnodes           node_xyz[a + 3*p]        (file /mesh/nodes (nnodes, 3))
+//   dofs          2 x ndof             dofs[0 + 2*i] = node, dofs[1 + 2*i] = direction
+#ifndef FMBD_MODAL_H
+#define FMBD_MODAL_H
+
+#include <stdint.h>
+
+#include "fmbd_csr.h"
+#include "fmbd_h5.h"
+
+/// Format name and version written in the root attributes of a .rflex.h5.
+#define FMBD_RFLEX_FORMAT "fmbd-rflex"
+#define FMBD_RFLEX_VERSION "1.0"
+#define FMBD_RFLEX_MAJOR 1
+
+/// One interface (joint) node of the body and its modal motion.
+typedef struct fmbd_rflex_interface {
+  char *name;          ///< group name under /interfaces (owned)
+  char *kind;          ///< "rbe2" or "rbe3" (owned)
+  int64_t node;        ///< the interface node (index into the nodes)
+  double x0[3];        ///< its position in the body (FE) frame (/mesh/nodes row `node`)
+  double *translation; ///< 3 x nm modal translations T[a + 3*k] (owned)
+  double *rotation;    ///< 3 x nm modal rotations (small-angle vector) R[a + 3*k] (owned)
+} fmbd_rflex_interface;
+
+/// The reduced flexible body.
+typedef struct fmbd_rflex {
+  int64_t nm;            ///< number of flexible modes kept (Nm >= 0)
+  int64_t ndof;          ///< active FE dofs (rows of /dofs)
+  int64_t nnodes;        ///< nodes (rows of /mesh/nodes)
+  double *eigenvalue;    ///< nm: chibar_k (rad^2/s^2), ascending, rigid-body modes excluded
+  double *frequency_hz;  ///< nm: sqrt(chibar_k) / (2 pi)
+  double *shapes;        ///< ndof x nm, mass-normalised (shapes' M shapes = I)
+  double *stress;        ///< 6 x nnodes x nm modal nodal stress (Pa per unit modal coordinate), or NULL
+  double *node_xyz;      ///< 3 x nnodes reference positions
+  double *node_mass;     ///< nnodes lumped (HRZ) translational masses (/mesh/node_mass)
+  int64_t *dofs;         ///< 2 x ndof (node, direction 0..5)
+  fmbd_csr *expand;      ///< (6 nnodes) x ndof: row 6p+d = component d of node p (/expand)
+  int ninterfaces;
+  fmbd_rflex_interface *interfaces; ///< ninterfaces entries, sorted by name
+  // --- FFRF inertia invariants (BRIEF.md /ffrf table) ---
+  double mass;             ///< m = int rho dV (from /body)
+  double first_moment[3];  ///< c = int rho x0 dV = m * centre of mass
+  double second_moment[9]; ///< J[a + 3b] = int rho x0_a x0_b dV (inertia = tr(J) I - J)
+  double *S1;              ///< 3 x nm: int rho S_k,a dV
+  double *XS;              ///< 3 x 3 x nm: int rho x0_a S_k,b dV
+  double *SS;              ///< 3 x 3 x nm x nm: int rho S_k,a S_l,b dV
+  double *Mff;             ///< nm x nm modal mass (identity up to round-off)
+  double *Kff;             ///< nm x nm modal stiffness (diag eigenvalue)
+} fmbd_rflex;
+
+// --- accessors (no bounds checks) ---------------------------------------------------------
+static inline double fmbd_rflex_S1(const fmbd_rflex *r, int a, int64_t k) { return r->S1[a + 3 * k]; }
+static inline double fmbd_rflex_XS(const fmbd_rflex *r, int a, int b, int64_t k) {
+  return r->XS[a + 3 * b + 9 * k];
+}
+static inline double fmbd_rflex_SS(const fmbd_rflex *r, int a, int b, int64_t k, int64_t l) {
+  return r->SS[a + 3 * b + 9 * k + 9 * r->nm * l];
+}
+static inline double fmbd_rflex_J(const fmbd_rflex *r, int a, int b) { return r->second_moment[a + 3 * b]; }
+
+/// @brief Read a .rflex.h5 (format fmbd-rflex, major <= FMBD_RFLEX_MAJOR) into a new struct.
+/// /modes/stress is optional (stress = NULL without it). Errors name the file and the path.
+/// @param[in]  f   an open file (fmbd_h5_open)
+/// @param[out] out caller releases with fmbd_rflex_destroy
+/// @return FMBD_OK, FMBD_ERR_FORMAT (wrong kind, missing or misshapen dataset),
+///         FMBD_ERR_VERSION, FMBD_ERR_VALUE, FMBD_ERR_NOMEM
+int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out);
+
+/// @brief Write the rflex objects of r: /modes/{eigenvalue,frequency_hz,shapes[,stress]},
+/// /interfaces/<name>/{translation,rotation}, /ffrf/*. The description groups (/mesh, /dofs,
+/// /material, /interfaces attributes and tied nodes, /clamped, /body, /expand) are copied by
+/// the caller beforehand (fmbd_fe_copy_description); the /interfaces/<name> groups must exist.
+/// @param[in] f a file from fmbd_h5_create(..., FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, ...)
+int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r);
+
+/// @brief Release r and its arrays; NULL and *r == NULL are fine; sets *r = NULL.
+void fmbd_rflex_destroy(fmbd_rflex **r);
+
+/// @brief Index of the interface called name, or -1.
+int fmbd_rflex_find_interface(const fmbd_rflex *r, const char *name);
+
+/// @brief Index of the node nearest to point x (3) and its distance (dist may be NULL).
+int64_t fmbd_rflex_nearest_node(const fmbd_rflex *r, const double x[3], double *dist);
+
+/// @brief A node's reference position and modal motion: rows 6p..6p+5 of /expand times
+/// the shapes (for a joint attachment or an output point that is not an interface).
+/// @param[in]  node index into the nodes
+/// @param[out] x0   3 reference position (may be NULL)
+/// @param[out] T    3 x nm modal translations T[a + 3k] (may be NULL)
+/// @param[out] R    3 x nm modal rotations (may be NULL; zero for a solid node, which has
+///                  no rotational dofs)
+/// @return FMBD_OK, FMBD_ERR_VALUE (node out of range)
+int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double *T, double *R);
+
+/// @brief A node's modal stress: sigma[i + 6k] (i = xx yy zz xy yz zx) per unit modal
+/// coordinate. FMBD_ERR_VALUE if the body has no stress or node is out of range.
+int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma);
+
+/// @brief von Mises stress of a stress vector s (xx yy zz xy yz zx).
+double fmbd_von_mises(const double s[6]);
+
+#endif
