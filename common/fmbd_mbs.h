@@ -1,0 +1,362 @@
+// common/fmbd_mbs.h: the multibody dynamics core of fmbd-run: rigid and reduced flexible
+// (floating frame of reference) bodies, joints, drivers, loads, index-3 generalized-alpha
+// SPDX-License-Identifier: MIT
+//
+// USE
+//   fmbd_mbs *m; fmbd_mbs_create(&m);
+//   fmbd_mbs_add_rigid / fmbd_mbs_add_flex -> body ids 0, 1, ...   (FMBD_MBS_GROUND = -1)
+//   fmbd_mbs_add_point(m, body, ...)       -> point ids (points on ground allowed)
+//   fmbd_mbs_add_joint(m, &joint_desc)     -> joint ids
+//   fmbd_mbs_add_driver_joint / _body, fmbd_mbs_add_load, fmbd_mbs_set_gravity
+//   fmbd_mbs_settings s; fmbd_mbs_settings_defaults(&s); ... ; fmbd_mbs_init(m, &s);
+//   fmbd_mbs_run(m, callback, user)  (or fmbd_mbs_step in a loop), query functions;
+//   fmbd_mbs_destroy(&m).
+// Nothing may be added after fmbd_mbs_init. Names are copied. Every array argument is
+// borrowed for the duration of the call and copied (FMBD_COPY) unless said otherwise.
+// The library never prints except through fmbd_log (redundant constraints: WARN; steps: DEBUG).
+//
+// CONVENTIONS. SI units. 3x3 matrices are ROW-major (A[3*i + j] = A_ij, as in the scene and
+// the fmbd-fe /body attribute). Modal arrays use the layout of fmbd_rflex (fmbd_modal.h):
+// first index fastest, so an fmbd_rflex's arrays can be passed as they are:
+//   S1[a + 3k], XS[a + 3b + 9k], SS[a + 3b + 9k + 9 nm l], Mff/Kff[k + nm l],
+//   point modal translation / rotation T[a + 3k] (3 x nm).
+//
+// EQUATIONS (THEORY.md sections 4, 5; Shabana, Dynamics of Multibody Systems, 3rd ed. 2005,
+// ch. 5 (floating frame) and ch. 7; Nikravesh, Computer-Aided Analysis of Mechanical
+// Systems, 1988, ch. 6 (Euler parameters)).
+//   Coordinates of body i: x_i = [R (3); p (4); q (nm)]: R the body-frame origin (world), p a
+//   quaternion (Euler parameters e0, e1, e2, e3) with the normalisation constraint
+//   (s/2)(p.p - 1) = 0 (s = a body inertia scale, for conditioning) in the constraint set,
+//   q the modal coordinates (nm = 0 for a rigid body). Choice: Euler parameters with their
+//   constraint rather than a Lie-group update, because the index-3 generalized-alpha scheme
+//   of Arnold & Bruls then applies unchanged on a vector space (no tangent-operator or
+//   rotation-interpolation approximations), all joint Jacobians are exact polynomials in p,
+//   and there is no singular orientation; the cost is one extra coordinate and one extra
+//   constraint per body. The rotation matrix A(p) is evaluated from p/|p| so that the
+//   iterates off the unit sphere stay rotations.
+//   A material point: r = R + A u, u = x0 + S(x0) q. Body-frame angular velocity
+//   wb = 2 G(p) p' with G = [-e, -e~ + e0 I] (G p = 0, G G' = I, G(p') p' = 0), so
+//   wb' = 2 G p''. Virtual rotation d(pi) = 2 G dp, hence the rotational equations are the
+//   body-frame moment equations premultiplied by 2 G'.
+//   Inertia from the invariants (BRIEF.md /ffrf, the "inertia shape integrals" of Shabana):
+//     c(q) = c0 + S1 q                                   (first moment, body frame)
+//     J(q) = J0 + XSq + XSq' + sum_kl SS_kl q_k q_l      (second moment, (XSq)_ab = sum_k XS_abk q_k)
+//     I(q) = tr(J) 1 - J                                  (inertia about the frame origin)
+//     M_RR = m 1,  M_Rw = -A c~,  M_Rf = A S1,  M_ww = I(q),
+//     M_wf[:,k] = int rho u x S_k = eps_abc (XS_bck + sum_l SS_bc,lk q_l),  M_ff = Mff.
+//   Equations (D'Alembert with r'' = R'' + A[wb' x u + wb x (wb x u) + 2 wb x S q' + S q'']):
+//     m R'' - A c~ wb' + A S1 q'' + A[wb x (wb x c) + 2 wb x S1 q']             = F
+//     2G'{ c~ A' R'' + I wb' + M_wf q'' + wb x I wb + 2 (tr(H) 1 - H) wb - N }  + (Phi_p' lambda)
+//     S1' A' R'' + M_wf' wb' + Mff q'' + h(wb, q, q') + Kff q + D q'              = Q_f
+//   with H_ab = int rho (S q')_a u_b and h_k = wb' H_k wb - |wb|^2 tr(H_k) + 2 wb . sum_l q'_l
+//   int rho S_l x S_k, H_k,ab = int rho S_k,a u_b; D = diag(2 zeta_k sqrt(K_kk)) modal
+//   damping (zeta = damping ratio). A rigid body is the case nm = 0 with c0 = m com,
+//   J0 = (tr(Ic)/2) 1 - Ic + m com com' (no flexible term is evaluated).
+//   Constraints Phi(x, t) = 0 of joints (below), drivers and normalisations:
+//     M(x) x'' + Phi_x' lambda = Q(x, x', t),  Phi(x, t) = 0.                 [H8, C6]
+// INTEGRATOR: generalized-alpha for the index-3 system in the form of Arnold & Bruls (2007,
+//   Multibody Syst. Dyn. 18:185): the equations hold exactly at t_{n+1}; pseudo-accelerations
+//   a with (1-am) a_{n+1} + am a_n = (1-af) x''_{n+1} + af x''_n; Newmark updates of x and x'
+//   with a; Chung & Hulbert (1993) parameters am = (2 rho - 1)/(rho + 1), af = rho/(rho + 1),
+//   gamma = 1/2 + af - am, beta = (gamma + 1/2)^2 / 4 from rho = rho_inf. Newton on the
+//   SCALED iteration matrix (Bottasso, Dopico & Trainelli 2008, Multibody Syst. Dyn. 19:3;
+//   Bottasso, Bauchau & Cardona 2007, SIAM J. Sci. Comput. 29:397): rows of the dynamics
+//   divided by beta' = (1-am)/(beta h^2 (1-af)), multipliers lambda = beta' lambda~:
+//     [ M + (gamma'/beta') C_t + K_t/beta'   Phi_x' ] [ dx       ]   = -[ r / beta' ]
+//     [ Phi_x                                0      ] [ dlambda~ ]      [ Phi       ]
+//   gamma' = gamma/(beta h). Tangent: M exact; C_t: modal damping and the derivative of the
+//   gyroscopic term wb x I wb (rigid part); K_t: Kff only. Neglected (convergence is checked
+//   every iteration; the factor is refreshed when the contraction rate exceeds 0.5): the
+//   derivative of M x'' and of the quadratic velocity vector with respect to x, of the
+//   flexible Coriolis terms with respect to x', of the loads, and the geometric stiffness
+//   (Phi_x' lambda)_x. These terms carry a factor h^2 (or h) relative to M, so the neglected
+//   part shrinks with the step.
+//   Sparse matrix (one dense (7+nm)^2 block per body, constraint rows on the coordinates of
+//   their two bodies) in compressed columns, factored with KLU (SuiteSparse klu_l_*): the
+//   symbolic analysis once at fmbd_mbs_init, the numeric factor kept across iterations and
+//   steps while Newton converges (modified Newton); refactored (klu_l_refactor, same
+//   pivoting; full klu_l_factor if that is ill-conditioned) when the contraction rate is
+//   poor, the step size changed by more than 25 %, or the iteration count is reached.
+// STEP-SIZE CONTROL (variable steps): local error estimate of the Newmark-type update
+//   (Geradin & Cardona, Flexible Multibody Dynamics, 2001, sec. 11.5; Zienkiewicz & Xie
+//   1991): e = h^2 |beta - 1/6| (x''_{n+1} - x''_n), measured per coordinate against
+//   tolerance * scale_i (scale_i = the largest |x_i| seen, at least a floor: 1e-3 L_ref for
+//   positions, 1e-3 for Euler parameters, 1e-6 L_ref sqrt(m) for modal coordinates; L_ref is
+//   the size of the system). A step is rejected when max |e_i|/(tol scale_i) > 1. The new
+//   step is h (0.9/err)^(1/3), limited to [0.2 h, 2 h] and to [min_step, max_step]. A
+//   Newton failure divides h by 4 and retries; below min_step the run fails with
+//   FMBD_ERR_CONVERGE naming the time, the step and the equation (joint equation or body
+//   coordinate) with the largest scaled residual.
+// NEWTON convergence: max_i |dx_i| / scale_i <= newton_tol (scale_i as above) and
+//   |Phi|_inf <= newton_tol * L_ref (positions) after at least one iteration.
+// INITIAL CONDITIONS (fmbd_mbs_init): redundant constraint equations are found by QR with
+//   column pivoting (LAPACK dgeqp3) of Phi_x' with unit-normalised rows, rank from
+//   |R_kk| > 1e-8 |R_11|, and removed (fmbd_log WARN naming joint and equation; queries
+//   below); positions projected onto Phi = 0 (Newton on the mass-weighted least-change
+//   problem), velocities onto Phi_x x' + Phi_t = 0 (mass-weighted), consistent
+//   accelerations and multipliers solved from [M Phi_x'; Phi_x 0] (the second derivative of
+//   Phi along x' by a central difference of Phi_x x' along x', error O(eps^2)).
+//
+// JOINTS between point P1 (side 1) and P2 (side 2); a point on FMBD_MBS_GROUND is fixed in
+// the world. Axes are given in WORLD coordinates at the initial configuration and attached
+// to each side's body there (for a flexible body the point's frame also turns with the
+// modal rotation Psi_r q, linearised). With z the axis and (x, y) a right-handed pair
+// normal to it, identical on both sides at assembly (x from ref if given, else chosen),
+// d = r2 - r1:
+//   SPHERICAL   r1 = r2                                     3 equations
+//   REVOLUTE    r1 = r2, z1.x2 = 0, z1.y2 = 0               5   coordinate: angle of x2 about z1 from x1 (rad)
+//   UNIVERSAL   r1 = r2, a1.a2 = 0 (axis on 1, axis2 on 2)   4
+//   CYLINDRICAL z1.x2 = 0, z1.y2 = 0, d.x1 = 0, d.y1 = 0    4   coordinate: d.z1 (m)
+//   PRISMATIC   cylindrical + x1.y2 = 0                     5   coordinate: d.z1 (m)
+//   FIXED       r1 = r2, z1.x2 = 0, z1.y2 = 0, x1.y2 = 0    6
+// Equation names in messages: "joint 'J' equation k (meaning)", k from 1.
+//
+// Not in this module: file I/O, stress recovery (from fmbd_mbs_modal and the body's modal
+// stress), outputs at points other than those added here.
+#ifndef FMBD_MBS_H
+#define FMBD_MBS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+typedef struct fmbd_mbs fmbd_mbs;
+
+/// The ground "body" id.
+#define FMBD_MBS_GROUND (-1)
+
+// --- functions of time -------------------------------------------------------------------
+enum fmbd_mbs_fn_kind {
+  FMBD_MBS_FN_CONSTANT = 0, ///< value
+  FMBD_MBS_FN_RAMP,         ///< v0 until t0, linear (smooth: 3s^2 - 2s^3 blend) to v1 at t1, v1 after
+  FMBD_MBS_FN_SINE,         ///< offset + amplitude sin(2 pi frequency_hz t + phase)
+  FMBD_MBS_FN_TABLE,        ///< piecewise linear through (t[i], v[i]), constant outside
+  FMBD_MBS_FN_LINEAR,       ///< v0 + rate (t - t0) for all t (a constant-speed driver)
+};
+/// A scalar function of time. Build it with the fmbd_mbs_fn_* helpers or by hand.
+typedef struct fmbd_mbs_fn {
+  int kind;                          ///< fmbd_mbs_fn_kind
+  double value;                      ///< CONSTANT
+  double t0, t1, v0, v1;             ///< RAMP (t1 > t0); LINEAR uses t0, v0
+  bool smooth;                       ///< RAMP: C1 cubic blend
+  double rate;                       ///< LINEAR: slope (unit/s)
+  double amplitude, frequency_hz, phase, offset; ///< SINE
+  int64_t n;                         ///< TABLE: points (>= 1), t strictly increasing
+  const double *t, *v;               ///< TABLE: borrowed here; the mbs copies them when added
+} fmbd_mbs_fn;
+
+/// @brief f(t) and its first and second derivatives (dfdt, d2fdt2 may be NULL). Piecewise
+/// functions give the right-hand derivative at a kink.
+double fmbd_mbs_fn_eval(const fmbd_mbs_fn *f, double t, double *dfdt, double *d2fdt2);
+/// @brief Helpers returning a filled fmbd_mbs_fn.
+fmbd_mbs_fn fmbd_mbs_fn_constant(double value);
+fmbd_mbs_fn fmbd_mbs_fn_linear(double t0, double v0, double rate);
+fmbd_mbs_fn fmbd_mbs_fn_ramp(double t0, double v0, double t1, double v1, bool smooth);
+fmbd_mbs_fn fmbd_mbs_fn_sine(double offset, double amplitude, double frequency_hz, double phase);
+fmbd_mbs_fn fmbd_mbs_fn_table(int64_t n, const double *t, const double *v);
+
+// --- bodies ------------------------------------------------------------------------------
+/// Initial state of a body (world frame).
+typedef struct fmbd_mbs_state0 {
+  double position[3];         ///< body-frame origin R
+  double rotation[9];         ///< body -> world, row-major, orthonormal (checked to 1e-6)
+  double velocity[3];         ///< of the body-frame origin
+  double angular_velocity[3]; ///< world components
+} fmbd_mbs_state0;
+/// @brief Identity rotation, zero position and velocities.
+fmbd_mbs_state0 fmbd_mbs_state0_default(void);
+
+/// The invariants of a modal flexible body (BRIEF.md /ffrf), in fmbd_rflex's layout.
+typedef struct fmbd_mbs_flex_data {
+  int64_t nm;                 ///< number of modes (>= 0)
+  double mass;                ///< m > 0
+  double first_moment[3];     ///< c0 = int rho x0 dV
+  double second_moment[9];    ///< J0 (symmetric)
+  const double *S1;           ///< 3 x nm: S1[a + 3k]
+  const double *XS;           ///< 3 x 3 x nm: XS[a + 3b + 9k] = int rho x0_a S_k,b
+  const double *SS;           ///< 3 x 3 x nm x nm: SS[a + 3b + 9k + 9 nm l] = int rho S_k,a S_l,b
+  const double *Mff;          ///< nm x nm (symmetric positive definite)
+  const double *Kff;          ///< nm x nm (symmetric positive semidefinite)
+  double damping_ratio;       ///< modal damping ratio zeta of every mode (0: none)
+  const double *q0, *qd0;     ///< initial modal coordinates and rates (nm each; NULL: zero)
+} fmbd_mbs_flex_data;
+
+/// @brief Create an empty system (no gravity).
+/// @param[out] out caller destroys with fmbd_mbs_destroy
+int fmbd_mbs_create(fmbd_mbs **out);
+/// @brief Release the system; NULL fine; sets *m = NULL.
+void fmbd_mbs_destroy(fmbd_mbs **m);
+
+/// @brief Add a rigid body.
+/// @param[in] name    unique body name (messages)
+/// @param[in] mass    kg, > 0
+/// @param[in] com     centre of mass, body frame
+/// @param[in] inertia 3x3 row-major about the centre of mass, body frame (symmetric, positive
+///                    definite; checked)
+/// @param[in] s0      initial state
+/// @param[out] id     body id (may be NULL)
+/// @return FMBD_OK, FMBD_ERR_VALUE (bad numbers, duplicate name), FMBD_ERR_NOMEM
+int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double com[3],
+                       const double inertia[9], const fmbd_mbs_state0 *s0, int *id);
+/// @brief Add a flexible body (modal, floating frame). d's arrays are copied.
+/// @return FMBD_OK, FMBD_ERR_VALUE (mass <= 0, Mff not positive definite, ...), FMBD_ERR_NOMEM
+int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d,
+                      const fmbd_mbs_state0 *s0, int *id);
+
+/// @brief Add a point (joint attachment, load point, output point) on a body.
+/// @param[in] body  body id or FMBD_MBS_GROUND
+/// @param[in] x0    position in the body frame (world for ground)
+/// @param[in] T     modal translation 3 x nm (T[a + 3k]) or NULL (zero; rigid bodies: ignored)
+/// @param[in] Rot   modal rotation 3 x nm or NULL (zero)
+/// @param[out] pid  point id
+int fmbd_mbs_add_point(fmbd_mbs *m, int body, const double x0[3], const double *T,
+                       const double *Rot, int *pid);
+/// @brief Add a point on a body given by its WORLD position at the initial configuration
+/// (rigid bodies, or flexible bodies when modal motion is not wanted at the point).
+int fmbd_mbs_add_point_world(fmbd_mbs *m, int body, const double xw[3], int *pid);
+
+// --- joints ------------------------------------------------------------------------------
+enum fmbd_mbs_joint_kind {
+  FMBD_MBS_SPHERICAL = 0,
+  FMBD_MBS_REVOLUTE,
+  FMBD_MBS_UNIVERSAL,
+  FMBD_MBS_PRISMATIC,
+  FMBD_MBS_CYLINDRICAL,
+  FMBD_MBS_FIXED,
+};
+typedef struct fmbd_mbs_joint_desc {
+  const char *name;     ///< unique joint name (messages)
+  int kind;             ///< fmbd_mbs_joint_kind
+  int point[2];         ///< point ids of side 1 and side 2 (different bodies)
+  double axis[3];       ///< world, initial configuration: revolute/prismatic/cylindrical axis,
+                        ///< universal: the cross axis fixed on side 1; fixed: optional (0 = z)
+  double axis2[3];      ///< universal: the cross axis fixed on side 2 (orthogonal to axis)
+  double ref[3];        ///< optional reference direction normal to axis (zero vector = chosen),
+                        ///< the zero of a revolute angle
+} fmbd_mbs_joint_desc;
+/// @brief Add a joint. The points need not coincide now (fmbd_mbs_init assembles).
+/// @return FMBD_OK, FMBD_ERR_VALUE (unknown point, same body on both sides, zero or non
+/// orthogonal axes), FMBD_ERR_NOMEM
+int fmbd_mbs_add_joint(fmbd_mbs *m, const fmbd_mbs_joint_desc *j, int *jid);
+/// @brief The number of equations of a joint kind (3, 5, 4, 5, 4, 6), -1 if unknown.
+int fmbd_mbs_joint_equations(int kind);
+
+// --- drivers and loads -------------------------------------------------------------------
+/// @brief Prescribe a joint coordinate: revolute angle (rad, 0 at the initial configuration),
+/// prismatic or cylindrical slide d.z1 (m, the initial value at the initial configuration;
+/// the driver's f gives the absolute value). The fn is copied.
+int fmbd_mbs_add_driver_joint(fmbd_mbs *m, const char *name, int joint, const fmbd_mbs_fn *f,
+                              int *did);
+/// @brief Prescribe a body coordinate: 0..2 = x, y, z of the body-frame origin (world);
+/// 3 + k = modal coordinate k of a flexible body.
+int fmbd_mbs_add_driver_body(fmbd_mbs *m, const char *name, int body, int coordinate,
+                             const fmbd_mbs_fn *f, int *did);
+
+enum fmbd_mbs_load_kind { FMBD_MBS_FORCE = 0, FMBD_MBS_TORQUE };
+/// @brief Apply a force at a point or a torque on the point's body (through the point's
+/// rotation for a flexible body): load = direction * f(t), direction in the world frame or,
+/// with body_frame, in the body frame (a follower load; its derivative is not in the tangent).
+/// Loads on ground points are refused.
+int fmbd_mbs_add_load(fmbd_mbs *m, const char *name, int kind, int point, bool body_frame,
+                      const double direction[3], const fmbd_mbs_fn *f, int *lid);
+/// @brief Uniform gravity (m/s^2, world), default zero.
+void fmbd_mbs_set_gravity(fmbd_mbs *m, const double g[3]);
+
+// --- solver ------------------------------------------------------------------------------
+typedef struct fmbd_mbs_settings {
+  double t_end;         ///< end time (s), default 1
+  double rho_inf;       ///< spectral radius at infinity in [0, 1], default 0.9
+  bool fixed;           ///< fixed step `step` (default false: variable steps)
+  double step;          ///< fixed step (s), default 1e-3
+  double first_step;    ///< variable: first step, default 1e-6 (paper [H])
+  double min_step;      ///< variable: smallest step, default 1e-12
+  double max_step;      ///< variable: largest step, default 1e-2 (paper [H])
+  double tolerance;     ///< variable: local error tolerance (relative to scale_i), default 1e-4
+  double newton_tol;    ///< Newton increment tolerance (relative to scale_i), default 1e-8
+  int newton_max;       ///< Newton iterations per attempt, default 10
+  double output_every;  ///< > 0: steps end exactly on multiples of it (callback flag), default 0
+  bool reactions;       ///< keep multipliers for fmbd_mbs_joint_reaction, default false
+  bool tangent_fd;      ///< test aid: full tangent by finite differences, default false
+  int64_t max_steps;    ///< stop with FMBD_ERR_CONVERGE after so many steps (0 = none)
+} fmbd_mbs_settings;
+/// @brief Fill the documented defaults.
+void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s);
+
+/// @brief Prepare the run: check the settings, remove redundant constraints, make the
+/// initial conditions consistent (positions, velocities, accelerations, multipliers), build
+/// the sparse pattern and its KLU symbolic analysis.
+/// @return FMBD_OK; FMBD_ERR_VALUE (settings, no bodies); FMBD_ERR_CONVERGE (positions cannot
+/// be projected: the message names the worst joint equation); FMBD_ERR_SINGULAR (singular
+/// mass matrix or constraint system: names the body); FMBD_ERR_EXTERNAL (KLU); NOMEM
+int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s);
+
+/// @brief Advance one accepted step (rejections and Newton retries inside), not past t_end.
+/// @param[out] at_output true when the step ended on an output instant (or output_every = 0)
+/// @return FMBD_OK; 1 when t_end was already reached (nothing done); FMBD_ERR_CONVERGE
+/// (Newton failure at the smallest step: "t = T s, h = H s: Newton did not converge;
+/// largest residual: joint 'J' equation k (...)" or "body 'B' coordinate ...");
+/// FMBD_ERR_SINGULAR; FMBD_ERR_EXTERNAL
+int fmbd_mbs_step(fmbd_mbs *m, bool *at_output);
+
+/// Called after every accepted step; return nonzero to stop the run (fmbd_mbs_run returns
+/// that value).
+typedef int (*fmbd_mbs_callback)(fmbd_mbs *m, bool at_output, void *user);
+/// @brief Run to t_end, calling cb (may be NULL) after each accepted step. The initial state
+/// is not reported (query it after fmbd_mbs_init).
+int fmbd_mbs_run(fmbd_mbs *m, fmbd_mbs_callback cb, void *user);
+
+// --- queries (after fmbd_mbs_init) ---------------------------------------------------------
+double fmbd_mbs_time(const fmbd_mbs *m);
+int fmbd_mbs_nbodies(const fmbd_mbs *m);
+int fmbd_mbs_body_nm(const fmbd_mbs *m, int body);
+/// @brief Body id by name, or -1.
+int fmbd_mbs_find_body(const fmbd_mbs *m, const char *name);
+/// @brief World position, velocity, acceleration of a point (includes modal motion).
+void fmbd_mbs_point_position(const fmbd_mbs *m, int pid, double x[3]);
+void fmbd_mbs_point_velocity(const fmbd_mbs *m, int pid, double v[3]);
+void fmbd_mbs_point_acceleration(const fmbd_mbs *m, int pid, double a[3]);
+/// @brief Pose of a body: R (may be NULL), rotation body -> world row-major (may be NULL).
+void fmbd_mbs_body_pose(const fmbd_mbs *m, int body, double R[3], double A[9]);
+/// @brief Velocity of the body origin and angular velocity (world); either may be NULL.
+void fmbd_mbs_body_velocity(const fmbd_mbs *m, int body, double v[3], double w[3]);
+/// @brief Modal coordinates, rates, accelerations of a body (borrowed, valid until the next
+/// step; NULL pointers allowed). @return nm
+int64_t fmbd_mbs_modal(const fmbd_mbs *m, int body, const double **q, const double **qd,
+                       const double **qdd);
+/// @brief Kinetic energy, gravity potential (-m g.r_com summed, zero at the origin), strain
+/// energy (1/2 q'Kq); any pointer may be NULL.
+void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, double *strain);
+/// @brief Total linear momentum and angular momentum about the world origin (any NULL).
+void fmbd_mbs_momentum(const fmbd_mbs *m, double L[3], double H[3]);
+/// @brief Reaction of a joint (settings.reactions): the force and torque the joint applies
+/// to the body of side 1 at its point P1 (world). If side 1 is ground: minus those applied to
+/// side 2, torque about P2. Redundant equations removed carry zero.
+/// @return FMBD_OK; FMBD_ERR_VALUE (bad id, reactions not enabled)
+int fmbd_mbs_joint_reaction(const fmbd_mbs *m, int joint, double F[3], double T[3]);
+/// @brief The current value of a joint coordinate (revolute angle, slide) and its rate.
+int fmbd_mbs_joint_coordinate(const fmbd_mbs *m, int joint, double *value, double *rate);
+/// @brief Largest |Phi| over the position constraints (m or rad-like) and over the velocity
+/// constraints |Phi_x x' + Phi_t| (either may be NULL), joints and drivers only.
+void fmbd_mbs_constraint_residual(const fmbd_mbs *m, double *pos, double *vel);
+
+typedef struct fmbd_mbs_stats {
+  int64_t steps;            ///< accepted steps
+  int64_t rejected;         ///< rejected steps (error test) + Newton failures
+  int64_t newton_iterations;
+  int64_t factorizations;   ///< numeric factorizations (klu factor + refactor)
+  int64_t coordinates;      ///< size of x
+  int64_t equations;        ///< constraint equations kept (incl. normalisations)
+  int64_t redundant;        ///< constraint equations removed as redundant
+  double h_last;            ///< last accepted step (s)
+} fmbd_mbs_stats;
+void fmbd_mbs_get_stats(const fmbd_mbs *m, fmbd_mbs_stats *s);
+
+/// @brief The k-th redundant equation found by fmbd_mbs_init (k < stats.redundant).
+/// @param[out] joint joint id (-1 for a driver); eq 1-based equation of the joint;
+/// @param[out] text  borrowed "joint 'J' equation k (meaning)"
+int fmbd_mbs_redundant(const fmbd_mbs *m, int k, int *joint, int *eq, const char **text);
+
+// --- rotation helpers ----------------------------------------------------------------------
+/// @brief Rotation matrix (row-major) of the rotation by angle (rad) about axis (any length > 0).
+void fmbd_mbs_rotation_axis_angle(const double axis[3], double angle, double A[9]);
+
+#endif
