@@ -1,0 +1,357 @@
+// common/fmbd_chol.c: sparse symmetric factorisations through CHOLMOD (64-bit cholmod_l_*)
+// SPDX-License-Identifier: MIT
+#include "fmbd_chol.h"
+
+#include <cholmod.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+
+struct fmbd_chol {
+  int kind;
+  int64_t n;
+  const fmbd_csr *A, *B;     // borrowed
+  cholmod_common c;
+  int started;
+  cholmod_sparse *S;         // upper triangle (stype = +1) of the union pattern, CSC
+  int64_t *posA, *posB;      // position in S of each upper entry of A / B (CSR order)
+  int64_t *diag;             // position in S of each diagonal entry, -1 if absent
+  cholmod_factor *L;
+  cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
+  double sigma;
+  double pivot_rtol;
+  int64_t neg;               // negative pivots of the last LDLT factorisation
+  int64_t failed_row;
+  fmbd_chol_stats st;
+};
+
+// CHOLMOD reports errors through a handler; keep the last message for ours.
+static char g_cholmod_msg[256];
+static void on_cholmod_error(int status, const char *file, int line, const char *message) {
+  (void)file;
+  (void)line;
+  snprintf(g_cholmod_msg, sizeof g_cholmod_msg, "CHOLMOD status %d: %s", status,
+           message ? message : "");
+}
+
+static void route_suitesparse_memory(void) {
+  // every allocation of the project through fmbd_malloc (countdown tests reach CHOLMOD too);
+  // CHOLMOD must never print (library code never writes stdout)
+  SuiteSparse_config.malloc_func = fmbd_malloc;
+  SuiteSparse_config.calloc_func = fmbd_calloc;
+  SuiteSparse_config.realloc_func = fmbd_realloc;
+  SuiteSparse_config.free_func = fmbd_free;
+  SuiteSparse_config.printf_func = NULL;
+}
+
+static const char *ordering_name(int o) {
+  switch (o) {
+  case CHOLMOD_NATURAL: return "natural";
+  case CHOLMOD_GIVEN: return "given";
+  case CHOLMOD_AMD: return "AMD";
+  case CHOLMOD_METIS: return "METIS";
+  case CHOLMOD_NESDIS: return "NESDIS";
+  case CHOLMOD_COLAMD: return "COLAMD";
+  case CHOLMOD_POSTORDERED: return "postordered";
+  }
+  return "unknown";
+}
+
+static int cholmod_fail(fmbd_chol *F, const char *what) {
+  int st = F->c.status;
+  if (st == CHOLMOD_OUT_OF_MEMORY) {
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory in CHOLMOD %s (n = %lld)", what, (long long)F->n);
+  }
+  FMBD_FAIL(FMBD_ERR_EXTERNAL, "CHOLMOD %s failed: %s", what,
+            g_cholmod_msg[0] ? g_cholmod_msg : "unknown status");
+}
+
+// --- the union pattern of the upper triangles of A and B, as CSC --------------------------
+// For a symmetric matrix in full CSR storage, row j read as a column is column j; the upper
+// triangle of column j is the part of row j with column index <= j.
+static int build_pattern(fmbd_chol *F) {
+  int rc = FMBD_OK;
+  const fmbd_csr *A = F->A, *B = F->B;
+  int64_t n = F->n, nnz = 0, nA = 0, nB = 0;
+  for (int64_t j = 0; j < n; j++) {
+    int64_t pa = A->indptr[j], ea = A->indptr[j + 1];
+    int64_t pb = B ? B->indptr[j] : 0, eb = B ? B->indptr[j + 1] : 0;
+    while (true) {
+      int64_t ia = (pa < ea && A->indices[pa] <= j) ? A->indices[pa] : INT64_MAX;
+      int64_t ib = (pb < eb && B->indices[pb] <= j) ? B->indices[pb] : INT64_MAX;
+      if (ia == INT64_MAX && ib == INT64_MAX) break;
+      if (ia <= ib) pa++, nA++;
+      if (ib <= ia) pb++, nB++;
+      nnz++;
+    }
+  }
+  F->S = cholmod_l_allocate_sparse((size_t)n, (size_t)n, (size_t)(nnz ? nnz : 1), 1, 1, 1,
+                                   CHOLMOD_REAL, &F->c);
+  if (!F->S) return cholmod_fail(F, "allocate_sparse");
+  FMBD_GALLOC(F->posA = fmbd_malloc((size_t)(nA ? nA : 1) * sizeof(int64_t)));
+  FMBD_GALLOC(F->posB = fmbd_malloc((size_t)(nB ? nB : 1) * sizeof(int64_t)));
+  FMBD_GALLOC(F->diag = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+  SuiteSparse_long *Sp = F->S->p, *Si = F->S->i;
+  double *Sx = F->S->x;
+  nnz = nA = nB = 0;
+  for (int64_t j = 0; j < n; j++) {
+    Sp[j] = nnz;
+    F->diag[j] = -1;
+    int64_t pa = A->indptr[j], ea = A->indptr[j + 1];
+    int64_t pb = B ? B->indptr[j] : 0, eb = B ? B->indptr[j + 1] : 0;
+    while (true) {
+      int64_t ia = (pa < ea && A->indices[pa] <= j) ? A->indices[pa] : INT64_MAX;
+      int64_t ib = (pb < eb && B->indices[pb] <= j) ? B->indices[pb] : INT64_MAX;
+      if (ia == INT64_MAX && ib == INT64_MAX) break;
+      int64_t i = ia < ib ? ia : ib;
+      if (ia <= ib) F->posA[nA++] = nnz, pa++;
+      if (ib <= ia) F->posB[nB++] = nnz, pb++;
+      if (i == j) F->diag[j] = nnz;
+      Si[nnz] = i;
+      Sx[nnz] = 0.0;
+      nnz++;
+    }
+  }
+  Sp[n] = nnz;
+  F->st.nnz_a = nnz;
+done:
+  return rc;
+}
+
+// S := upper(A - sigma B)
+static void fill_values(fmbd_chol *F, double sigma) {
+  const fmbd_csr *A = F->A, *B = F->B;
+  double *Sx = F->S->x;
+  memset(Sx, 0, (size_t)F->st.nnz_a * sizeof(double));
+  int64_t k = 0;
+  for (int64_t j = 0; j < F->n; j++) {
+    for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
+      Sx[F->posA[k++]] += A->data[p];
+    }
+  }
+  if (B && sigma != 0.0) {
+    k = 0;
+    for (int64_t j = 0; j < F->n; j++) {
+      for (int64_t p = B->indptr[j]; p < B->indptr[j + 1] && B->indices[p] <= j; p++) {
+        Sx[F->posB[k++]] -= sigma * B->data[p];
+      }
+    }
+  }
+}
+
+int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol **out) {
+  int rc = FMBD_OK;
+  fmbd_chol *F = NULL;
+  *out = NULL;
+  FMBD_CHECK(A && A->nrows == A->ncols, FMBD_ERR_VALUE, "matrix to factor is not square");
+  FMBD_CHECK(!B || (B->nrows == A->nrows && B->ncols == A->ncols), FMBD_ERR_VALUE,
+             "second matrix %lld x %lld, expected %lld x %lld", (long long)(B ? B->nrows : 0),
+             (long long)(B ? B->ncols : 0), (long long)A->nrows, (long long)A->ncols);
+  FMBD_CHECK(kind == FMBD_CHOL_LLT || kind == FMBD_CHOL_LDLT, FMBD_ERR_VALUE, "bad kind %d", kind);
+  route_suitesparse_memory();
+  FMBD_GALLOC(F = fmbd_calloc(1, sizeof *F));
+  F->kind = kind;
+  F->n = A->nrows;
+  F->A = A;
+  F->B = B;
+  F->pivot_rtol = 1e-13;
+  F->neg = -1;
+  F->failed_row = -1;
+  F->st.n = F->n;
+  F->st.ordering = "none";
+  cholmod_l_start(&F->c);
+  F->started = 1;
+  F->c.print = 0;
+  F->c.error_handler = on_cholmod_error;
+  F->c.itype = CHOLMOD_LONG;
+  if (kind == FMBD_CHOL_LLT) {
+    F->c.supernodal = CHOLMOD_SUPERNODAL;
+    F->c.final_asis = 1;
+  } else {
+    // simplicial LDL' without pivoting: D's signs give the inertia
+    F->c.supernodal = CHOLMOD_SIMPLICIAL;
+    F->c.final_ll = 0;
+    F->c.final_asis = 1;
+  }
+  g_cholmod_msg[0] = 0;
+  FMBD_GCALL(build_pattern(F));
+  double t0 = fmbd_wall_s();
+  F->L = cholmod_l_analyze(F->S, &F->c);
+  F->st.t_analyze_s = fmbd_wall_s() - t0;
+  if (!F->L || F->c.status < 0) FMBD_GCALL(cholmod_fail(F, "analyze"));
+  F->st.ordering = ordering_name(F->c.method[F->c.selected].ordering);
+  F->st.nnz_l = F->c.lnz;
+  *out = F;
+  F = NULL;
+done:
+  fmbd_chol_destroy(&F);
+  return rc;
+}
+
+// diagonal of the numeric factor in pivot order k: L_kk^2 (LL') or D_k (LDL')
+static double pivot(const cholmod_factor *L, int64_t k) {
+  const double *x = L->x;
+  if (L->is_super) {
+    const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px;
+    // binary search for the supernode holding column k
+    int64_t lo = 0, hi = (int64_t)L->nsuper - 1;
+    while (lo < hi) {
+      int64_t mid = (lo + hi + 1) / 2;
+      if (super[mid] <= k) lo = mid;
+      else hi = mid - 1;
+    }
+    int64_t nsrow = pi[lo + 1] - pi[lo], c = k - super[lo];
+    double l = x[px[lo] + c + c * nsrow];
+    return l * l;
+  }
+  const SuiteSparse_long *p = L->p;
+  double d = x[p[k]];
+  return L->is_ll ? d * d : d;
+}
+
+int fmbd_chol_factor(fmbd_chol *F, double sigma) {
+  FMBD_CHECK(F->B || sigma == 0.0, FMBD_ERR_VALUE, "shift %g without a second matrix", sigma);
+  fill_values(F, sigma);
+  F->sigma = sigma;
+  F->neg = -1;
+  F->failed_row = -1;
+  g_cholmod_msg[0] = 0;
+  double t0 = fmbd_wall_s();
+  int ok = cholmod_l_factorize(F->S, F->L, &F->c);
+  F->st.t_factor_s += fmbd_wall_s() - t0;
+  F->st.n_factor++;
+  F->st.flops = F->c.fl;
+  F->st.nnz_l = F->c.lnz;
+  if (!ok || F->c.status < 0) return cholmod_fail(F, "factorize");
+  const SuiteSparse_long *perm = F->L->Perm;
+  if (F->c.status == CHOLMOD_NOT_POSDEF) {
+    int64_t k = (int64_t)F->L->minor;
+    F->failed_row = (k >= 0 && k < F->n) ? (perm ? perm[k] : k) : -1;
+    if (F->kind == FMBD_CHOL_LLT) {
+      FMBD_FAIL(FMBD_ERR_SINGULAR,
+                "matrix%s is not positive definite: pivot %lld of %lld fails at row %lld",
+                sigma != 0.0 ? " (shifted)" : "", (long long)k + 1, (long long)F->n,
+                (long long)F->failed_row);
+    }
+    FMBD_FAIL(FMBD_ERR_SINGULAR, "zero pivot in LDL' at row %lld (shift %.17g is an eigenvalue)",
+              (long long)F->failed_row, sigma);
+  }
+  if (F->kind == FMBD_CHOL_LDLT) {
+    int64_t neg = 0;
+    for (int64_t k = 0; k < F->n; k++) {
+      double d = pivot(F->L, k);
+      if (!(d == d)) {
+        F->failed_row = perm ? perm[k] : k;
+        FMBD_FAIL(FMBD_ERR_SINGULAR, "NaN pivot in LDL' at row %lld", (long long)F->failed_row);
+      }
+      neg += d < 0.0;
+    }
+    F->neg = neg;
+    return FMBD_OK;
+  }
+  // LL': a singular matrix that round-off left barely positive shows a pivot many orders
+  // below its diagonal entry; report the first such row (in pivot order)
+  if (F->pivot_rtol > 0.0) {
+    const double *Sx = F->S->x;
+    for (int64_t k = 0; k < F->n; k++) {
+      int64_t r = perm ? perm[k] : k;
+      double a = F->diag[r] >= 0 ? Sx[F->diag[r]] : 0.0;
+      double d = pivot(F->L, k);
+      if (!(d > F->pivot_rtol * fabs(a))) {
+        F->failed_row = r;
+        FMBD_FAIL(FMBD_ERR_SINGULAR,
+                  "matrix is singular to working precision: pivot %.3g against diagonal %.3g "
+                  "(ratio %.2g < %.1g) at row %lld",
+                  d, a, a != 0.0 ? d / a : 0.0, F->pivot_rtol, (long long)r);
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
+int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx) {
+  FMBD_CHECK(F->L && F->st.n_factor > 0 && F->failed_row < 0, FMBD_ERR_INTERNAL,
+             "solve without a valid factor");
+  FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
+             (long long)F->n);
+  double t0 = fmbd_wall_s();
+  const int64_t block = 64;  // bounded workspace: at most n x 64 extra doubles
+  for (int64_t c0 = 0; c0 < nrhs; c0 += block) {
+    int64_t nc = nrhs - c0 < block ? nrhs - c0 : block;
+    cholmod_dense Bw;
+    memset(&Bw, 0, sizeof Bw);
+    Bw.nrow = (size_t)F->n;
+    Bw.ncol = (size_t)nc;
+    Bw.d = (size_t)ldx;
+    Bw.nzmax = (size_t)(ldx * nc);
+    Bw.x = X + c0 * ldx;
+    Bw.z = NULL;
+    Bw.xtype = CHOLMOD_REAL;
+    Bw.dtype = CHOLMOD_DOUBLE;
+    g_cholmod_msg[0] = 0;
+    if (!cholmod_l_solve2(CHOLMOD_A, F->L, &Bw, NULL, &F->X, NULL, &F->Y, &F->E, &F->c)) {
+      return cholmod_fail(F, "solve");
+    }
+    const double *x = F->X->x;
+    int64_t ld = (int64_t)F->X->d;
+    for (int64_t j = 0; j < nc; j++) {
+      memcpy(X + (c0 + j) * ldx, x + j * ld, (size_t)F->n * sizeof(double));
+    }
+  }
+  F->st.t_solve_s += fmbd_wall_s() - t0;
+  F->st.n_solves += nrhs;
+  return FMBD_OK;
+}
+
+int64_t fmbd_chol_negative_pivots(const fmbd_chol *F) { return F->kind == FMBD_CHOL_LDLT ? F->neg : -1; }
+int64_t fmbd_chol_failed_row(const fmbd_chol *F) { return F->failed_row; }
+double fmbd_chol_sigma(const fmbd_chol *F) { return F->sigma; }
+void fmbd_chol_set_pivot_rtol(fmbd_chol *F, double rtol) { F->pivot_rtol = rtol; }
+void fmbd_chol_get_stats(const fmbd_chol *F, fmbd_chol_stats *st) { *st = F->st; }
+
+void fmbd_chol_destroy(fmbd_chol **pF) {
+  if (!pF || !*pF) return;
+  fmbd_chol *F = *pF;
+  if (F->started) {
+    cholmod_l_free_dense(&F->X, &F->c);
+    cholmod_l_free_dense(&F->Y, &F->c);
+    cholmod_l_free_dense(&F->E, &F->c);
+    cholmod_l_free_factor(&F->L, &F->c);
+    cholmod_l_free_sparse(&F->S, &F->c);
+    cholmod_l_finish(&F->c);
+  }
+  fmbd_free(F->posA);
+  fmbd_free(F->posB);
+  fmbd_free(F->diag);
+  fmbd_free(F);
+  *pF = NULL;
+}
+
+int fmbd_chol_create_llt(const fmbd_csr *A, fmbd_chol **out) {
+  int rc = FMBD_OK;
+  fmbd_chol *F = NULL;
+  *out = NULL;
+  FMBD_GCALL(fmbd_chol_analyze(A, NULL, FMBD_CHOL_LLT, &F));
+  FMBD_GCALL(fmbd_chol_factor(F, 0.0));
+  *out = F;
+  F = NULL;
+done:
+  fmbd_chol_destroy(&F);
+  return rc;
+}
+
+int fmbd_chol_count_below(const fmbd_csr *A, const fmbd_csr *B, double sigma, int64_t *count) {
+  int rc = FMBD_OK;
+  fmbd_chol *F = NULL;
+  *count = -1;
+  FMBD_GCALL(fmbd_chol_analyze(A, B, FMBD_CHOL_LDLT, &F));
+  FMBD_GCALL(fmbd_chol_factor(F, sigma));
+  *count = F->neg;
+done:
+  fmbd_chol_destroy(&F);
+  return rc;
+}

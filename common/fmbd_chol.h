@@ -1,0 +1,98 @@
+// common/fmbd_chol.h: sparse symmetric factorisations through CHOLMOD (64-bit cholmod_l_*)
+// SPDX-License-Identifier: MIT
+//
+// A factor object holds the CHOLMOD analysis (fill-reducing ordering, symbolic factor) of the
+// pattern of A + B for two symmetric matrices A and B (B optional) given in full CSR storage,
+// and a numeric factor of the shifted matrix A - sigma B for the sigma of the last
+// fmbd_chol_factor call. The same analysis serves any number of shifts.
+//
+// Two kinds:
+// - FMBD_CHOL_LLT: supernodal Cholesky LL' (BLAS-3, fast). Fails with FMBD_ERR_SINGULAR when
+//   A - sigma B is not positive definite, or when a pivot is tiny against the diagonal (a
+//   singular matrix that round-off made barely positive, e.g. a floating region of a body):
+//   the message names the row (the caller maps it to a dof; fmbd_chol_failed_row).
+// - FMBD_CHOL_LDLT: simplicial LDL' without pivoting (c.supernodal = CHOLMOD_SIMPLICIAL,
+//   c.final_ll = 0). Works on indefinite matrices; the number of negative entries of D is the
+//   inertia count of Sylvester's law: for B positive definite, the number of eigenvalues of
+//   A x = lambda B x below sigma (the Sturm-sequence check). About 10-20 times slower than
+//   the supernodal LL' on 3-D meshes (TOOLCHAIN.md 3e); meant for the count only.
+//
+// CHOLMOD's memory goes through fmbd_malloc & co and it never prints (c.print = 0,
+// SuiteSparse_config.printf_func = NULL).
+#ifndef FMBD_CHOL_H
+#define FMBD_CHOL_H
+
+#include <stdint.h>
+
+#include "fmbd_csr.h"
+
+enum fmbd_chol_kind { FMBD_CHOL_LLT = 0, FMBD_CHOL_LDLT = 1 };
+
+typedef struct fmbd_chol fmbd_chol;
+
+/// Cost and shape of a factor (for progress and the -v breakdown).
+typedef struct fmbd_chol_stats {
+  int64_t n;             ///< order of the matrix
+  int64_t nnz_a;         ///< entries of the upper triangle of the analysed pattern
+  double nnz_l;          ///< entries in L (CHOLMOD's lnz)
+  double flops;          ///< floating-point operations of the last factorisation (CHOLMOD's fl)
+  const char *ordering;  ///< "AMD", "METIS", "NESDIS", "natural", ... (static string)
+  double t_analyze_s;    ///< wall time of the analysis (ordering + symbolic)
+  double t_factor_s;     ///< wall time of all numeric factorisations so far
+  double t_solve_s;      ///< wall time of all solves so far
+  int64_t n_solves;      ///< right-hand sides solved so far
+  int64_t n_factor;      ///< numeric factorisations so far
+} fmbd_chol_stats;
+
+/// @brief Analyse the pattern of A (+ B) and prepare a factor of the given kind. A and B are
+/// square, same order, symmetric in full storage (only the upper triangle is read; the
+/// caller checks symmetry). Borrowed: A and B must outlive the object (their values are
+/// read again by every fmbd_chol_factor).
+/// @param[in] A  borrowed
+/// @param[in] B  borrowed, may be NULL (then sigma must be 0)
+/// @param[in] kind FMBD_CHOL_LLT or FMBD_CHOL_LDLT
+/// @param[out] out caller destroys with fmbd_chol_destroy
+/// @return FMBD_OK, FMBD_ERR_VALUE (bad shapes), FMBD_ERR_NOMEM, FMBD_ERR_EXTERNAL
+int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol **out);
+
+/// @brief Numeric factorisation of A - sigma B.
+/// LLT: FMBD_ERR_SINGULAR if not positive definite or if a pivot d_k = L_kk^2 falls below
+/// pivot_rtol * A_kk - sigma B_kk (set with fmbd_chol_set_pivot_rtol, default 1e-13; a
+/// floating region of an FE body gives pivots of order 1e-16..1e-14 of its diagonal, a
+/// well-posed slender structure of 1000 elements about 1e-9). The message says which row
+/// failed and, after the failure, fmbd_chol_failed_row gives it.
+/// LDLT: fails only on an exactly zero or NaN pivot (FMBD_ERR_SINGULAR).
+int fmbd_chol_factor(fmbd_chol *F, double sigma);
+
+/// @brief Solve (A - sigma B) X = R in place for a block of nrhs right-hand sides.
+/// @param[in,out] X  column-major n x nrhs with leading dimension ldx (>= n)
+int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx);
+
+/// @brief Number of negative pivots of the last LDLT factorisation (-1 for LLT or before a
+/// factorisation). With B positive definite: the number of eigenvalues below sigma.
+int64_t fmbd_chol_negative_pivots(const fmbd_chol *F);
+
+/// @brief Row (0-based, in the caller's numbering) at which the last factorisation failed,
+/// or -1.
+int64_t fmbd_chol_failed_row(const fmbd_chol *F);
+
+/// @brief The shift of the current numeric factor.
+double fmbd_chol_sigma(const fmbd_chol *F);
+
+/// @brief Relative pivot threshold of the LLT singularity test (default 1e-13; 0 disables).
+void fmbd_chol_set_pivot_rtol(fmbd_chol *F, double rtol);
+
+/// @brief Statistics so far (copied into *st).
+void fmbd_chol_get_stats(const fmbd_chol *F, fmbd_chol_stats *st);
+
+/// @brief Release everything; *F = NULL. NULL and *F == NULL are fine.
+void fmbd_chol_destroy(fmbd_chol **F);
+
+/// @brief Convenience: analyse A alone, factor it (LLT, sigma 0). On failure *out is NULL.
+int fmbd_chol_create_llt(const fmbd_csr *A, fmbd_chol **out);
+
+/// @brief Convenience for the Sturm check: number of eigenvalues of A x = lambda B x below
+/// sigma (B positive definite) by an LDLT factorisation of A - sigma B (analysis included).
+int fmbd_chol_count_below(const fmbd_csr *A, const fmbd_csr *B, double sigma, int64_t *count);
+
+#endif

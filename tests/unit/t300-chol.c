@@ -1,0 +1,137 @@
+// tests/unit/t300-chol.c: CHOLMOD wrapper: solves, inertia counts, singular and indefinite input
+// SPDX-License-Identifier: MIT
+#include <math.h>
+#include <stdlib.h>
+
+#include "check.h"
+#include "fmbd_alloc.h"
+#include "fmbd_chol.h"
+#include "fmbd_csr.h"
+#include "fmbd_err.h"
+
+// 1-D linear FE on n interior nodes (h = 1/(n+1)): K = tridiag(-1,2,-1)/h, M = tridiag(1,4,1)h/6;
+// free = 1: n nodes with free ends (Neumann), K singular (constant mode)
+static fmbd_csr *tridiag(int64_t n, double d, double o, double dend) {
+  fmbd_csr *A = NULL;
+  if (fmbd_csr_create(n, n, 3 * n, &A)) return NULL;
+  int64_t k = 0;
+  for (int64_t i = 0; i < n; i++) {
+    A->indptr[i] = k;
+    if (i > 0) A->indices[k] = i - 1, A->data[k++] = o;
+    A->indices[k] = i, A->data[k++] = (i == 0 || i == n - 1) ? dend : d;
+    if (i < n - 1) A->indices[k] = i + 1, A->data[k++] = o;
+  }
+  A->indptr[n] = k;
+  return A;
+}
+
+int main(void) {
+  const int64_t n = 500;
+  const double h = 1.0 / (double)(n + 1);
+  fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h);
+  fmbd_csr *M = tridiag(n, 4.0 * h / 6.0, h / 6.0, 4.0 * h / 6.0);
+  EXPECT(K && M, "allocation");
+
+  // --- solve with several right-hand sides: residual at round-off ---------------------------
+  fmbd_chol *F = NULL;
+  int rc = fmbd_chol_create_llt(K, &F);
+  EXPECT(rc == 0, "factor of a positive definite matrix failed: %d", rc);
+  const int64_t nrhs = 3;
+  double *B = fmbd_malloc((size_t)(n * nrhs) * sizeof(double));
+  double *X = fmbd_malloc((size_t)(n * nrhs) * sizeof(double));
+  double *R = fmbd_malloc((size_t)n * sizeof(double));
+  for (int64_t i = 0; i < n * nrhs; i++) B[i] = X[i] = sin(0.37 * (double)i) + 0.1;
+  rc = fmbd_chol_solve(F, nrhs, X, n);
+  EXPECT(rc == 0, "solve failed");
+  for (int64_t c = 0; c < nrhs; c++) {
+    fmbd_csr_matvec(K, X + c * n, R);
+    double e = 0, b = 0, x = 0;
+    for (int64_t i = 0; i < n; i++) {
+      e = fmax(e, fabs(R[i] - B[c * n + i]));
+      b = fmax(b, fabs(B[c * n + i]));
+      x = fmax(x, fabs(X[c * n + i]));
+    }
+    // normwise backward error |K x - b| / (|K| |x| + |b|) (max norms, |K|_inf = 4/h): a
+    // backward-stable Cholesky solve gives a small multiple of eps = 2.2e-16
+    double be = e / (4.0 / h * x + b);
+    EXPECT(be <= 1e-14, "rhs %lld: backward error %.3g", (long long)c, be);
+  }
+  fmbd_chol_stats st;
+  fmbd_chol_get_stats(F, &st);
+  EXPECT(st.n == n && st.n_solves == nrhs && st.nnz_l >= n, "stats n %lld solves %lld lnz %g",
+         (long long)st.n, (long long)st.n_solves, st.nnz_l);
+  fmbd_chol_destroy(&F);
+  EXPECT(F == NULL, "destroy sets NULL");
+
+  // --- inertia: eigenvalues below s, exact discrete ones known -------------------------------
+  // lambda_k = 6/h^2 (1 - cos k pi h) / (2 + cos k pi h), k = 1..n
+  for (int k = 1; k <= 40; k += 13) {
+    double lk = 6.0 / (h * h) * (1 - cos(k * M_PI * h)) / (2 + cos(k * M_PI * h));
+    double lk1 = 6.0 / (h * h) * (1 - cos((k + 1) * M_PI * h)) / (2 + cos((k + 1) * M_PI * h));
+    int64_t cnt = -1;
+    rc = fmbd_chol_count_below(K, M, 0.5 * (lk + lk1), &cnt);
+    EXPECT(rc == 0 && cnt == k, "count below the gap after mode %d: %lld (rc %d)", k, (long long)cnt, rc);
+  }
+  // reuse of one analysis for several shifts, negative count 0 below the first eigenvalue
+  fmbd_chol *L = NULL;
+  rc = fmbd_chol_analyze(K, M, FMBD_CHOL_LDLT, &L);
+  EXPECT(rc == 0, "LDLT analyse");
+  EXPECT(fmbd_chol_factor(L, 1.0) == 0 && fmbd_chol_negative_pivots(L) == 0, "count below 1");
+  EXPECT(fmbd_chol_factor(L, 1e7) == 0 && fmbd_chol_negative_pivots(L) > 10, "count below 1e7");
+  fmbd_chol_destroy(&L);
+  // LL' of an indefinite shifted matrix fails with SINGULAR and a row
+  rc = fmbd_chol_analyze(K, M, FMBD_CHOL_LLT, &L);
+  EXPECT(rc == 0, "LLT analyse");
+  rc = fmbd_chol_factor(L, 1e5);
+  EXPECT(rc == FMBD_ERR_SINGULAR && fmbd_chol_failed_row(L) >= 0, "indefinite LL': rc %d row %lld",
+         rc, (long long)fmbd_chol_failed_row(L));
+  // the same object factors again at a valid shift
+  EXPECT(fmbd_chol_factor(L, -1.0) == 0, "refactor after failure");
+  fmbd_chol_destroy(&L);
+
+  // --- singular: free-free 1-D bar (constant mode), and a floating block ------------------------
+  fmbd_csr *Kf = tridiag(n, 2.0 / h, -1.0 / h, 1.0 / h);
+  rc = fmbd_chol_create_llt(Kf, &F);
+  EXPECT(rc == FMBD_ERR_SINGULAR, "singular free-free bar not detected: rc %d", rc);
+  EXPECT(F == NULL, "no factor on failure");
+  EXPECT(fmbd_err_get()->msg[0] != 0, "message set");
+  // block diagonal: a held bar (rows 0..n-1) and a floating bar (rows n..2n-1)
+  fmbd_csr *Kb = NULL;
+  fmbd_csr_create(2 * n, 2 * n, 6 * n, &Kb);
+  int64_t k = 0;
+  for (int64_t i = 0; i < 2 * n; i++) {
+    const fmbd_csr *S = i < n ? K : Kf;
+    int64_t r = i % n, off = i < n ? 0 : n;
+    Kb->indptr[i] = k;
+    for (int64_t p = S->indptr[r]; p < S->indptr[r + 1]; p++) Kb->indices[k] = S->indices[p] + off, Kb->data[k++] = S->data[p];
+  }
+  Kb->indptr[2 * n] = k;
+  rc = fmbd_chol_analyze(Kb, NULL, FMBD_CHOL_LLT, &L);
+  EXPECT(rc == 0, "analyse block");
+  rc = fmbd_chol_factor(L, 0.0);
+  EXPECT(rc == FMBD_ERR_SINGULAR && fmbd_chol_failed_row(L) >= n,
+         "floating block: rc %d, row %lld should lie in the floating half (>= %lld)", rc,
+         (long long)fmbd_chol_failed_row(L), (long long)n);
+  fmbd_chol_destroy(&L);
+
+  // --- allocation failures: every countdown fails cleanly -------------------------------------
+  for (int64_t c = 0; c < 200; c++) {
+    fmbd_alloc_fail_after(c);
+    rc = fmbd_chol_create_llt(K, &F);
+    fmbd_alloc_fail_after(-1);
+    if (rc == 0) {
+      fmbd_chol_destroy(&F);
+      break;
+    }
+    EXPECT(rc == FMBD_ERR_NOMEM && F == NULL, "countdown %lld: rc %d", (long long)c, rc);
+  }
+
+  fmbd_csr_destroy(&K);
+  fmbd_csr_destroy(&M);
+  fmbd_csr_destroy(&Kf);
+  fmbd_csr_destroy(&Kb);
+  fmbd_free(B);
+  fmbd_free(X);
+  fmbd_free(R);
+  TEST_EXIT();
+}
