@@ -24,17 +24,20 @@ void fmbd_cli_set_verbosity(int quiet, int verbose);
 /// "-" if standard output is not a terminal, else the input name with its ending replaced:
 /// the longest of `strip` (NULL-terminated list, e.g. {".fe.h5", ".h5", NULL}) that ends the
 /// input is cut (else the last ".ext"), then `suffix` appended ("rod.geo" -> "rod.fe.h5").
-/// Input "-" with no -o and a terminal: usage error.
+/// Input "-" with no -o and a terminal: usage error; so is a derived name equal to the input.
 /// @param[out] out caller frees with fmbd_free
 int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
                          const char *suffix, char **out);
 
-/// @brief Parse numbers of options; on failure a usage error naming the option.
+/// @brief Parse numbers of options; on failure FMBD_ERR_USAGE (recorded, not printed) naming
+/// the option: "option --size: 'abc' is not a finite number". The whole text must be used.
 int fmbd_cli_parse_double(const char *opt, const char *text, double *out);
 int fmbd_cli_parse_int(const char *opt, const char *text, long *out);
 
 /// @brief End of main(): for rc != 0, flush stdout and print "prog: error: FILE:WHERE:
-/// message" (with the source location under -vv); return the exit status (0, 1 or 2).
+/// message" (with the source location under -vv; "Try 'prog --help'." after a usage error);
+/// return the exit status (0, 1 or 2). rc > 0 is an exit status already reported (the 2 of
+/// fmbd_cli_usage_error) and is returned as is. Releases the command line.
 int fmbd_cli_finish(int rc);
 /// @brief Usage error: "prog: error: message" + "Try 'prog --help'." ; returns 2.
 int fmbd_cli_usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));

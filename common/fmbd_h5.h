@@ -75,7 +75,23 @@ int fmbd_h5_write_i64(fmbd_h5 *f, const char *path, int rank, const int64_t *dim
 /// @param[out] data caller frees with fmbd_free
 int fmbd_h5_read_f64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, double **data);
 int fmbd_h5_read_i64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, int64_t **data);
-/// @brief Write a CSR group at path.
+/// @brief Write a COLUMN-major rows x cols matrix A (A[i + j*rows]) as a dataset of shape
+/// (rows, cols), transposing a block of rows at a time (no full copy). See fmbd_dense.h.
+int fmbd_h5_write_f64_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t cols,
+                         const double *A);
+/// @brief Read a 2-D dataset of shape (rows, cols) into a COLUMN-major matrix. *rows, *cols
+/// >= 0 on entry require that extent (FMBD_ERR_FORMAT otherwise), -1 accepts any; on return
+/// they hold the shape. Non-finite values: FMBD_ERR_VALUE naming row and column.
+/// @param[out] A caller frees with fmbd_free
+int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *cols,
+                        double **A);
+/// @brief Copy the group or dataset at `path` of src (any handle) to the same path in dst (a
+/// write handle), with everything below it (H5Ocopy); an existing object there is replaced,
+/// missing parent groups are created. Missing in src: FMBD_ERR_FORMAT "missing object".
+int fmbd_h5_copy(fmbd_h5 *src, const char *path, fmbd_h5 *dst);
+/// @brief Remove the object at path (write handles); a missing path is fine.
+int fmbd_h5_delete(fmbd_h5 *f, const char *path);
+/// @brief Write a CSR group at path (replacing an existing one).
 int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A);
 /// @brief Read and validate (fmbd_csr_check) a CSR group. @param[out] out caller destroys
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
@@ -96,6 +112,16 @@ int fmbd_h5_read_attr_str(fmbd_h5 *f, const char *obj, const char *name, char **
 /// @brief Read exactly n numbers (FMBD_ERR_FORMAT if the attribute has another size).
 int fmbd_h5_read_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n, double *values);
 int fmbd_h5_read_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n, int64_t *values);
+/// @brief A 1-D attribute of n variable-length UTF-8 strings (h5py: an array of str).
+int fmbd_h5_write_attr_strv(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                            const char *const *values);
+/// @brief Read a string attribute of any shape (fixed or variable length) as a flat list.
+/// @param[out] values caller frees each and the array with fmbd_free
+int fmbd_h5_read_attr_strv(fmbd_h5 *f, const char *obj, const char *name, int64_t *n,
+                           char ***values);
+/// @brief The root attribute `inputs` of a file: n (name, SHA-256 hex) pairs.
+/// FMBD_ERR_FORMAT if missing. @param[out] names, sha256 caller frees each and the arrays
+int fmbd_h5_read_inputs(fmbd_h5 *f, int *n, char ***names, char ***sha256);
 /// @brief Whether attribute `name` exists on obj.
 bool fmbd_h5_has_attr(fmbd_h5 *f, const char *obj, const char *name);
 
@@ -110,7 +136,18 @@ int fmbd_h5_series_append(fmbd_h5_series *s, int64_t nrows, const double *rows);
 int64_t fmbd_h5_series_rows(const fmbd_h5_series *s);
 void fmbd_h5_series_close(fmbd_h5_series **s);
 
-// --- hashing ----------------------------------------------------------------------------
+// --- hashing (common/fmbd_sha256.c, FIPS 180-4) -----------------------------------------------
+/// Streaming SHA-256 state: init, update any number of times, final.
+typedef struct fmbd_sha256 {
+  uint32_t h[8];
+  uint64_t nbytes;
+  unsigned nbuf;
+  unsigned char buf[64];
+} fmbd_sha256;
+void fmbd_sha256_init(fmbd_sha256 *s);
+void fmbd_sha256_update(fmbd_sha256 *s, const void *data, uint64_t n);
+/// @brief Finish: 64 lowercase hex chars + NUL. The state must be re-initialised to be reused.
+void fmbd_sha256_final(fmbd_sha256 *s, char hex[65]);
 /// @brief SHA-256 of a byte buffer as 64 lowercase hex chars + NUL.
 void fmbd_sha256_hex(const void *data, uint64_t n, char hex[65]);
 /// @brief SHA-256 of a file's contents. FMBD_ERR_IO if it cannot be read.

@@ -1,0 +1,1319 @@
+// common/fmbd_h5.c: HDF5 files of the toolchain: reading, atomic writing, stdin/stdout images
+// SPDX-License-Identifier: MIT
+//
+// Reading: a named file is hashed (SHA-256, streamed) and opened with the default (sec2)
+// driver; "-" reads standard input into memory and opens it with the core driver from a file
+// image (H5Pset_file_image). Writing: "<name>.part" created with the sec2 driver, renamed at
+// commit; "-" is built in memory (core driver, no backing store) and its image
+// (H5Fget_file_image) written to standard output at commit. Files are written with the 1.8
+// object format (H5F_LIBVER_V18) so that any HDF5 >= 1.8 reads them.
+#include "fmbd_h5.h"
+
+#include <errno.h>
+#include <hdf5.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_cli.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+
+struct fmbd_h5 {
+  hid_t fid;
+  char *name;        ///< as given ("-" for stdin/stdout)
+  char *part;        ///< "<name>.part" while writing to a named file; NULL otherwise
+  bool writing;      ///< created by fmbd_h5_create
+  bool to_stdout;    ///< writing an in-memory image for standard output
+  char sha[65];      ///< SHA-256 of the bytes read (read handles), "" otherwise
+  int ninputs, cap;  ///< the `inputs` attribute, written at commit
+  char **input_name, **input_sha;
+  double last_flush_s;  ///< wall clock of the last flush (series flush at most every 0.5 s)
+};
+
+struct fmbd_h5_series {
+  fmbd_h5 *f;
+  hid_t dset;
+  char *path;
+  int64_t ncols, nrows;
+};
+
+// --- HDF5 error capture ---------------------------------------------------------------------
+static int g_debug = -1;  // -1: not set yet (first use turns printing off)
+
+void fmbd_h5_debug(bool on) {
+  g_debug = on;
+  if (on) {
+    H5Eset_auto2(H5E_DEFAULT, (H5E_auto2_t)H5Eprint2, stderr);
+  } else {
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  }
+}
+
+static void lazy_init(void) {
+  if (g_debug < 0) fmbd_h5_debug(false);
+}
+
+static herr_t walk_cb(unsigned n, const H5E_error2_t *e, void *data) {
+  (void)n;
+  char *buf = data;
+  if (e->desc && *e->desc) snprintf(buf, 256, "%s", e->desc);  // keep the deepest
+  return 0;
+}
+
+// Record an error whose message ends with the deepest description on HDF5's error stack.
+static int h5_fail(int code, const char *src, int line, const char *func, const char *fmt, ...)
+    __attribute__((format(printf, 5, 6)));
+static int h5_fail(int code, const char *src, int line, const char *func, const char *fmt, ...) {
+  char msg[700], detail[256] = "";
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(msg, sizeof msg, fmt, ap);
+  va_end(ap);
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, walk_cb, detail);
+  if (detail[0]) return fmbd_err_set(code, src, line, func, "%s (HDF5: %s)", msg, detail);
+  return fmbd_err_set(code, src, line, func, "%s", msg);
+}
+
+// goto-done wrapper of an HDF5 call: a negative hid_t/herr_t/htri_t is a failure
+#define FMBD_H5(expr, code, ...)                                                   \
+  do {                                                                             \
+    if ((expr) < 0) {                                                              \
+      rc = h5_fail((code), __FILE__, __LINE__, __func__, __VA_ARGS__);             \
+      goto done;                                                                   \
+    }                                                                              \
+  } while (0)
+
+// The name used in error messages: "<stdin>" / "<stdout>" for "-".
+static const char *disp(const fmbd_h5 *f) {
+  if (!f) return "";
+  if (!strcmp(f->name, "-")) return f->writing ? "<stdout>" : "<stdin>";
+  return f->name;
+}
+
+// Set the error context (file, path) of a failure; called at `done:` when rc != 0.
+static void ctx(const fmbd_h5 *f, const char *path) { fmbd_err_context(disp(f), path ? path : ""); }
+
+static void close_id(hid_t *id, herr_t (*fn)(hid_t)) {
+  if (*id >= 0) fn(*id);
+  *id = -1;
+}
+
+// --- paths --------------------------------------------------------------------------------
+bool fmbd_h5_exists(fmbd_h5 *f, const char *path) {
+  if (!f || !path) return false;
+  size_t n = strlen(path);
+  if (n == 0) return false;
+  char buf[1024];
+  if (n >= sizeof buf) return false;
+  memcpy(buf, path, n + 1);
+  // check each prefix: H5Lexists fails when an intermediate link is missing
+  for (size_t i = 1; i <= n; i++) {
+    if (buf[i] != '/' && buf[i] != '\0') continue;
+    if (i == 1 && buf[0] == '/') {
+      if (n == 1) return true;  // the root
+      continue;
+    }
+    char c = buf[i];
+    buf[i] = '\0';
+    htri_t e = H5Lexists(f->fid, buf, H5P_DEFAULT);
+    buf[i] = c;
+    if (e <= 0) return false;
+  }
+  return H5Oexists_by_name(f->fid, path, H5P_DEFAULT) > 0;
+}
+
+static bool is_group(fmbd_h5 *f, const char *path) {
+  H5O_info_t info;
+  if (H5Oget_info_by_name(f->fid, path, &info, H5P_DEFAULT) < 0) return false;
+  return info.type == H5O_TYPE_GROUP;
+}
+
+static hid_t lcpl_intermediate(void) {
+  hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
+  if (lcpl >= 0) {
+    H5Pset_create_intermediate_group(lcpl, 1);
+    H5Pset_char_encoding(lcpl, H5T_CSET_UTF8);
+  }
+  return lcpl;
+}
+
+int fmbd_h5_make_group(fmbd_h5 *f, const char *path) {
+  int rc = FMBD_OK;
+  hid_t lcpl = -1, g = -1;
+  if (!strcmp(path, "/") || !*path) return FMBD_OK;
+  if (fmbd_h5_exists(f, path)) {
+    if (!is_group(f, path)) FMBD_GFAIL(FMBD_ERR_FORMAT, "exists and is not a group");
+    goto done;
+  }
+  FMBD_H5(lcpl = lcpl_intermediate(), FMBD_ERR_EXTERNAL, "cannot make a link property list");
+  FMBD_H5(g = H5Gcreate2(f->fid, path, lcpl, H5P_DEFAULT, H5P_DEFAULT), FMBD_ERR_IO,
+          "cannot create group");
+done:
+  close_id(&g, H5Gclose);
+  close_id(&lcpl, H5Pclose);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+// Remove an existing link at path (to overwrite a dataset).
+static int unlink_existing(fmbd_h5 *f, const char *path) {
+  int rc = FMBD_OK;
+  if (fmbd_h5_exists(f, path)) {
+    FMBD_H5(H5Ldelete(f->fid, path, H5P_DEFAULT), FMBD_ERR_IO, "cannot replace the existing object");
+  }
+done:
+  return rc;
+}
+
+// --- opening for reading --------------------------------------------------------------------
+// Read all of standard input into memory (out: caller frees with fmbd_free).
+static int slurp_stdin(unsigned char **out, size_t *size) {
+  int rc = FMBD_OK;
+  size_t cap = 1 << 20, n = 0;
+  unsigned char *buf = fmbd_malloc(cap);
+  FMBD_GALLOC(buf);
+  for (;;) {
+    if (n == cap) {
+      unsigned char *nb = fmbd_realloc(buf, cap * 2);
+      FMBD_GALLOC(nb);
+      buf = nb;
+      cap *= 2;
+    }
+    size_t got = fread(buf + n, 1, cap - n, stdin);
+    n += got;
+    if (got == 0) {
+      if (ferror(stdin)) FMBD_GFAIL(FMBD_ERR_IO, "read error: %s", strerror(errno));
+      break;
+    }
+  }
+  *out = buf;
+  *size = n;
+  buf = NULL;
+done:
+  fmbd_free(buf);
+  return rc;
+}
+
+static int h5_alloc(const char *name, bool writing, fmbd_h5 **out) {
+  fmbd_h5 *f = fmbd_calloc(1, sizeof *f);
+  if (!f) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  f->fid = -1;
+  f->writing = writing;
+  f->name = fmbd_strdup(name);
+  if (!f->name) {
+    fmbd_free(f);
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  }
+  *out = f;
+  return FMBD_OK;
+}
+
+static void h5_free(fmbd_h5 *f) {
+  if (!f) return;
+  for (int i = 0; i < f->ninputs; i++) {
+    fmbd_free(f->input_name[i]);
+    fmbd_free(f->input_sha[i]);
+  }
+  fmbd_free(f->input_name);
+  fmbd_free(f->input_sha);
+  fmbd_free(f->part);
+  fmbd_free(f->name);
+  fmbd_free(f);
+}
+
+int fmbd_h5_open(const char *name, fmbd_h5 **out) {
+  int rc = FMBD_OK;
+  fmbd_h5 *f = NULL;
+  hid_t fapl = -1;
+  unsigned char *image = NULL;
+  size_t size = 0;
+  *out = NULL;
+  lazy_init();
+  FMBD_GCALL(h5_alloc(name, false, &f));
+  if (!strcmp(name, "-")) {
+    FMBD_GCALL(slurp_stdin(&image, &size));
+    FMBD_GCHECK(size > 0, FMBD_ERR_FORMAT, "empty input, not an HDF5 file");
+    fmbd_sha256_hex(image, size, f->sha);
+    FMBD_H5(fapl = H5Pcreate(H5P_FILE_ACCESS), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+    FMBD_H5(H5Pset_fapl_core(fapl, 1 << 20, 0), FMBD_ERR_EXTERNAL, "H5Pset_fapl_core failed");
+    FMBD_H5(H5Pset_file_image(fapl, image, size), FMBD_ERR_NOMEM,
+            "cannot hand the image to HDF5");
+    fmbd_free(image);  // HDF5 keeps its own copy
+    image = NULL;
+    FMBD_H5(f->fid = H5Fopen("fmbd-stdin-image", H5F_ACC_RDONLY, fapl), FMBD_ERR_FORMAT,
+            "not an HDF5 file, or truncated");
+  } else {
+    struct stat st;
+    if (stat(name, &st) != 0) FMBD_GFAIL(FMBD_ERR_IO, "cannot open: %s", strerror(errno));
+    FMBD_GCHECK(!S_ISDIR(st.st_mode), FMBD_ERR_IO, "cannot open: is a directory");
+    FMBD_GCALL(fmbd_sha256_file(name, f->sha));
+    FMBD_H5(f->fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT), FMBD_ERR_FORMAT,
+            "not an HDF5 file, or truncated");
+  }
+  *out = f;
+  f = NULL;
+done:
+  close_id(&fapl, H5Pclose);
+  fmbd_free(image);
+  if (rc) {
+    fmbd_err_context(!strcmp(name, "-") ? "<stdin>" : name, "");
+    if (f) h5_free(f);
+  }
+  return rc;
+}
+
+static int parse_version(const char *s, int *major, int *minor) {
+  char *end = NULL;
+  errno = 0;
+  long a = strtol(s, &end, 10);
+  if (end == s || *end != '.' || a < 0 || errno) return -1;
+  const char *p = end + 1;
+  long b = strtol(p, &end, 10);
+  if (end == p || *end != '\0' || b < 0 || errno) return -1;
+  *major = (int)a;
+  *minor = (int)b;
+  return 0;
+}
+
+int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major) {
+  int rc = FMBD_OK;
+  char *fmt = NULL, *ver = NULL;
+  if (!fmbd_h5_has_attr(f, "/", "format")) {
+    FMBD_GFAIL(FMBD_ERR_FORMAT, "not a toolchain file (no 'format' attribute), expected %s",
+               format);
+  }
+  FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &fmt));
+  if (strcmp(fmt, format) != 0) FMBD_GFAIL(FMBD_ERR_FORMAT, "is a %s file, expected %s", fmt, format);
+  FMBD_GCHECK(fmbd_h5_has_attr(f, "/", "format_version"), FMBD_ERR_FORMAT,
+              "no 'format_version' attribute");
+  FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format_version", &ver));
+  int fmaj, fmin;
+  FMBD_GCHECK(parse_version(ver, &fmaj, &fmin) == 0, FMBD_ERR_FORMAT,
+              "format_version '%s' is not MAJOR.MINOR", ver);
+  FMBD_GCHECK(fmaj <= major, FMBD_ERR_VERSION,
+              "%s format version %s is newer than this program reads (%d.x)", format, ver, major);
+done:
+  fmbd_free(fmt);
+  fmbd_free(ver);
+  if (rc) ctx(f, "/");
+  return rc;
+}
+
+const char *fmbd_h5_name(const fmbd_h5 *f) { return f->name; }
+const char *fmbd_h5_sha256(const fmbd_h5 *f) { return f->sha; }
+
+void fmbd_h5_close(fmbd_h5 **pf) {
+  if (!pf || !*pf) return;
+  fmbd_h5 *f = *pf;
+  if (f->fid >= 0) H5Fclose(f->fid);
+  if (f->writing && f->part) unlink(f->part);  // an uncommitted output is discarded
+  h5_free(f);
+  *pf = NULL;
+}
+
+void fmbd_h5_abandon(fmbd_h5 **pf) {
+  if (!pf || !*pf) return;
+  fmbd_h5 *f = *pf;
+  if (f->fid >= 0) H5Fclose(f->fid);  // "<name>.part" stays; an image for stdout is dropped
+  h5_free(f);
+  *pf = NULL;
+}
+
+// --- creating -------------------------------------------------------------------------------
+int fmbd_h5_create(const char *name, const char *format, const char *format_version,
+                   fmbd_h5 **out) {
+  int rc = FMBD_OK;
+  fmbd_h5 *f = NULL;
+  hid_t fapl = -1;
+  *out = NULL;
+  lazy_init();
+  FMBD_GCALL(h5_alloc(name, true, &f));
+  FMBD_H5(fapl = H5Pcreate(H5P_FILE_ACCESS), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+  FMBD_H5(H5Pset_libver_bounds(fapl, H5F_LIBVER_V18, H5F_LIBVER_V18), FMBD_ERR_EXTERNAL,
+          "H5Pset_libver_bounds failed");
+  // closing the file closes objects left open (a series not closed by the caller)
+  FMBD_H5(H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG), FMBD_ERR_EXTERNAL,
+          "H5Pset_fclose_degree failed");
+  if (!strcmp(name, "-")) {
+    f->to_stdout = true;
+    FMBD_H5(H5Pset_fapl_core(fapl, 1 << 20, 0), FMBD_ERR_EXTERNAL, "H5Pset_fapl_core failed");
+    FMBD_H5(f->fid = H5Fcreate("fmbd-stdout-image", H5F_ACC_TRUNC, H5P_DEFAULT, fapl),
+            FMBD_ERR_IO, "cannot create the in-memory file");
+  } else {
+    size_t n = strlen(name);
+    FMBD_GALLOC(f->part = fmbd_malloc(n + 6));
+    memcpy(f->part, name, n);
+    memcpy(f->part + n, ".part", 6);
+    // create the file ourselves first, for an errno-based message (unwritable folder ...)
+    FILE *fp = fopen(f->part, "wb");
+    if (!fp) {
+      int e = errno;
+      fmbd_free(f->part);
+      f->part = NULL;  // nothing to remove
+      FMBD_GFAIL(FMBD_ERR_IO, "cannot create %s.part: %s", name, strerror(e));
+    }
+    fclose(fp);
+    FMBD_H5(f->fid = H5Fcreate(f->part, H5F_ACC_TRUNC, H5P_DEFAULT, fapl), FMBD_ERR_IO,
+            "cannot create %s", f->part);
+  }
+  f->last_flush_s = fmbd_wall_s();
+  // --- root attributes known now; inputs and times follow at commit ---
+  char creator[256];
+  snprintf(creator, sizeof creator, "%s %s", fmbd_log_prog(), fmbd_version());
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "format", format));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "format_version", format_version));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "creator", creator));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "command_line", fmbd_cli_command_line()));
+  *out = f;
+  f = NULL;
+done:
+  close_id(&fapl, H5Pclose);
+  if (rc) {
+    fmbd_err_context(!strcmp(name, "-") ? "<stdout>" : name, "");
+    fmbd_h5_close(&f);  // removes the .part
+  }
+  return rc;
+}
+
+int fmbd_h5_add_input(fmbd_h5 *f, const char *name, const char *sha256) {
+  int rc = FMBD_OK;
+  char hex[65];
+  char *n = NULL, *s = NULL;
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "add_input on a read handle");
+  if (!sha256) {
+    FMBD_GCHECK(strcmp(name, "-") != 0, FMBD_ERR_INTERNAL,
+                "standard input cannot be hashed again; pass fmbd_h5_sha256() of its handle");
+    FMBD_GCALL(fmbd_sha256_file(name, hex));
+    sha256 = hex;
+  }
+  if (f->ninputs == f->cap) {
+    int cap = f->cap ? 2 * f->cap : 4;
+    char **a = fmbd_realloc(f->input_name, (size_t)cap * sizeof *a);
+    FMBD_GALLOC(a);
+    f->input_name = a;
+    char **b = fmbd_realloc(f->input_sha, (size_t)cap * sizeof *b);
+    FMBD_GALLOC(b);
+    f->input_sha = b;
+    f->cap = cap;
+  }
+  FMBD_GALLOC(n = fmbd_strdup(name));
+  FMBD_GALLOC(s = fmbd_strdup(sha256));
+  f->input_name[f->ninputs] = n;
+  f->input_sha[f->ninputs] = s;
+  f->ninputs++;
+  n = s = NULL;
+done:
+  fmbd_free(n);
+  fmbd_free(s);
+  if (rc && !fmbd_err_get()->file[0]) ctx(f, "/");
+  return rc;
+}
+
+int fmbd_h5_flush(fmbd_h5 *f) {
+  int rc = FMBD_OK;
+  FMBD_H5(H5Fflush(f->fid, H5F_SCOPE_GLOBAL), FMBD_ERR_IO, "cannot flush");
+  f->last_flush_s = fmbd_wall_s();
+done:
+  if (rc) ctx(f, "/");
+  return rc;
+}
+
+// Write a string-valued 2-D (n, 2) attribute `inputs` (name, SHA-256 hex).
+static int write_inputs(fmbd_h5 *f) {
+  int rc = FMBD_OK;
+  const char **v = NULL;
+  hid_t t = -1, sp = -1, a = -1;
+  size_t n = (size_t)f->ninputs;
+  FMBD_GALLOC(v = fmbd_malloc((2 * n + 1) * sizeof *v));
+  for (size_t i = 0; i < n; i++) {
+    v[2 * i] = f->input_name[i];
+    v[2 * i + 1] = f->input_sha[i];
+  }
+  hsize_t dims[2] = {n, 2};
+  FMBD_H5(t = H5Tcopy(H5T_C_S1), FMBD_ERR_EXTERNAL, "H5Tcopy failed");
+  FMBD_H5(H5Tset_size(t, H5T_VARIABLE), FMBD_ERR_EXTERNAL, "H5Tset_size failed");
+  FMBD_H5(H5Tset_cset(t, H5T_CSET_UTF8), FMBD_ERR_EXTERNAL, "H5Tset_cset failed");
+  FMBD_H5(sp = H5Screate_simple(2, dims, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+  if (H5Aexists(f->fid, "inputs") > 0) H5Adelete(f->fid, "inputs");
+  FMBD_H5(a = H5Acreate2(f->fid, "inputs", t, sp, H5P_DEFAULT, H5P_DEFAULT), FMBD_ERR_IO,
+          "cannot create attribute 'inputs'");
+  if (n) FMBD_H5(H5Awrite(a, t, v), FMBD_ERR_IO, "cannot write attribute 'inputs'");
+done:
+  close_id(&a, H5Aclose);
+  close_id(&sp, H5Sclose);
+  close_id(&t, H5Tclose);
+  fmbd_free(v);
+  return rc;
+}
+
+int fmbd_h5_commit(fmbd_h5 **pf, double wall_s, double cpu_s) {
+  int rc = FMBD_OK;
+  fmbd_h5 *f = *pf;
+  void *image = NULL;
+  FMBD_GCHECK(f && f->writing, FMBD_ERR_INTERNAL, "commit of a read handle");
+  FMBD_GCALL(write_inputs(f));
+  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/", "wall_time_s", 1, &wall_s));
+  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/", "cpu_time_s", 1, &cpu_s));
+  FMBD_H5(H5Fflush(f->fid, H5F_SCOPE_GLOBAL), FMBD_ERR_IO, "cannot write");
+  if (f->to_stdout) {
+    ssize_t size;
+    FMBD_H5(size = H5Fget_file_image(f->fid, NULL, 0), FMBD_ERR_IO, "cannot get the file image");
+    FMBD_GALLOC(image = fmbd_malloc((size_t)size));
+    FMBD_H5(H5Fget_file_image(f->fid, image, (size_t)size), FMBD_ERR_IO,
+            "cannot get the file image");
+    herr_t e = H5Fclose(f->fid);
+    f->fid = -1;
+    FMBD_H5(e, FMBD_ERR_IO, "cannot close the in-memory file");
+    size_t put = fwrite(image, 1, (size_t)size, stdout);
+    int bad = put != (size_t)size || fflush(stdout) != 0;
+    FMBD_GCHECK(!bad, FMBD_ERR_IO, "cannot write to standard output: %s", strerror(errno));
+  } else {
+    herr_t e = H5Fclose(f->fid);
+    f->fid = -1;
+    FMBD_H5(e, FMBD_ERR_IO, "cannot close %s", f->part);
+    if (rename(f->part, f->name) != 0) {
+      FMBD_GFAIL(FMBD_ERR_IO, "cannot rename %s to %s: %s", f->part, f->name, strerror(errno));
+    }
+    fmbd_free(f->part);
+    f->part = NULL;  // committed: nothing to remove
+  }
+done:
+  fmbd_free(image);
+  if (rc) ctx(f, "");
+  fmbd_h5_close(pf);  // on failure removes the .part
+  return rc;
+}
+
+// --- datasets ------------------------------------------------------------------------------
+#define CHUNK_MIN_ELEMS 8192       // smaller datasets are stored contiguous, uncompressed
+#define CHUNK_TARGET_ELEMS 131072  // 1 MiB of doubles: fits HDF5's default 1 MiB chunk cache
+
+// Chunk shape: trailing dimensions whole while the chunk stays under the target, the first
+// that does not fit cut, leading dimensions 1. Every chunk extent is in [1, dim].
+static void chunk_shape(int rank, const hsize_t *dims, hsize_t *chunk) {
+  hsize_t prod = 1;
+  int k = rank - 1;
+  for (; k >= 0; k--) {
+    hsize_t d = dims[k] ? dims[k] : 1;
+    if (prod * d > CHUNK_TARGET_ELEMS) break;
+    chunk[k] = d;
+    prod *= d;
+  }
+  if (k >= 0) {
+    hsize_t c = CHUNK_TARGET_ELEMS / prod;
+    chunk[k] = c < 1 ? 1 : c;
+    for (int j = k - 1; j >= 0; j--) chunk[j] = 1;
+  }
+}
+
+// Create a dataset of the given file type (replacing any object at path). *rows_per_block
+// gets the number of leading-dimension rows per chunk (all rows if contiguous).
+static int create_dataset(fmbd_h5 *f, const char *path, hid_t ftype, int rank,
+                          const int64_t *dims, hid_t *out, hsize_t *rows_per_block) {
+  int rc = FMBD_OK;
+  hid_t sp = -1, dcpl = -1, lcpl = -1;
+  hsize_t hd[4], chunk[4];
+  hsize_t nelem = 1;
+  *out = -1;
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "write to a read handle");
+  FMBD_GCHECK(rank >= 0 && rank <= 4, FMBD_ERR_INTERNAL, "rank %d not in 0..4", rank);
+  for (int k = 0; k < rank; k++) {
+    FMBD_GCHECK(dims[k] >= 0, FMBD_ERR_INTERNAL, "negative extent %lld", (long long)dims[k]);
+    hd[k] = (hsize_t)dims[k];
+    nelem *= hd[k];
+  }
+  FMBD_GCALL(unlink_existing(f, path));
+  if (rank == 0) {
+    FMBD_H5(sp = H5Screate(H5S_SCALAR), FMBD_ERR_EXTERNAL, "H5Screate failed");
+  } else {
+    FMBD_H5(sp = H5Screate_simple(rank, hd, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+  }
+  FMBD_H5(dcpl = H5Pcreate(H5P_DATASET_CREATE), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+  *rows_per_block = rank ? hd[0] : 1;
+  if (rank > 0 && nelem >= CHUNK_MIN_ELEMS) {
+    chunk_shape(rank, hd, chunk);
+    FMBD_H5(H5Pset_chunk(dcpl, rank, chunk), FMBD_ERR_EXTERNAL, "H5Pset_chunk failed");
+    FMBD_H5(H5Pset_shuffle(dcpl), FMBD_ERR_EXTERNAL, "H5Pset_shuffle failed");
+    FMBD_H5(H5Pset_deflate(dcpl, 4), FMBD_ERR_EXTERNAL, "H5Pset_deflate failed");
+    *rows_per_block = chunk[0];
+  }
+  FMBD_H5(lcpl = lcpl_intermediate(), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+  FMBD_H5(*out = H5Dcreate2(f->fid, path, ftype, sp, lcpl, dcpl, H5P_DEFAULT), FMBD_ERR_IO,
+          "cannot create dataset");
+done:
+  close_id(&lcpl, H5Pclose);
+  close_id(&dcpl, H5Pclose);
+  close_id(&sp, H5Sclose);
+  return rc;
+}
+
+static int write_dense(fmbd_h5 *f, const char *path, hid_t ftype, hid_t mtype, int rank,
+                       const int64_t *dims, const void *data) {
+  int rc = FMBD_OK;
+  hid_t d = -1;
+  hsize_t rows;
+  FMBD_GCALL(create_dataset(f, path, ftype, rank, dims, &d, &rows));
+  int64_t nelem = 1;
+  for (int k = 0; k < rank; k++) nelem *= dims[k];
+  if (nelem > 0) FMBD_H5(H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), FMBD_ERR_IO,
+                         "cannot write dataset");
+done:
+  close_id(&d, H5Dclose);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+int fmbd_h5_write_f64(fmbd_h5 *f, const char *path, int rank, const int64_t *dims,
+                      const double *data) {
+  return write_dense(f, path, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, rank, dims, data);
+}
+
+int fmbd_h5_write_i64(fmbd_h5 *f, const char *path, int rank, const int64_t *dims,
+                      const int64_t *data) {
+  return write_dense(f, path, H5T_STD_I64LE, H5T_NATIVE_INT64, rank, dims, data);
+}
+
+// Open a numeric dataset and check its rank and extents against rank/dims (see header).
+static int open_numeric(fmbd_h5 *f, const char *path, int rank, int64_t *dims, hid_t *out,
+                        bool *is_float) {
+  int rc = FMBD_OK;
+  hid_t d = -1, sp = -1, t = -1;
+  *out = -1;
+  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing dataset");
+  FMBD_H5(d = H5Dopen2(f->fid, path, H5P_DEFAULT), FMBD_ERR_FORMAT, "not a dataset");
+  FMBD_H5(t = H5Dget_type(d), FMBD_ERR_FORMAT, "cannot read the type");
+  H5T_class_t cls = H5Tget_class(t);
+  FMBD_GCHECK(cls == H5T_INTEGER || cls == H5T_FLOAT, FMBD_ERR_FORMAT,
+              "not a numeric dataset");
+  *is_float = cls == H5T_FLOAT;
+  FMBD_H5(sp = H5Dget_space(d), FMBD_ERR_FORMAT, "cannot read the shape");
+  int r = H5Sget_simple_extent_ndims(sp);
+  FMBD_GCHECK(r == rank, FMBD_ERR_FORMAT, "rank %d, expected %d", r, rank);
+  hsize_t hd[H5S_MAX_RANK];
+  H5Sget_simple_extent_dims(sp, hd, NULL);
+  for (int k = 0; k < rank; k++) {
+    if (dims[k] >= 0 && (hsize_t)dims[k] != hd[k]) {
+      FMBD_GFAIL(FMBD_ERR_FORMAT, "extent %d is %llu, expected %lld", k,
+                 (unsigned long long)hd[k], (long long)dims[k]);
+    }
+    dims[k] = (int64_t)hd[k];
+  }
+  *out = d;
+  d = -1;
+done:
+  close_id(&t, H5Tclose);
+  close_id(&sp, H5Sclose);
+  close_id(&d, H5Dclose);
+  return rc;
+}
+
+static int64_t count(int rank, const int64_t *dims) {
+  int64_t n = 1;
+  for (int k = 0; k < rank; k++) n *= dims[k];
+  return n;
+}
+
+static int check_finite(const double *x, int64_t n) {
+  for (int64_t i = 0; i < n; i++) {
+    if (!isfinite(x[i])) {
+      FMBD_FAIL(FMBD_ERR_VALUE, "%s at element %lld", isnan(x[i]) ? "NaN" : "Inf", (long long)i);
+    }
+  }
+  return FMBD_OK;
+}
+
+int fmbd_h5_read_f64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, double **data) {
+  int rc = FMBD_OK;
+  hid_t d = -1;
+  double *x = NULL;
+  bool fl;
+  *data = NULL;
+  FMBD_GCHECK(rank >= 0 && rank <= 4, FMBD_ERR_INTERNAL, "rank %d not in 0..4", rank);
+  FMBD_GCALL(open_numeric(f, path, rank, dims, &d, &fl));
+  int64_t n = count(rank, dims);
+  FMBD_GALLOC(x = fmbd_malloc((size_t)(n ? n : 1) * sizeof *x));
+  if (n) FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x), FMBD_ERR_FORMAT,
+                 "cannot read dataset");
+  FMBD_GCALL(check_finite(x, n));
+  *data = x;
+  x = NULL;
+done:
+  close_id(&d, H5Dclose);
+  fmbd_free(x);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+int fmbd_h5_read_i64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, int64_t **data) {
+  int rc = FMBD_OK;
+  hid_t d = -1;
+  int64_t *x = NULL;
+  double *tmp = NULL;
+  bool fl;
+  *data = NULL;
+  FMBD_GCHECK(rank >= 0 && rank <= 4, FMBD_ERR_INTERNAL, "rank %d not in 0..4", rank);
+  FMBD_GCALL(open_numeric(f, path, rank, dims, &d, &fl));
+  int64_t n = count(rank, dims);
+  FMBD_GALLOC(x = fmbd_malloc((size_t)(n ? n : 1) * sizeof *x));
+  if (n && !fl) {
+    FMBD_H5(H5Dread(d, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, x), FMBD_ERR_FORMAT,
+            "cannot read dataset");
+  } else if (n) {  // floating point holding integers (written by another tool): exact only
+    FMBD_GALLOC(tmp = fmbd_malloc((size_t)n * sizeof *tmp));
+    FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, tmp), FMBD_ERR_FORMAT,
+            "cannot read dataset");
+    for (int64_t i = 0; i < n; i++) {
+      FMBD_GCHECK(tmp[i] == floor(tmp[i]) && fabs(tmp[i]) <= 9007199254740992.0,
+                  FMBD_ERR_FORMAT, "element %lld = %g is not an integer", (long long)i, tmp[i]);
+      x[i] = (int64_t)tmp[i];
+    }
+  }
+  *data = x;
+  x = NULL;
+done:
+  close_id(&d, H5Dclose);
+  fmbd_free(x);
+  fmbd_free(tmp);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+// Transposing writer/reader of column-major matrices, a block of rows at a time so that no
+// full row-major copy is made.
+int fmbd_h5_write_f64_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t cols,
+                         const double *A) {
+  int rc = FMBD_OK;
+  hid_t d = -1, fsp = -1, msp = -1;
+  double *buf = NULL;
+  hsize_t block;
+  int64_t dims[2] = {rows, cols};
+  FMBD_GCALL(create_dataset(f, path, H5T_IEEE_F64LE, 2, dims, &d, &block));
+  if (rows == 0 || cols == 0) goto done;
+  if ((int64_t)block * cols < 65536) block = (hsize_t)((65536 + cols - 1) / cols);
+  if ((int64_t)block > rows) block = (hsize_t)rows;
+  FMBD_GALLOC(buf = fmbd_malloc((size_t)block * (size_t)cols * sizeof *buf));
+  FMBD_H5(fsp = H5Dget_space(d), FMBD_ERR_EXTERNAL, "H5Dget_space failed");
+  for (int64_t r0 = 0; r0 < rows; r0 += (int64_t)block) {
+    int64_t nr = rows - r0 < (int64_t)block ? rows - r0 : (int64_t)block;
+    for (int64_t i = 0; i < nr; i++) {
+      for (int64_t j = 0; j < cols; j++) buf[i * cols + j] = A[(r0 + i) + j * rows];
+    }
+    hsize_t start[2] = {(hsize_t)r0, 0}, cnt[2] = {(hsize_t)nr, (hsize_t)cols};
+    FMBD_H5(H5Sselect_hyperslab(fsp, H5S_SELECT_SET, start, NULL, cnt, NULL), FMBD_ERR_EXTERNAL,
+            "H5Sselect_hyperslab failed");
+    FMBD_H5(msp = H5Screate_simple(2, cnt, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+    FMBD_H5(H5Dwrite(d, H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, buf), FMBD_ERR_IO,
+            "cannot write dataset");
+    close_id(&msp, H5Sclose);
+  }
+done:
+  close_id(&msp, H5Sclose);
+  close_id(&fsp, H5Sclose);
+  close_id(&d, H5Dclose);
+  fmbd_free(buf);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *cols,
+                        double **A) {
+  int rc = FMBD_OK;
+  hid_t d = -1, fsp = -1, msp = -1;
+  double *buf = NULL, *x = NULL;
+  int64_t dims[2] = {*rows, *cols};
+  bool fl;
+  *A = NULL;
+  FMBD_GCALL(open_numeric(f, path, 2, dims, &d, &fl));
+  int64_t m = dims[0], n = dims[1];
+  int64_t mn = m * n;
+  FMBD_GALLOC(x = fmbd_malloc((size_t)(mn > 0 ? mn : 1) * sizeof *x));
+  if (m && n) {
+    int64_t block = (65536 + n - 1) / n;
+    if (block > m) block = m;
+    FMBD_GALLOC(buf = fmbd_malloc((size_t)block * (size_t)n * sizeof *buf));
+    FMBD_H5(fsp = H5Dget_space(d), FMBD_ERR_EXTERNAL, "H5Dget_space failed");
+    for (int64_t r0 = 0; r0 < m; r0 += block) {
+      int64_t nr = m - r0 < block ? m - r0 : block;
+      hsize_t start[2] = {(hsize_t)r0, 0}, cnt[2] = {(hsize_t)nr, (hsize_t)n};
+      FMBD_H5(H5Sselect_hyperslab(fsp, H5S_SELECT_SET, start, NULL, cnt, NULL),
+              FMBD_ERR_EXTERNAL, "H5Sselect_hyperslab failed");
+      FMBD_H5(msp = H5Screate_simple(2, cnt, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+      FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, buf), FMBD_ERR_FORMAT,
+              "cannot read dataset");
+      close_id(&msp, H5Sclose);
+      for (int64_t i = 0; i < nr; i++) {
+        for (int64_t j = 0; j < n; j++) {
+          double v = buf[i * n + j];
+          if (!isfinite(v)) {
+            FMBD_GFAIL(FMBD_ERR_VALUE, "%s at row %lld, column %lld", isnan(v) ? "NaN" : "Inf",
+                       (long long)(r0 + i), (long long)j);
+          }
+          x[(r0 + i) + j * m] = v;
+        }
+      }
+    }
+  }
+  *rows = m;
+  *cols = n;
+  *A = x;
+  x = NULL;
+done:
+  close_id(&msp, H5Sclose);
+  close_id(&fsp, H5Sclose);
+  close_id(&d, H5Dclose);
+  fmbd_free(buf);
+  fmbd_free(x);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+// --- CSR groups ------------------------------------------------------------------------------
+static int join(char *buf, size_t n, const char *group, const char *member) {
+  size_t g = strlen(group);
+  int k = snprintf(buf, n, "%s%s%s", group, g && group[g - 1] == '/' ? "" : "/", member);
+  if (k < 0 || (size_t)k >= n) FMBD_FAIL(FMBD_ERR_INTERNAL, "path too long");
+  return FMBD_OK;
+}
+
+int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A) {
+  int rc = FMBD_OK;
+  char p[1100];
+  int64_t nnz = fmbd_csr_nnz(A), np1 = A->nrows + 1, shape[2] = {A->nrows, A->ncols};
+  FMBD_GCALL(unlink_existing(f, path));
+  FMBD_GCALL(fmbd_h5_make_group(f, path));
+  FMBD_GCALL(join(p, sizeof p, path, "data"));
+  FMBD_GCALL(fmbd_h5_write_f64(f, p, 1, &nnz, A->data));
+  FMBD_GCALL(join(p, sizeof p, path, "indices"));
+  FMBD_GCALL(fmbd_h5_write_i64(f, p, 1, &nnz, A->indices));
+  FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+  FMBD_GCALL(fmbd_h5_write_i64(f, p, 1, &np1, A->indptr));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-type", "csr_matrix"));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-version", "0.1.0"));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "shape", 2, shape));
+done:
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+// Read a 1-D integer or float dataset of exactly n elements into buf (type mtype).
+static int read_exact(fmbd_h5 *f, const char *path, hid_t mtype, int64_t n, void *buf) {
+  int rc = FMBD_OK;
+  hid_t d = -1;
+  int64_t dims[1] = {n};
+  bool fl;
+  FMBD_GCALL(open_numeric(f, path, 1, dims, &d, &fl));
+  FMBD_GCHECK(!(fl && mtype == H5T_NATIVE_INT64), FMBD_ERR_FORMAT,
+              "floating-point dataset where integers are expected");
+  if (n) FMBD_H5(H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf), FMBD_ERR_FORMAT,
+                 "cannot read dataset");
+done:
+  close_id(&d, H5Dclose);
+  return rc;
+}
+
+int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
+  int rc = FMBD_OK;
+  char p[1100];
+  char *enc = NULL;
+  fmbd_csr *A = NULL;
+  int64_t shape[2], nnz = -1;
+  hid_t d = -1;
+  *out = NULL;
+  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing sparse matrix");
+  FMBD_GCHECK(is_group(f, path), FMBD_ERR_FORMAT, "not a CSR group");
+  if (fmbd_h5_has_attr(f, path, "encoding-type")) {
+    FMBD_GCALL(fmbd_h5_read_attr_str(f, path, "encoding-type", &enc));
+    FMBD_GCHECK(!strcmp(enc, "csr_matrix"), FMBD_ERR_FORMAT,
+                "encoding-type is '%s', expected csr_matrix", enc);
+  }
+  FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "shape", 2, shape));
+  FMBD_GCHECK(shape[0] >= 0 && shape[1] >= 0, FMBD_ERR_FORMAT, "negative shape");
+  // nnz from the data dataset, checked against indptr afterwards
+  {
+    bool fl;
+    int64_t dims[1] = {-1};
+    FMBD_GCALL(join(p, sizeof p, path, "data"));
+    FMBD_GCALL(open_numeric(f, p, 1, dims, &d, &fl));
+    close_id(&d, H5Dclose);
+    nnz = dims[0];
+  }
+  FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
+  FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+  FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
+  FMBD_GCHECK(A->indptr[shape[0]] == nnz, FMBD_ERR_FORMAT,
+              "indptr ends at %lld but data has %lld entries", (long long)A->indptr[shape[0]],
+              (long long)nnz);
+  FMBD_GCALL(join(p, sizeof p, path, "indices"));
+  FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, nnz, A->indices));
+  FMBD_GCALL(join(p, sizeof p, path, "data"));
+  FMBD_GCALL(read_exact(f, p, H5T_NATIVE_DOUBLE, nnz, A->data));
+  FMBD_GCALL(fmbd_csr_check(A));
+  *out = A;
+  A = NULL;
+done:
+  close_id(&d, H5Dclose);
+  fmbd_free(enc);
+  fmbd_csr_destroy(&A);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+// --- listing ---------------------------------------------------------------------------------
+typedef struct list_ctx {
+  int n, cap;
+  char **names;
+  int rc;
+} list_ctx;
+
+static herr_t list_cb(hid_t g, const char *name, const H5L_info_t *info, void *data) {
+  (void)g;
+  (void)info;
+  list_ctx *c = data;
+  if (c->n == c->cap) {
+    int cap = c->cap ? 2 * c->cap : 16;
+    char **a = fmbd_realloc(c->names, (size_t)cap * sizeof *a);
+    if (!a) {
+      c->rc = FMBD_ERR_NOMEM;
+      return -1;
+    }
+    c->names = a;
+    c->cap = cap;
+  }
+  c->names[c->n] = fmbd_strdup(name);
+  if (!c->names[c->n]) {
+    c->rc = FMBD_ERR_NOMEM;
+    return -1;
+  }
+  c->n++;
+  return 0;
+}
+
+static int cmp_str(const void *a, const void *b) {
+  return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+int fmbd_h5_list(fmbd_h5 *f, const char *group, int *n, char ***names) {
+  int rc = FMBD_OK;
+  list_ctx c = {0, 0, NULL, 0};
+  hid_t g = -1;
+  *n = 0;
+  *names = NULL;
+  if (!fmbd_h5_exists(f, group)) return FMBD_OK;
+  FMBD_GCHECK(is_group(f, group), FMBD_ERR_FORMAT, "not a group");
+  FMBD_H5(g = H5Gopen2(f->fid, group, H5P_DEFAULT), FMBD_ERR_FORMAT, "cannot open group");
+  hsize_t idx = 0;
+  herr_t e = H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, &idx, list_cb, &c);
+  if (c.rc) FMBD_GFAIL(c.rc, "out of memory");
+  FMBD_H5(e, FMBD_ERR_FORMAT, "cannot list group");
+  if (c.n > 1) qsort(c.names, (size_t)c.n, sizeof *c.names, cmp_str);
+  *n = c.n;
+  *names = c.names;
+  c.names = NULL;
+  c.n = 0;
+done:
+  close_id(&g, H5Gclose);
+  for (int i = 0; i < c.n; i++) fmbd_free(c.names[i]);
+  fmbd_free(c.names);
+  if (rc) ctx(f, group);
+  return rc;
+}
+
+int fmbd_h5_copy(fmbd_h5 *src, const char *path, fmbd_h5 *dst) {
+  int rc = FMBD_OK;
+  hid_t lcpl = -1;
+  if (!fmbd_h5_exists(src, path)) {
+    ctx(src, path);
+    FMBD_FAIL(FMBD_ERR_FORMAT, "missing object to copy");
+  }
+  FMBD_GCHECK(dst->writing, FMBD_ERR_INTERNAL, "copy into a read handle");
+  FMBD_GCALL(unlink_existing(dst, path));
+  FMBD_H5(lcpl = lcpl_intermediate(), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+  FMBD_H5(H5Ocopy(src->fid, path, dst->fid, path, H5P_DEFAULT, lcpl), FMBD_ERR_IO,
+          "cannot copy from %s", disp(src));
+done:
+  close_id(&lcpl, H5Pclose);
+  if (rc) ctx(dst, path);
+  return rc;
+}
+
+int fmbd_h5_delete(fmbd_h5 *f, const char *path) {
+  int rc = FMBD_OK;
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "delete in a read handle");
+  FMBD_GCALL(unlink_existing(f, path));
+done:
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+// --- attributes --------------------------------------------------------------------------------
+// Open the object an attribute belongs to; for writing, groups are created when missing.
+static int open_obj(fmbd_h5 *f, const char *obj, bool create, hid_t *out) {
+  int rc = FMBD_OK;
+  *out = -1;
+  if (!fmbd_h5_exists(f, obj)) {
+    FMBD_GCHECK(create, FMBD_ERR_FORMAT, "missing object");
+    FMBD_GCALL(fmbd_h5_make_group(f, obj));
+  }
+  FMBD_H5(*out = H5Oopen(f->fid, obj, H5P_DEFAULT), FMBD_ERR_FORMAT, "cannot open object");
+done:
+  return rc;
+}
+
+static hid_t vlen_str_type(void) {
+  hid_t t = H5Tcopy(H5T_C_S1);
+  if (t >= 0 && (H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0)) {
+    H5Tclose(t);
+    return -1;
+  }
+  return t;
+}
+
+// Create attribute `name` on o (replacing an existing one) of type t and space sp.
+static int new_attr(hid_t o, const char *name, hid_t t, hid_t sp, hid_t *out) {
+  int rc = FMBD_OK;
+  if (H5Aexists(o, name) > 0) {
+    FMBD_H5(H5Adelete(o, name), FMBD_ERR_IO, "cannot replace attribute '%s'", name);
+  }
+  FMBD_H5(*out = H5Acreate2(o, name, t, sp, H5P_DEFAULT, H5P_DEFAULT), FMBD_ERR_IO,
+          "cannot create attribute '%s'", name);
+done:
+  return rc;
+}
+
+int fmbd_h5_write_attr_str(fmbd_h5 *f, const char *obj, const char *name, const char *value) {
+  int rc = FMBD_OK;
+  hid_t o = -1, t = -1, sp = -1, a = -1;
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "write to a read handle");
+  FMBD_GCALL(open_obj(f, obj, true, &o));
+  FMBD_H5(t = vlen_str_type(), FMBD_ERR_EXTERNAL, "cannot make a string type");
+  FMBD_H5(sp = H5Screate(H5S_SCALAR), FMBD_ERR_EXTERNAL, "H5Screate failed");
+  FMBD_GCALL(new_attr(o, name, t, sp, &a));
+  FMBD_H5(H5Awrite(a, t, &value), FMBD_ERR_IO, "cannot write attribute '%s'", name);
+done:
+  close_id(&a, H5Aclose);
+  close_id(&sp, H5Sclose);
+  close_id(&t, H5Tclose);
+  close_id(&o, H5Oclose);
+  if (rc) ctx(f, obj);
+  return rc;
+}
+
+int fmbd_h5_write_attr_strv(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                            const char *const *values) {
+  int rc = FMBD_OK;
+  hid_t o = -1, t = -1, sp = -1, a = -1;
+  hsize_t dims[1] = {(hsize_t)(n > 0 ? n : 0)};
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "write to a read handle");
+  FMBD_GCHECK(n >= 0, FMBD_ERR_INTERNAL, "negative count");
+  FMBD_GCALL(open_obj(f, obj, true, &o));
+  FMBD_H5(t = vlen_str_type(), FMBD_ERR_EXTERNAL, "cannot make a string type");
+  FMBD_H5(sp = H5Screate_simple(1, dims, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+  FMBD_GCALL(new_attr(o, name, t, sp, &a));
+  if (n) FMBD_H5(H5Awrite(a, t, values), FMBD_ERR_IO, "cannot write attribute '%s'", name);
+done:
+  close_id(&a, H5Aclose);
+  close_id(&sp, H5Sclose);
+  close_id(&t, H5Tclose);
+  close_id(&o, H5Oclose);
+  if (rc) ctx(f, obj);
+  return rc;
+}
+
+static int write_attr_num(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                          hid_t ftype, hid_t mtype, const void *values) {
+  int rc = FMBD_OK;
+  hid_t o = -1, sp = -1, a = -1;
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "write to a read handle");
+  FMBD_GCHECK(n >= 0, FMBD_ERR_INTERNAL, "negative count");
+  FMBD_GCALL(open_obj(f, obj, true, &o));
+  if (n == 1) {  // one number: a scalar attribute (h5py gives a number, not an array)
+    FMBD_H5(sp = H5Screate(H5S_SCALAR), FMBD_ERR_EXTERNAL, "H5Screate failed");
+  } else {
+    hsize_t dims[1] = {(hsize_t)n};
+    FMBD_H5(sp = H5Screate_simple(1, dims, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+  }
+  FMBD_GCALL(new_attr(o, name, ftype, sp, &a));
+  if (n) FMBD_H5(H5Awrite(a, mtype, values), FMBD_ERR_IO, "cannot write attribute '%s'", name);
+done:
+  close_id(&a, H5Aclose);
+  close_id(&sp, H5Sclose);
+  close_id(&o, H5Oclose);
+  if (rc) ctx(f, obj);
+  return rc;
+}
+
+int fmbd_h5_write_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                           const double *values) {
+  return write_attr_num(f, obj, name, n, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values);
+}
+
+int fmbd_h5_write_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                           const int64_t *values) {
+  return write_attr_num(f, obj, name, n, H5T_STD_I64LE, H5T_NATIVE_INT64, values);
+}
+
+bool fmbd_h5_has_attr(fmbd_h5 *f, const char *obj, const char *name) {
+  if (!fmbd_h5_exists(f, obj)) return false;
+  return H5Aexists_by_name(f->fid, obj, name, H5P_DEFAULT) > 0;
+}
+
+// Open attribute name on obj, or FMBD_ERR_FORMAT "missing attribute".
+static int open_attr(fmbd_h5 *f, const char *obj, const char *name, hid_t *out) {
+  int rc = FMBD_OK;
+  *out = -1;
+  FMBD_GCHECK(fmbd_h5_exists(f, obj), FMBD_ERR_FORMAT, "missing object (looking for attribute '%s')",
+              name);
+  FMBD_GCHECK(H5Aexists_by_name(f->fid, obj, name, H5P_DEFAULT) > 0, FMBD_ERR_FORMAT,
+              "missing attribute '%s'", name);
+  FMBD_H5(*out = H5Aopen_by_name(f->fid, obj, name, H5P_DEFAULT, H5P_DEFAULT), FMBD_ERR_FORMAT,
+          "cannot open attribute '%s'", name);
+done:
+  return rc;
+}
+
+// Read n strings (fixed or variable length) of attribute a into fmbd_strdup'ed copies.
+static int read_strings(hid_t a, const char *name, int64_t n, char **out) {
+  int rc = FMBD_OK;
+  hid_t ft = -1, mt = -1;
+  char **vl = NULL;
+  char *fixed = NULL;
+  for (int64_t i = 0; i < n; i++) out[i] = NULL;
+  FMBD_H5(ft = H5Aget_type(a), FMBD_ERR_FORMAT, "cannot read the type of '%s'", name);
+  FMBD_GCHECK(H5Tget_class(ft) == H5T_STRING, FMBD_ERR_FORMAT, "attribute '%s' is not a string",
+              name);
+  if (n == 0) goto done;
+  if (H5Tis_variable_str(ft) > 0) {
+    FMBD_H5(mt = vlen_str_type(), FMBD_ERR_EXTERNAL, "cannot make a string type");
+    FMBD_GALLOC(vl = fmbd_calloc((size_t)n, sizeof *vl));
+    FMBD_H5(H5Aread(a, mt, vl), FMBD_ERR_FORMAT, "cannot read attribute '%s'", name);
+    for (int64_t i = 0; i < n && rc == FMBD_OK; i++) {
+      out[i] = fmbd_strdup(vl[i] ? vl[i] : "");
+      if (!out[i]) rc = fmbd_err_set(FMBD_ERR_NOMEM, __FILE__, __LINE__, __func__, "out of memory");
+    }
+    for (int64_t i = 0; i < n; i++) H5free_memory(vl[i]);
+    if (rc) goto done;
+  } else {
+    size_t sz = H5Tget_size(ft);
+    FMBD_H5(mt = H5Tcopy(H5T_C_S1), FMBD_ERR_EXTERNAL, "H5Tcopy failed");
+    FMBD_H5(H5Tset_size(mt, sz), FMBD_ERR_EXTERNAL, "H5Tset_size failed");
+    FMBD_H5(H5Tset_strpad(mt, H5T_STR_NULLPAD), FMBD_ERR_EXTERNAL, "H5Tset_strpad failed");
+    FMBD_GALLOC(fixed = fmbd_calloc((size_t)n, sz));
+    FMBD_H5(H5Aread(a, mt, fixed), FMBD_ERR_FORMAT, "cannot read attribute '%s'", name);
+    for (int64_t i = 0; i < n; i++) {
+      FMBD_GALLOC(out[i] = fmbd_malloc(sz + 1));
+      memcpy(out[i], fixed + (size_t)i * sz, sz);
+      out[i][sz] = '\0';
+    }
+  }
+done:
+  if (rc) {
+    for (int64_t i = 0; i < n; i++) {
+      fmbd_free(out[i]);
+      out[i] = NULL;
+    }
+  }
+  fmbd_free(vl);
+  fmbd_free(fixed);
+  close_id(&mt, H5Tclose);
+  close_id(&ft, H5Tclose);
+  return rc;
+}
+
+static int64_t attr_npoints(hid_t a, int *rank) {
+  hid_t sp = H5Aget_space(a);
+  if (sp < 0) return -1;
+  int64_t n = (int64_t)H5Sget_simple_extent_npoints(sp);
+  if (rank) *rank = H5Sget_simple_extent_ndims(sp);
+  H5Sclose(sp);
+  return n;
+}
+
+int fmbd_h5_read_attr_str(fmbd_h5 *f, const char *obj, const char *name, char **value) {
+  int rc = FMBD_OK;
+  hid_t a = -1;
+  *value = NULL;
+  FMBD_GCALL(open_attr(f, obj, name, &a));
+  FMBD_GCHECK(attr_npoints(a, NULL) == 1, FMBD_ERR_FORMAT, "attribute '%s' is not one string",
+              name);
+  FMBD_GCALL(read_strings(a, name, 1, value));
+done:
+  close_id(&a, H5Aclose);
+  if (rc) ctx(f, obj);
+  return rc;
+}
+
+int fmbd_h5_read_attr_strv(fmbd_h5 *f, const char *obj, const char *name, int64_t *n,
+                           char ***values) {
+  int rc = FMBD_OK;
+  hid_t a = -1;
+  char **v = NULL;
+  int64_t m = 0;
+  *n = 0;
+  *values = NULL;
+  FMBD_GCALL(open_attr(f, obj, name, &a));
+  FMBD_GCHECK((m = attr_npoints(a, NULL)) >= 0, FMBD_ERR_FORMAT, "cannot read the shape of '%s'",
+              name);
+  FMBD_GALLOC(v = fmbd_calloc((size_t)(m ? m : 1), sizeof *v));
+  FMBD_GCALL(read_strings(a, name, m, v));
+  *n = m;
+  *values = v;
+  v = NULL;
+done:
+  fmbd_free(v);
+  close_id(&a, H5Aclose);
+  if (rc) ctx(f, obj);
+  return rc;
+}
+
+int fmbd_h5_read_inputs(fmbd_h5 *f, int *n, char ***names, char ***sha256) {
+  int rc = FMBD_OK;
+  hid_t a = -1;
+  char **all = NULL, **nm = NULL, **sh = NULL;
+  int64_t m = 0;
+  int rank = 0;
+  *n = 0;
+  *names = *sha256 = NULL;
+  FMBD_GCALL(open_attr(f, "/", "inputs", &a));
+  FMBD_GCHECK((m = attr_npoints(a, &rank)) >= 0 && rank == 2 && m % 2 == 0, FMBD_ERR_FORMAT,
+              "attribute 'inputs' is not an (n, 2) string array");
+  FMBD_GALLOC(all = fmbd_calloc((size_t)(m ? m : 1), sizeof *all));
+  FMBD_GCALL(read_strings(a, "inputs", m, all));
+  FMBD_GALLOC(nm = fmbd_calloc((size_t)(m / 2 ? m / 2 : 1), sizeof *nm));
+  FMBD_GALLOC(sh = fmbd_calloc((size_t)(m / 2 ? m / 2 : 1), sizeof *sh));
+  for (int64_t i = 0; i < m / 2; i++) {
+    nm[i] = all[2 * i];
+    sh[i] = all[2 * i + 1];
+  }
+  fmbd_free(all);
+  all = NULL;
+  *n = (int)(m / 2);
+  *names = nm;
+  *sha256 = sh;
+  nm = sh = NULL;
+done:
+  if (all) {
+    for (int64_t i = 0; i < m; i++) fmbd_free(all[i]);
+    fmbd_free(all);
+  }
+  fmbd_free(nm);
+  fmbd_free(sh);
+  close_id(&a, H5Aclose);
+  if (rc) ctx(f, "/");
+  return rc;
+}
+
+static int read_attr_num(fmbd_h5 *f, const char *obj, const char *name, int64_t n, hid_t mtype,
+                         void *values) {
+  int rc = FMBD_OK;
+  hid_t a = -1, t = -1;
+  FMBD_GCALL(open_attr(f, obj, name, &a));
+  FMBD_H5(t = H5Aget_type(a), FMBD_ERR_FORMAT, "cannot read the type of '%s'", name);
+  H5T_class_t cls = H5Tget_class(t);
+  FMBD_GCHECK(cls == H5T_INTEGER || cls == H5T_FLOAT, FMBD_ERR_FORMAT,
+              "attribute '%s' is not numeric", name);
+  FMBD_GCHECK(!(cls == H5T_FLOAT && mtype == H5T_NATIVE_INT64), FMBD_ERR_FORMAT,
+              "attribute '%s' is floating point, expected integers", name);
+  int64_t m = attr_npoints(a, NULL);
+  FMBD_GCHECK(m == n, FMBD_ERR_FORMAT, "attribute '%s' has %lld values, expected %lld", name,
+              (long long)m, (long long)n);
+  if (n) FMBD_H5(H5Aread(a, mtype, values), FMBD_ERR_FORMAT, "cannot read attribute '%s'", name);
+  if (mtype == H5T_NATIVE_DOUBLE) {
+    const double *x = values;
+    for (int64_t i = 0; i < n; i++) {
+      FMBD_GCHECK(isfinite(x[i]), FMBD_ERR_VALUE, "attribute '%s': %s at element %lld", name,
+                  isnan(x[i]) ? "NaN" : "Inf", (long long)i);
+    }
+  }
+done:
+  close_id(&t, H5Tclose);
+  close_id(&a, H5Aclose);
+  if (rc) ctx(f, obj);
+  return rc;
+}
+
+int fmbd_h5_read_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                          double *values) {
+  return read_attr_num(f, obj, name, n, H5T_NATIVE_DOUBLE, values);
+}
+
+int fmbd_h5_read_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                          int64_t *values) {
+  return read_attr_num(f, obj, name, n, H5T_NATIVE_INT64, values);
+}
+
+// --- time series -------------------------------------------------------------------------------
+#define SERIES_FLUSH_S 0.5  // flush the file at most this often while appending
+
+int fmbd_h5_series_create(fmbd_h5 *f, const char *path, int64_t ncols, fmbd_h5_series **out) {
+  int rc = FMBD_OK;
+  fmbd_h5_series *s = NULL;
+  hid_t sp = -1, dcpl = -1, lcpl = -1;
+  *out = NULL;
+  FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "series in a read handle");
+  FMBD_GCHECK(ncols >= 0, FMBD_ERR_INTERNAL, "negative column count");
+  FMBD_GALLOC(s = fmbd_calloc(1, sizeof *s));
+  s->dset = -1;
+  FMBD_GALLOC(s->path = fmbd_strdup(path));
+  s->f = f;
+  s->ncols = ncols;
+  int rank = ncols ? 2 : 1;
+  hsize_t dims[2] = {0, (hsize_t)ncols}, maxd[2] = {H5S_UNLIMITED, (hsize_t)ncols};
+  hsize_t rows = (hsize_t)(ncols ? 8192 / ncols : 8192);
+  hsize_t chunk[2] = {rows < 16 ? 16 : rows, (hsize_t)ncols};
+  FMBD_GCALL(unlink_existing(f, path));
+  FMBD_H5(sp = H5Screate_simple(rank, dims, maxd), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+  FMBD_H5(dcpl = H5Pcreate(H5P_DATASET_CREATE), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+  FMBD_H5(H5Pset_chunk(dcpl, rank, chunk), FMBD_ERR_EXTERNAL, "H5Pset_chunk failed");
+  FMBD_H5(lcpl = lcpl_intermediate(), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
+  FMBD_H5(s->dset = H5Dcreate2(f->fid, path, H5T_IEEE_F64LE, sp, lcpl, dcpl, H5P_DEFAULT),
+          FMBD_ERR_IO, "cannot create series");
+  *out = s;
+  s = NULL;
+done:
+  close_id(&lcpl, H5Pclose);
+  close_id(&dcpl, H5Pclose);
+  close_id(&sp, H5Sclose);
+  fmbd_h5_series_close(&s);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
+int fmbd_h5_series_append(fmbd_h5_series *s, int64_t nrows, const double *rows) {
+  int rc = FMBD_OK;
+  hid_t fsp = -1, msp = -1;
+  if (nrows <= 0) return FMBD_OK;
+  int rank = s->ncols ? 2 : 1;
+  hsize_t newd[2] = {(hsize_t)(s->nrows + nrows), (hsize_t)s->ncols};
+  hsize_t start[2] = {(hsize_t)s->nrows, 0}, cnt[2] = {(hsize_t)nrows, (hsize_t)s->ncols};
+  FMBD_H5(H5Dset_extent(s->dset, newd), FMBD_ERR_IO, "cannot extend series");
+  FMBD_H5(fsp = H5Dget_space(s->dset), FMBD_ERR_EXTERNAL, "H5Dget_space failed");
+  FMBD_H5(H5Sselect_hyperslab(fsp, H5S_SELECT_SET, start, NULL, cnt, NULL), FMBD_ERR_EXTERNAL,
+          "H5Sselect_hyperslab failed");
+  FMBD_H5(msp = H5Screate_simple(rank, cnt, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+  FMBD_H5(H5Dwrite(s->dset, H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, rows), FMBD_ERR_IO,
+          "cannot write series");
+  s->nrows += nrows;
+  if (fmbd_wall_s() - s->f->last_flush_s >= SERIES_FLUSH_S) FMBD_GCALL(fmbd_h5_flush(s->f));
+done:
+  close_id(&msp, H5Sclose);
+  close_id(&fsp, H5Sclose);
+  if (rc) ctx(s->f, s->path);
+  return rc;
+}
+
+int64_t fmbd_h5_series_rows(const fmbd_h5_series *s) { return s->nrows; }
+
+void fmbd_h5_series_close(fmbd_h5_series **ps) {
+  if (!ps || !*ps) return;
+  fmbd_h5_series *s = *ps;
+  if (s->dset >= 0 && H5Iis_valid(s->dset) > 0) H5Dclose(s->dset);
+  fmbd_free(s->path);
+  fmbd_free(s);
+  *ps = NULL;
+}
