@@ -1,0 +1,385 @@
+// common/fmbd_est.c: a posteriori relative eigenvalue error estimates (THEORY.md section 2)
+// SPDX-License-Identifier: MIT
+#include "fmbd_est.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_dense.h"
+#include "fmbd_err.h"
+
+struct fmbd_est {
+  int64_t nb, npool, nd;
+  fmbd_est_options opt;
+  double *Mbb, *Kbb;   // nb x nb
+  double *kappa;       // npool
+  double *PhitA;       // npool x nb (column-major, leading dimension npool)
+  double *Xb, *Gb;     // current, nb x nb
+};
+
+void fmbd_est_options_defaults(fmbd_est_options *o) {
+  o->rigid_rtol = 1e-6;
+  o->cluster_rtol = 1e-3;
+}
+
+static void symmetrize(int64_t n, double *X) {
+  for (int64_t j = 0; j < n; j++) {
+    for (int64_t i = j + 1; i < n; i++) {
+      double v = 0.5 * (X[i + n * j] + X[j + n * i]);
+      X[i + n * j] = X[j + n * i] = v;
+    }
+  }
+}
+
+// X -= sum_k w_k p_k' p_k over the npool rows of P (npool x nb), w_k = kappa_k^-pw
+static int subtract_modal(int64_t nb, int64_t npool, const double *kappa, const double *P, int pw,
+                          double *X) {
+  if (npool == 0 || nb == 0) {
+    return FMBD_OK;
+  }
+  double *S = fmbd_malloc(sizeof(double) * (size_t)(npool * nb));
+  if (!S) {
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  }
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t k = 0; k < npool; k++) {
+      S[k + npool * j] = P[k + npool * j] / (pw == 1 ? kappa[k] : kappa[k] * kappa[k]);
+    }
+  }
+  fmbd_dense_gemm('T', 'N', nb, nb, npool, -1.0, P, npool, S, npool, 1.0, X, nb);
+  fmbd_free(S);
+  return FMBD_OK;
+}
+
+int fmbd_est_base_plain(int64_t ns, int64_t nb, int64_t npool, const double *A,
+                        const double *KsinvA, const double *KsinvMsKsinvA, const double *kappa,
+                        const double *PhitA, double *Xb, double *Gb, double *noise) {
+  FMBD_CHECK(ns >= 0 && nb >= 0 && npool >= 0, FMBD_ERR_VALUE, "negative sizes");
+  for (int64_t k = 0; k < npool; k++) {
+    FMBD_CHECK(kappa[k] > 0, FMBD_ERR_VALUE, "fixed-interface eigenvalue %lld is %g, not positive",
+               (long long)k + 1, kappa[k]);
+  }
+  fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, A, ns, KsinvA, ns, 0.0, Xb, nb);
+  if (noise) {
+    // A' Ks^-1 A is symmetric: its computed asymmetry measures the error of the solves
+    double asym = 0, big = 0;
+    for (int64_t j = 0; j < nb; j++) {
+      for (int64_t i = 0; i < nb; i++) {
+        asym = fmax(asym, fabs(Xb[i + nb * j] - Xb[j + nb * i]));
+        big = fmax(big, fabs(Xb[i + nb * j]));
+      }
+    }
+    *noise = asym + 64 * DBL_EPSILON * big;
+  }
+  symmetrize(nb, Xb);
+  FMBD_CALL(subtract_modal(nb, npool, kappa, PhitA, 1, Xb));
+  if (KsinvMsKsinvA) {
+    fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, A, ns, KsinvMsKsinvA, ns, 0.0, Gb, nb);
+    symmetrize(nb, Gb);
+    FMBD_CALL(subtract_modal(nb, npool, kappa, PhitA, 2, Gb));
+  } else {
+    memset(Gb, 0, sizeof(double) * (size_t)(nb * nb));
+  }
+  return FMBD_OK;
+}
+
+int fmbd_est_base_projected(const fmbd_csr *Ks, const fmbd_csr *Ms, int64_t nb, int64_t npool,
+                            const double *A, const double *KsinvA, const double *Phi,
+                            const double *kappa, const double *PhitA, double *Xb, double *Gb) {
+  int rc = FMBD_OK;
+  int64_t ns = Ks->nrows;
+  double *W = NULL, *C = NULL, *Y = NULL;
+  FMBD_GCHECK(Ks->ncols == ns && Ms->nrows == ns && Ms->ncols == ns, FMBD_ERR_VALUE,
+              "Ks and Ms must be square of the same order");
+  for (int64_t k = 0; k < npool; k++) {
+    FMBD_GCHECK(kappa[k] > 0, FMBD_ERR_VALUE,
+                "fixed-interface eigenvalue %lld is %g, not positive", (long long)k + 1, kappa[k]);
+  }
+  size_t nsb = (size_t)(ns * nb);
+  FMBD_GALLOC(W = fmbd_malloc(sizeof(double) * (nsb ? nsb : 1)));
+  FMBD_GALLOC(Y = fmbd_malloc(sizeof(double) * (nsb ? nsb : 1)));
+  FMBD_GALLOC(C = fmbd_malloc(sizeof(double) * (size_t)(npool * nb + 1)));
+  memcpy(W, KsinvA, sizeof(double) * nsb);
+  // W = Ks^-1 A - Phi Lambda^-1 PhitA
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t k = 0; k < npool; k++) {
+      C[k + npool * j] = PhitA[k + npool * j] / kappa[k];
+    }
+  }
+  fmbd_dense_gemm('N', 'N', ns, nb, npool, -1.0, Phi, ns, C, npool, 1.0, W, ns);
+  // W -= Phi (Phi' Ms W), twice (classical Gram-Schmidt, reorthogonalised)
+  for (int pass = 0; pass < 2 && npool > 0; pass++) {
+    fmbd_csr_matmat(Ms, nb, W, ns, Y, ns);
+    fmbd_dense_gemm('T', 'N', npool, nb, ns, 1.0, Phi, ns, Y, ns, 0.0, C, npool);
+    fmbd_dense_gemm('N', 'N', ns, nb, npool, -1.0, Phi, ns, C, npool, 1.0, W, ns);
+  }
+  fmbd_csr_matmat(Ks, nb, W, ns, Y, ns);
+  fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, Y, ns, 0.0, Xb, nb);
+  symmetrize(nb, Xb);
+  fmbd_csr_matmat(Ms, nb, W, ns, Y, ns);
+  fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, Y, ns, 0.0, Gb, nb);
+  symmetrize(nb, Gb);
+done:
+  fmbd_free(W);
+  fmbd_free(Y);
+  fmbd_free(C);
+  return rc;
+}
+
+int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd_est_options *opt,
+                    fmbd_est **out) {
+  int rc = FMBD_OK;
+  *out = NULL;
+  FMBD_CHECK(nb >= 0, FMBD_ERR_VALUE, "negative number of boundary dofs");
+  fmbd_est *e = fmbd_calloc(1, sizeof(*e));
+  FMBD_CHECK(e, FMBD_ERR_NOMEM, "out of memory");
+  e->nb = nb;
+  if (opt) {
+    e->opt = *opt;
+  } else {
+    fmbd_est_options_defaults(&e->opt);
+  }
+  size_t nn = (size_t)(nb * nb) + 1;
+  FMBD_GALLOC(e->Mbb = fmbd_malloc(sizeof(double) * nn));
+  FMBD_GALLOC(e->Kbb = fmbd_malloc(sizeof(double) * nn));
+  FMBD_GALLOC(e->Xb = fmbd_calloc(nn, sizeof(double)));
+  FMBD_GALLOC(e->Gb = fmbd_calloc(nn, sizeof(double)));
+  FMBD_GALLOC(e->kappa = fmbd_malloc(sizeof(double)));
+  FMBD_GALLOC(e->PhitA = fmbd_malloc(sizeof(double)));
+  memcpy(e->Mbb, Mbb, sizeof(double) * (nn - 1));
+  memcpy(e->Kbb, Kbb, sizeof(double) * (nn - 1));
+  *out = e;
+  e = NULL;
+done:
+  fmbd_est_destroy(&e);
+  return rc;
+}
+
+void fmbd_est_destroy(fmbd_est **pe) {
+  if (!pe || !*pe) {
+    return;
+  }
+  fmbd_est *e = *pe;
+  fmbd_free(e->Mbb);
+  fmbd_free(e->Kbb);
+  fmbd_free(e->kappa);
+  fmbd_free(e->PhitA);
+  fmbd_free(e->Xb);
+  fmbd_free(e->Gb);
+  fmbd_free(e);
+  *pe = NULL;
+}
+
+int fmbd_est_set_pool(fmbd_est *e, int64_t npool, const double *kappa, const double *PhitA,
+                      const double *Xb, const double *Gb) {
+  FMBD_CHECK(npool >= 0, FMBD_ERR_VALUE, "negative pool size");
+  for (int64_t k = 0; k < npool; k++) {
+    FMBD_CHECK(kappa[k] > 0 && isfinite(kappa[k]), FMBD_ERR_VALUE,
+               "fixed-interface eigenvalue %lld is %g, not positive", (long long)k + 1, kappa[k]);
+    FMBD_CHECK(k == 0 || kappa[k] >= kappa[k - 1], FMBD_ERR_VALUE,
+               "fixed-interface eigenvalues not ascending at %lld", (long long)k + 1);
+  }
+  double *kp = fmbd_malloc(sizeof(double) * (size_t)(npool + 1));
+  double *pa = fmbd_malloc(sizeof(double) * (size_t)(npool * e->nb + 1));
+  if (!kp || !pa) {
+    fmbd_free(kp);
+    fmbd_free(pa);
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  }
+  memcpy(kp, kappa, sizeof(double) * (size_t)npool);
+  memcpy(pa, PhitA, sizeof(double) * (size_t)(npool * e->nb));
+  fmbd_free(e->kappa);
+  fmbd_free(e->PhitA);
+  e->kappa = kp;
+  e->PhitA = pa;
+  e->npool = npool;
+  e->nd = npool;
+  memcpy(e->Xb, Xb, sizeof(double) * (size_t)(e->nb * e->nb));
+  memcpy(e->Gb, Gb, sizeof(double) * (size_t)(e->nb * e->nb));
+  return FMBD_OK;
+}
+
+// X += s * w p' p for mode k (row k of PhitA), w = kappa^-1 (Xb) or kappa^-2 (Gb)
+static void rank_one(fmbd_est *e, int64_t k, double s) {
+  int64_t nb = e->nb, np = e->npool;
+  double w1 = s / e->kappa[k], w2 = s / (e->kappa[k] * e->kappa[k]);
+  for (int64_t j = 0; j < nb; j++) {
+    double pj = e->PhitA[k + np * j];
+    for (int64_t i = 0; i < nb; i++) {
+      double pp = e->PhitA[k + np * i] * pj;
+      e->Xb[i + nb * j] += w1 * pp;
+      e->Gb[i + nb * j] += w2 * pp;
+    }
+  }
+}
+
+int fmbd_est_set_nd(fmbd_est *e, int64_t nd) {
+  FMBD_CHECK(nd >= 0 && nd <= e->npool, FMBD_ERR_VALUE,
+             "%lld dominant modes asked, %lld fixed-interface modes known", (long long)nd,
+             (long long)e->npool);
+  // add modes: Xb(nd+1) = Xb(nd) - p' p / kappa (downdate); remove: the update
+  while (e->nd < nd) {
+    rank_one(e, e->nd, -1.0);
+    e->nd++;
+  }
+  while (e->nd > nd) {
+    e->nd--;
+    rank_one(e, e->nd, +1.0);
+  }
+  return FMBD_OK;
+}
+
+int64_t fmbd_est_nd(const fmbd_est *e) { return e->nd; }
+int64_t fmbd_est_npool(const fmbd_est *e) { return e->npool; }
+int64_t fmbd_est_nb(const fmbd_est *e) { return e->nb; }
+const double *fmbd_est_xb(const fmbd_est *e) { return e->Xb; }
+const double *fmbd_est_gb(const fmbd_est *e) { return e->Gb; }
+bool fmbd_est_knext_known(const fmbd_est *e) { return e->nd < e->npool; }
+
+int fmbd_est_solve(fmbd_est *e, double *chibar, double *Xi) {
+  int rc = FMBD_OK;
+  int64_t nd = e->nd, nb = e->nb, n = nd + nb, np = e->npool;
+  double *Mr = NULL;
+  if (n == 0) {
+    return FMBD_OK;
+  }
+  FMBD_GALLOC(Mr = fmbd_calloc((size_t)(n * n), sizeof(double)));
+  memset(Xi, 0, sizeof(double) * (size_t)(n * n));
+  for (int64_t k = 0; k < nd; k++) {
+    Mr[k + n * k] = 1.0;
+    Xi[k + n * k] = e->kappa[k];
+  }
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t k = 0; k < nd; k++) {
+      Mr[k + n * (nd + j)] = Mr[(nd + j) + n * k] = e->PhitA[k + np * j];
+    }
+    for (int64_t i = 0; i < nb; i++) {
+      Mr[(nd + i) + n * (nd + j)] = e->Mbb[i + nb * j];
+      Xi[(nd + i) + n * (nd + j)] = e->Kbb[i + nb * j];
+    }
+  }
+  FMBD_GCALL(fmbd_dense_sygv(n, Xi, Mr, chibar));
+done:
+  fmbd_free(Mr);
+  return rc;
+}
+
+int fmbd_est_modes_alloc(int64_t n, fmbd_est_modes *m) {
+  memset(m, 0, sizeof(*m));
+  size_t nn = (size_t)(n > 0 ? n : 1);
+  m->chibar = fmbd_calloc(nn, sizeof(double));
+  m->rigid = fmbd_calloc(nn, sizeof(bool));
+  m->cluster = fmbd_calloc(nn, sizeof(int64_t));
+  m->lower = fmbd_calloc(nn, sizeof(double));
+  m->second = fmbd_calloc(nn, sizeof(double));
+  m->upper = fmbd_calloc(nn, sizeof(double));
+  m->upper_next = fmbd_calloc(nn, sizeof(double));
+  m->x = fmbd_calloc(nn, sizeof(double));
+  m->g = fmbd_calloc(nn, sizeof(double));
+  if (!m->chibar || !m->rigid || !m->cluster || !m->lower || !m->second || !m->upper ||
+      !m->upper_next || !m->x || !m->g) {
+    fmbd_est_modes_free(m);
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  }
+  m->nmodes = n;
+  return FMBD_OK;
+}
+
+void fmbd_est_modes_free(fmbd_est_modes *m) {
+  if (!m) {
+    return;
+  }
+  fmbd_free(m->chibar);
+  fmbd_free(m->rigid);
+  fmbd_free(m->cluster);
+  fmbd_free(m->lower);
+  fmbd_free(m->second);
+  fmbd_free(m->upper);
+  fmbd_free(m->upper_next);
+  fmbd_free(m->x);
+  fmbd_free(m->g);
+  memset(m, 0, sizeof(*m));
+}
+
+// b' X b for the nb-vector b
+static double quad(int64_t nb, const double *X, const double *b) {
+  double s = 0;
+  for (int64_t j = 0; j < nb; j++) {
+    double t = 0;
+    for (int64_t i = 0; i < nb; i++) {
+      t += X[i + nb * j] * b[i];
+    }
+    s += t * b[j];
+  }
+  return s;
+}
+
+int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi, int64_t ldxi,
+                      fmbd_est_modes *m) {
+  int64_t nd = e->nd, nb = e->nb, nm = m->nmodes;
+  FMBD_CHECK(ldxi >= nd + nb, FMBD_ERR_VALUE, "eigenvector leading dimension %lld < %lld",
+             (long long)ldxi, (long long)(nd + nb));
+  // scale of the spectrum for the rigid-body test: kappa_1, else the largest |chibar|
+  double scale = 0;
+  if (e->npool > 0) {
+    scale = e->kappa[0];
+  } else {
+    for (int64_t n = 0; n < nm; n++) {
+      scale = fmax(scale, fabs(chibar[n]));
+    }
+  }
+  double knext = e->npool > nd ? e->kappa[nd] : (nd > 0 ? e->kappa[nd - 1] : INFINITY);
+  for (int64_t n = 0; n < nm; n++) {
+    double c = chibar[n];
+    const double *b = Xi + ldxi * n + nd;
+    m->chibar[n] = c;
+    m->rigid[n] = fabs(c) <= e->opt.rigid_rtol * scale;
+    m->cluster[n] = n;
+    if (m->rigid[n]) {
+      m->x[n] = m->g[n] = m->lower[n] = m->second[n] = m->upper[n] = m->upper_next[n] = 0;
+      continue;
+    }
+    double x = quad(nb, e->Xb, b), g = quad(nb, e->Gb, b);
+    // kappa_n: n counts the rigid-body modes (THEORY.md section 8); beyond nd: kappa_(nd+1)
+    double kn = n < nd ? e->kappa[n] : knext;
+    m->x[n] = x;
+    m->g[n] = g;
+    m->lower[n] = c * x;                         // [H45]
+    m->second[n] = c * x + c * c * g;            // [H36]
+    m->upper[n] = (c + c * c / kn) * x;          // [H42]
+    m->upper_next[n] = (c + c * c / knext) * x;  // [H38] with kappa_(nd+1)
+  }
+  // repeated clusters: consecutive flexible modes within cluster_rtol
+  int64_t n = 0;
+  while (n < nm) {
+    if (m->rigid[n]) {
+      n++;
+      continue;
+    }
+    int64_t last = n;
+    while (last + 1 < nm && !m->rigid[last + 1] &&
+           fabs(chibar[last + 1] - chibar[last]) <= e->opt.cluster_rtol * fabs(chibar[last + 1])) {
+      last++;
+    }
+    if (last > n) {
+      double lo = INFINITY, se = -INFINITY, up = -INFINITY, un = -INFINITY;
+      for (int64_t k = n; k <= last; k++) {
+        lo = fmin(lo, m->lower[k]);
+        se = fmax(se, m->second[k]);
+        up = fmax(up, m->upper[k]);
+        un = fmax(un, m->upper_next[k]);
+      }
+      for (int64_t k = n; k <= last; k++) {
+        m->cluster[k] = n;
+        m->lower[k] = lo;
+        m->second[k] = se;
+        m->upper[k] = up;
+        m->upper_next[k] = un;
+      }
+    }
+    n = last + 1;
+  }
+  return FMBD_OK;
+}
