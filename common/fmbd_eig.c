@@ -1,0 +1,538 @@
+// common/fmbd_eig.c: lowest eigenpairs of K x = lambda M x (ARPACK shift-invert Lanczos)
+// SPDX-License-Identifier: MIT
+//
+// See fmbd_eig.h for the method. ARPACK-NG 3.8 C wrappers (<arpack/arpack.h>), reverse
+// communication, mode 3 (shift-invert), bmat 'G' (M inner product), which "LM":
+// Lehoucq, Sorensen, Yang, ARPACK Users' Guide (SIAM 1998), section 4.2 and dsdrv4.f.
+#include "fmbd_eig.h"
+
+#include <arpack/arpack.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_dense.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+
+void fmbd_eig_defaults(fmbd_eig_opts *o) {
+  memset(o, 0, sizeof *o);
+  o->nev = 20;
+  o->lambda_max = 0.0;
+  o->free_body = false;
+  o->tol = 1e-12;
+  o->resid_tol = 1e-6;
+  o->maxit = 500;
+  o->max_passes = 4;
+  o->sturm = true;
+  o->ncv = 0;
+  o->dense_max = 400;
+}
+
+void fmbd_eig_result_free(fmbd_eig_result *r) {
+  if (!r) return;
+  fmbd_free(r->lambda);
+  fmbd_free(r->X);
+  fmbd_free(r->resid);
+  memset(r, 0, sizeof *r);
+}
+
+static double dot(int64_t n, const double *a, const double *b) {
+  double s = 0.0;
+  for (int64_t i = 0; i < n; i++) s += a[i] * b[i];
+  return s;
+}
+
+double fmbd_eig_residual(const fmbd_csr *K, const fmbd_csr *M, double lambda, const double *x,
+                         double scale, double *work) {
+  int64_t n = K->nrows;
+  double *kx = work, *mx = work + n;
+  fmbd_csr_matvec(K, x, kx);
+  fmbd_csr_matvec(M, x, mx);
+  double r = 0.0, nk = 0.0, nm = 0.0;
+  for (int64_t i = 0; i < n; i++) {
+    double d = kx[i] - lambda * mx[i];
+    r += d * d;
+    nk += kx[i] * kx[i];
+    nm += mx[i] * mx[i];
+  }
+  double den = fmax(sqrt(nk), fabs(scale) * sqrt(nm));
+  return den > 0.0 ? sqrt(r) / den : (r > 0.0 ? INFINITY : 0.0);
+}
+
+// --- one ARPACK run -----------------------------------------------------------------------
+typedef struct run_out {
+  int64_t nconv;
+  double *lam;  // (nconv) owned
+  double *X;    // n x nconv owned
+  int64_t solves, restarts;
+} run_out;
+
+static void run_out_free(run_out *r) {
+  fmbd_free(r->lam);
+  fmbd_free(r->X);
+  memset(r, 0, sizeof *r);
+}
+
+// Shift-invert Lanczos on OP = (K - sigma M)^-1 M with the factor F (factored at sigma).
+// On FMBD_OK, out holds the converged pairs (maybe fewer than nreq: maxit reached).
+static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv, double tol,
+                      int maxit, const fmbd_eig_opts *o, int64_t solves0, run_out *out) {
+  int rc = FMBD_OK;
+  int64_t n = M->nrows;
+  double *resid = NULL, *v = NULL, *workd = NULL, *workl = NULL, *d = NULL, *tmp = NULL;
+  int *select = NULL;
+  memset(out, 0, sizeof *out);
+  FMBD_CHECK(nreq >= 1 && nreq < n && ncv > nreq && ncv <= n, FMBD_ERR_INTERNAL,
+             "bad Lanczos sizes nev %lld ncv %lld n %lld", (long long)nreq, (long long)ncv,
+             (long long)n);
+  FMBD_CHECK(n < 2147483647 && ncv * (ncv + 8) < 2147483647, FMBD_ERR_VALUE,
+             "problem too large for ARPACK's 32-bit integers (n = %lld)", (long long)n);
+  int lworkl = (int)(ncv * (ncv + 8));
+  FMBD_GALLOC(resid = fmbd_malloc((size_t)n * sizeof(double)));
+  FMBD_GALLOC(v = fmbd_malloc((size_t)n * (size_t)ncv * sizeof(double)));
+  FMBD_GALLOC(workd = fmbd_malloc(3 * (size_t)n * sizeof(double)));
+  FMBD_GALLOC(workl = fmbd_malloc((size_t)lworkl * sizeof(double)));
+  FMBD_GALLOC(tmp = fmbd_malloc((size_t)n * sizeof(double)));
+  a_int iparam[11] = {0}, ipntr[11] = {0}, ido = 0, info = 0;
+  iparam[0] = 1;            // exact shifts
+  iparam[2] = maxit;        // restarts
+  iparam[6] = 3;            // mode 3: shift-invert, generalized
+  int64_t solves = 0;
+  double sigma = fmbd_chol_sigma(F);
+  for (;;) {
+    dsaupd_c(&ido, "G", (a_int)n, "LM", (a_int)nreq, tol, resid, (a_int)ncv, v, (a_int)n,
+             iparam, ipntr, workd, workl, lworkl, &info);
+    double *x = workd + ipntr[0] - 1, *y = workd + ipntr[1] - 1;
+    if (ido == -1) {
+      fmbd_csr_matvec(M, x, y);  // y = (K - sigma M)^-1 M x
+      FMBD_GCALL(fmbd_chol_solve(F, 1, y, n));
+      solves++;
+    } else if (ido == 1) {
+      memcpy(y, workd + ipntr[2] - 1, (size_t)n * sizeof(double));  // M x given
+      FMBD_GCALL(fmbd_chol_solve(F, 1, y, n));
+      solves++;
+    } else if (ido == 2) {
+      fmbd_csr_matvec(M, x, y);
+    } else {
+      break;
+    }
+    if (o->progress && (solves & 15) == 0 && (ido == -1 || ido == 1)) {
+      o->progress(o->progress_ctx, "Lanczos", solves0 + solves, nreq);
+    }
+  }
+  out->solves = solves;
+  out->restarts = iparam[2];
+  if (info < 0) {
+    FMBD_GFAIL(FMBD_ERR_CONVERGE,
+               "ARPACK dsaupd failed with info %d (%lld of %lld eigenpairs converged, ncv %lld)",
+               (int)info, (long long)iparam[4], (long long)nreq, (long long)ncv);
+  }
+  int64_t nconv = iparam[4];
+  if (nconv <= 0) {
+    rc = FMBD_OK;  // caller decides (retry with more vectors or fail with the count)
+    goto done;
+  }
+  FMBD_GALLOC(select = fmbd_calloc((size_t)ncv, sizeof(int)));
+  FMBD_GALLOC(d = fmbd_malloc((size_t)(nreq + 1) * sizeof(double)));
+  FMBD_GALLOC(out->X = fmbd_malloc((size_t)n * (size_t)nreq * sizeof(double)));
+  a_int einfo = 0;
+  dseupd_c(1, "A", select, d, out->X, (a_int)n, sigma, "G", (a_int)n, "LM", (a_int)nreq, tol,
+           resid, (a_int)ncv, v, (a_int)n, iparam, ipntr, workd, workl, lworkl, &einfo);
+  if (einfo != 0) {
+    FMBD_GFAIL(FMBD_ERR_CONVERGE,
+               "ARPACK dseupd failed with info %d (%lld of %lld eigenpairs converged)",
+               (int)einfo, (long long)nconv, (long long)nreq);
+  }
+  nconv = iparam[4];  // with info == 1 (maxit), only the converged ones are meaningful
+  out->nconv = nconv;
+  out->lam = d;
+  d = NULL;
+done:
+  if (rc != 0) run_out_free(out);
+  fmbd_free(resid);
+  fmbd_free(v);
+  fmbd_free(workd);
+  fmbd_free(workl);
+  fmbd_free(tmp);
+  fmbd_free(select);
+  fmbd_free(d);
+  return rc;
+}
+
+// sort pairs ascending, M-normalise, fix the sign (largest-magnitude component positive)
+typedef struct idx_val {
+  double v;
+  int64_t i;
+} idx_val;
+static int cmp_idx_val(const void *a, const void *b) {
+  double x = ((const idx_val *)a)->v, y = ((const idx_val *)b)->v;
+  return (x > y) - (x < y);
+}
+
+static int sort_normalise(const fmbd_csr *M, run_out *r) {
+  int rc = FMBD_OK;
+  int64_t n = M->nrows, k = r->nconv;
+  idx_val *iv = NULL;
+  double *X2 = NULL, *lam2 = NULL, *mx = NULL;
+  FMBD_GALLOC(iv = fmbd_malloc((size_t)(k ? k : 1) * sizeof *iv));
+  FMBD_GALLOC(X2 = fmbd_malloc((size_t)n * (size_t)(k ? k : 1) * sizeof(double)));
+  FMBD_GALLOC(lam2 = fmbd_malloc((size_t)(k + 1) * sizeof(double)));
+  FMBD_GALLOC(mx = fmbd_malloc((size_t)n * sizeof(double)));
+  for (int64_t j = 0; j < k; j++) iv[j] = (idx_val){r->lam[j], j};
+  qsort(iv, (size_t)k, sizeof *iv, cmp_idx_val);
+  for (int64_t j = 0; j < k; j++) {
+    const double *x = r->X + iv[j].i * n;
+    double *y = X2 + j * n;
+    fmbd_csr_matvec(M, x, mx);
+    double s = dot(n, x, mx);
+    s = s > 0.0 ? 1.0 / sqrt(s) : 1.0;
+    int64_t imax = 0;
+    for (int64_t i = 1; i < n; i++) {
+      if (fabs(x[i]) > fabs(x[imax])) imax = i;
+    }
+    if (x[imax] < 0.0) s = -s;
+    for (int64_t i = 0; i < n; i++) y[i] = s * x[i];
+    lam2[j] = iv[j].v;
+  }
+  fmbd_free(r->X);
+  fmbd_free(r->lam);
+  r->X = X2;
+  r->lam = lam2;
+  X2 = lam2 = NULL;
+done:
+  fmbd_free(iv);
+  fmbd_free(X2);
+  fmbd_free(lam2);
+  fmbd_free(mx);
+  return rc;
+}
+
+// --- dense path -----------------------------------------------------------------------------
+static int csr_to_dense(const fmbd_csr *A, double *D) {
+  int64_t n = A->nrows;
+  memset(D, 0, (size_t)n * (size_t)n * sizeof(double));
+  for (int64_t i = 0; i < n; i++) {
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) D[i + A->indices[p] * n] = A->data[p];
+  }
+  return FMBD_OK;
+}
+
+static int solve_dense(const fmbd_csr *K, const fmbd_csr *M, run_out *out) {
+  int rc = FMBD_OK;
+  int64_t n = K->nrows;
+  double *A = NULL, *B = NULL, *w = NULL;
+  memset(out, 0, sizeof *out);
+  FMBD_GALLOC(A = fmbd_malloc((size_t)n * (size_t)n * sizeof(double)));
+  FMBD_GALLOC(B = fmbd_malloc((size_t)n * (size_t)n * sizeof(double)));
+  FMBD_GALLOC(w = fmbd_malloc((size_t)(n + 1) * sizeof(double)));
+  csr_to_dense(K, A);
+  csr_to_dense(M, B);
+  FMBD_GCALL(fmbd_dense_sygv(n, A, B, w));
+  out->nconv = n;
+  out->lam = w;
+  out->X = A;
+  w = A = NULL;
+done:
+  fmbd_free(A);
+  fmbd_free(B);
+  fmbd_free(w);
+  return rc;
+}
+
+static int64_t auto_ncv(int64_t n, int64_t nreq) {
+  int64_t ncv = 2 * nreq + 1;
+  if (ncv < nreq + 20) ncv = nreq + 20;
+  // memory of the Lanczos basis: beyond 2 GB use the lean nev + nev/2 (ARPACK works with any
+  // ncv > nev; fewer vectors cost more restarts)
+  if ((double)n * (double)ncv * 8.0 > 2e9) {
+    int64_t lean = nreq + (nreq / 2 > 20 ? nreq / 2 : 20);
+    if (lean < ncv) ncv = lean;
+  }
+  if (ncv > n) ncv = n;
+  return ncv;
+}
+
+// max_i K_ii / M_ii over dofs with mass: the upper end of the spectrum, a scale
+static double spectrum_scale(const fmbd_csr *K, const fmbd_csr *M) {
+  double s = 0.0;
+  for (int64_t i = 0; i < K->nrows; i++) {
+    double k = fmbd_csr_get(K, i, i), m = fmbd_csr_get(M, i, i);
+    if (m > 0.0 && k / m > s) s = k / m;
+  }
+  return s;
+}
+
+int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmbd_eig_opts *oin,
+                   fmbd_eig_result *res) {
+  int rc = FMBD_OK;
+  fmbd_eig_opts o;
+  if (oin) {
+    o = *oin;
+  } else {
+    fmbd_eig_defaults(&o);
+  }
+  memset(res, 0, sizeof *res);
+  res->next_lambda = NAN;
+  res->sturm_shift = NAN;
+  res->sturm_count = -1;
+  int64_t n = K->nrows;
+  res->n = n;
+  fmbd_chol *own = NULL, *ldl = NULL;
+  run_out r = {0};
+  double *work = NULL;
+  bool bound = o.lambda_max > 0.0;
+  FMBD_CHECK(K->ncols == n && M->nrows == n && M->ncols == n, FMBD_ERR_VALUE,
+             "K (%lld x %lld) and M (%lld x %lld) are not square of one size",
+             (long long)K->nrows, (long long)K->ncols, (long long)M->nrows, (long long)M->ncols);
+  FMBD_CHECK(n >= 1, FMBD_ERR_VALUE, "empty eigenproblem");
+  if (!bound) {
+    FMBD_CHECK(o.nev >= 1, FMBD_ERR_VALUE, "number of modes %lld must be at least 1",
+               (long long)o.nev);
+    FMBD_CHECK(o.nev <= n, FMBD_ERR_VALUE, "%lld modes asked for, but the problem has only %lld dofs",
+               (long long)o.nev, (long long)n);
+  }
+  if (o.nev < 1) o.nev = 20;
+  FMBD_CHECK(o.tol > 0.0, FMBD_ERR_VALUE, "ARPACK tol must be positive (TOOLCHAIN.md gotcha 11)");
+  FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
+
+  // --- small problems: dense LAPACK, complete by construction ---------------------------------
+  if (n <= o.dense_max || (!bound && o.nev + 2 >= n)) {
+    double t0 = fmbd_wall_s();
+    rc = solve_dense(K, M, &r);
+    if (rc == FMBD_ERR_SINGULAR && n > o.dense_max) {
+      // M only semi-definite (massless dofs): LAPACK cannot, and nev is too close to n for
+      // Lanczos
+      FMBD_GFAIL(FMBD_ERR_VALUE, "%lld modes asked for, but the problem has %lld dofs and a "
+                 "singular mass matrix", (long long)o.nev, (long long)n);
+    }
+    FMBD_GCALL(rc);
+    res->dense = true;
+    res->t_lanczos_s = fmbd_wall_s() - t0;
+    int64_t keep = 0;
+    if (bound) {
+      while (keep < r.nconv && r.lam[keep] <= o.lambda_max) keep++;
+    } else {
+      keep = o.nev;
+    }
+    res->next_lambda = keep < r.nconv ? r.lam[keep] : NAN;
+    // sign convention as the sparse path
+    for (int64_t j = 0; j < keep; j++) {
+      double *x = r.X + j * n;
+      int64_t imax = 0;
+      for (int64_t i = 1; i < n; i++) {
+        if (fabs(x[i]) > fabs(x[imax])) imax = i;
+      }
+      if (x[imax] < 0.0) {
+        for (int64_t i = 0; i < n; i++) x[i] = -x[i];
+      }
+    }
+    res->nev = keep;
+    FMBD_GALLOC(res->resid = fmbd_malloc((size_t)(keep ? keep : 1) * sizeof(double)));
+    double t1 = fmbd_wall_s();
+    double scale = fabs(spectrum_scale(K, M)) * 1e-12;
+    for (int64_t j = 0; j < keep; j++) {
+      res->resid[j] = fmbd_eig_residual(K, M, r.lam[j], r.X + j * n, fmax(fabs(r.lam[j]), scale),
+                                        work);
+    }
+    res->t_check_s = fmbd_wall_s() - t1;
+    res->lambda = r.lam;
+    res->X = r.X;
+    r.lam = r.X = NULL;
+    goto done;
+  }
+
+  // --- the factor and its shift (THEORY.md section 8) -------------------------------------------
+  fmbd_chol *op = F;
+  if (o.free_body || !F) {
+    double t0 = fmbd_wall_s();
+    FMBD_GCALL(fmbd_chol_analyze(K, M, FMBD_CHOL_LLT, &own));
+    if (!o.free_body) {
+      FMBD_GCALL(fmbd_chol_factor(own, 0.0));
+      res->sigma = 0.0;
+    } else {
+      double scale = spectrum_scale(K, M);
+      FMBD_GCHECK(scale > 0.0, FMBD_ERR_VALUE, "stiffness or mass matrix has no positive diagonal");
+      double sigma0 = -1e-6 * scale;
+      FMBD_GCALL(fmbd_chol_factor(own, sigma0));
+      res->t_factor_s += fmbd_wall_s() - t0;
+      // cheap estimate pass: 12 pairs (6 rigid + 6 flexible), loose tolerance
+      int64_t ne = n - 2 < 12 ? n - 2 : 12;
+      double t1 = fmbd_wall_s();
+      FMBD_GCALL(arpack_run(M, own, ne, auto_ncv(n, ne), 1e-8, o.maxit, &o, 0, &r));
+      res->t_lanczos_s += fmbd_wall_s() - t1;
+      res->passes++;
+      res->n_solves += r.solves;
+      res->n_restarts += r.restarts;
+      double top = 0.0, lf = 0.0;
+      for (int64_t j = 0; j < r.nconv; j++) top = fmax(top, r.lam[j]);
+      for (int64_t j = 0; j < r.nconv; j++) {
+        if (r.lam[j] > 1e-6 * top && (lf == 0.0 || r.lam[j] < lf)) lf = r.lam[j];
+      }
+      run_out_free(&r);
+      double sigma = lf > 0.0 ? -0.5 * lf : sigma0;
+      fmbd_log(FMBD_LOG_DEBUG, "eig: shift estimate pass at %.3g: first flexible eigenvalue "
+               "~%.6g, shift %.6g", sigma0, lf, sigma);
+      t0 = fmbd_wall_s();
+      FMBD_GCALL(fmbd_chol_factor(own, sigma));
+      res->sigma = sigma;
+    }
+    res->t_factor_s += fmbd_wall_s() - t0;
+    op = own;
+  } else {
+    res->sigma = fmbd_chol_sigma(F);
+  }
+
+  // --- Lanczos passes with checks ------------------------------------------------------------
+  int64_t want = bound ? 0 : o.nev;
+  int64_t nreq = bound ? o.nev : o.nev + (o.nev / 10 > 3 ? o.nev / 10 : 3);
+  int64_t ncv_extra = 0;
+  int failed = 0;
+  int64_t last_conv = 0;
+  double tol = o.tol;
+  for (;;) {
+    if (nreq > n - 2) nreq = n - 2;
+    int64_t ncv = o.ncv > nreq ? o.ncv : auto_ncv(n, nreq);
+    ncv += ncv_extra;
+    if (ncv > n) ncv = n;
+    run_out_free(&r);
+    double t1 = fmbd_wall_s();
+    FMBD_GCALL(arpack_run(M, op, nreq, ncv, tol, o.maxit, &o, res->n_solves, &r));
+    res->passes++;
+    res->n_solves += r.solves;
+    res->n_restarts += r.restarts;
+    FMBD_GCALL(sort_normalise(M, &r));
+    res->t_lanczos_s += fmbd_wall_s() - t1;
+    last_conv = r.nconv;
+    // fewer converged than needed: more vectors
+    int64_t need = bound ? 1 : want;
+    if (r.nconv < need) {
+      if (++failed > o.max_passes) {
+        FMBD_GFAIL(FMBD_ERR_CONVERGE,
+                   "Lanczos did not converge: %lld of %lld eigenpairs converged after %d runs "
+                   "(last with %lld vectors, %d restarts)",
+                   (long long)r.nconv, (long long)nreq, res->passes, (long long)ncv, o.maxit);
+      }
+      fmbd_log(FMBD_LOG_INFO, "eig: %lld of %lld pairs converged; again with more vectors",
+               (long long)r.nconv, (long long)nreq);
+      ncv_extra += nreq;
+      continue;
+    }
+    // bound mode: grow the count until the highest converged exceeds the bound
+    if (bound && r.lam[r.nconv - 1] <= o.lambda_max) {
+      FMBD_GCHECK(nreq < n - 2, FMBD_ERR_VALUE,
+                  "every one of the %lld computable eigenvalues lies below the bound %.6g",
+                  (long long)r.nconv, o.lambda_max);
+      double lt = r.lam[r.nconv - 1];
+      double grow = lt > 0.0 ? 1.2 * (double)nreq * pow(o.lambda_max / lt, 1.5) + 5.0 : 2.0 * nreq;
+      int64_t nn = (int64_t)ceil(grow);
+      if (nn < nreq + 10) nn = nreq + 10;
+      if (nn > 4 * nreq + 10) nn = 4 * nreq + 10;
+      fmbd_log(FMBD_LOG_INFO, "eig: %lld pairs reach %.6g, below the bound %.6g: again with %lld",
+               (long long)r.nconv, lt, o.lambda_max, (long long)nn);
+      nreq = nn;
+      continue;
+    }
+    int64_t keep = want;
+    if (bound) {
+      keep = 0;
+      while (keep < r.nconv && r.lam[keep] <= o.lambda_max) keep++;
+    }
+    // residual of every kept pair
+    double t2 = fmbd_wall_s();
+    int64_t bad = -1;
+    double worst = 0.0;
+    double *rs = NULL;
+    FMBD_GALLOC(rs = fmbd_malloc((size_t)(keep ? keep : 1) * sizeof(double)));
+    for (int64_t j = 0; j < keep; j++) {
+      rs[j] = fmbd_eig_residual(K, M, r.lam[j], r.X + j * n, fmax(fabs(res->sigma), fabs(r.lam[j])),
+                                work);
+      if (!(rs[j] <= o.resid_tol) && bad < 0) bad = j;
+      if (rs[j] > worst) worst = rs[j];
+    }
+    res->t_check_s += fmbd_wall_s() - t2;
+    fmbd_free(res->resid);
+    res->resid = rs;
+    if (bad >= 0) {
+      if (++failed > o.max_passes) {
+        FMBD_GFAIL(FMBD_ERR_CONVERGE,
+                   "eigenpair %lld (lambda %.6g) has relative residual %.2g > %.1g after %d runs "
+                   "(%lld of %lld pairs pass)",
+                   (long long)bad + 1, r.lam[bad], rs[bad], o.resid_tol, res->passes,
+                   (long long)bad, (long long)keep);
+      }
+      fmbd_log(FMBD_LOG_INFO, "eig: pair %lld has residual %.2g; again with more vectors",
+               (long long)bad + 1, rs[bad]);
+      ncv_extra += nreq;
+      tol = tol * 1e-2 > 1e-15 ? tol * 1e-2 : 1e-15;
+      continue;
+    }
+    // Sturm check: s in the first clear gap at or above the last kept pair
+    if (o.sturm) {
+      int64_t j = keep;  // candidate count below s: lam[0..j-1]
+      double s = NAN;
+      for (; j < r.nconv; j++) {
+        // below the first returned pair the shift itself is a lower end (sigma < every
+        // eigenvalue, else the LL' factor would have failed)
+        double hi = r.lam[j];
+        double lo = j > 0 ? r.lam[j - 1] : (res->sigma < hi ? res->sigma : hi - fabs(hi));
+        double ref = fmax(fmax(fabs(hi), fabs(lo)), fabs(res->sigma));
+        if (hi - lo > 1e-6 * ref) {
+          s = 0.5 * (lo + hi);
+          break;
+        }
+      }
+      if (isnan(s)) {
+        // the returned pairs end inside a cluster: ask for more
+        if (++failed > o.max_passes) {
+          FMBD_GFAIL(FMBD_ERR_CONVERGE, "no gap above the last of %lld eigenvalues for the "
+                     "Sturm check after %d runs", (long long)r.nconv, res->passes);
+        }
+        nreq = r.nconv + 5;
+        continue;
+      }
+      double t3 = fmbd_wall_s();
+      if (!ldl) FMBD_GCALL(fmbd_chol_analyze(K, M, FMBD_CHOL_LDLT, &ldl));
+      if (o.progress) o.progress(o.progress_ctx, "Sturm check", res->n_solves, keep);
+      FMBD_GCALL(fmbd_chol_factor(ldl, s));
+      int64_t cnt = fmbd_chol_negative_pivots(ldl);
+      res->t_sturm_s += fmbd_wall_s() - t3;
+      res->sturm_shift = s;
+      res->sturm_count = cnt;
+      fmbd_log(FMBD_LOG_DEBUG, "eig: Sturm count below %.9g: %lld, returned %lld",
+               s, (long long)cnt, (long long)j);
+      if (cnt != j) {
+        if (++failed > o.max_passes) {
+          FMBD_GFAIL(FMBD_ERR_CONVERGE,
+                     "Sturm check failed: %lld eigenvalues below %.9g, Lanczos found %lld "
+                     "(after %d runs)", (long long)cnt, s, (long long)j, res->passes);
+        }
+        fmbd_log(FMBD_LOG_INFO, "eig: Sturm count %lld below %.9g, Lanczos found %lld: again "
+                 "with more vectors", (long long)cnt, s, (long long)j);
+        if (cnt > j) nreq += cnt - j + 2;
+        ncv_extra += nreq / 2 + 10;
+        continue;
+      }
+    }
+    // success
+    res->nev = keep;
+    res->next_lambda = keep < r.nconv ? r.lam[keep] : NAN;
+    res->lambda = r.lam;
+    res->X = r.X;
+    r.lam = r.X = NULL;
+    break;
+  }
+  (void)last_conv;
+done:
+  if (own) {
+    fmbd_chol_stats st;
+    fmbd_chol_get_stats(own, &st);
+    (void)st;
+  }
+  fmbd_chol_destroy(&own);
+  fmbd_chol_destroy(&ldl);
+  run_out_free(&r);
+  fmbd_free(work);
+  return rc;
+}

@@ -1,0 +1,103 @@
+// common/fmbd_eig.h: lowest eigenpairs of K x = lambda M x (ARPACK shift-invert Lanczos)
+// SPDX-License-Identifier: MIT
+//
+// K symmetric positive semi-definite, M symmetric positive definite (positive semi-definite
+// works: massless dofs give infinite eigenvalues, never returned), both ndof x ndof in full
+// CSR storage. The solver returns the lowest eigenpairs, by count or up to a bound, ascending,
+// M-normalised (X' M X = I), and guarantees that none was skipped:
+//
+// - Shift-invert Lanczos (ARPACK dsaupd/dseupd, mode 3, bmat 'G', which "LM", explicit tol:
+//   TOOLCHAIN.md gotcha 11) on OP = (K - sigma M)^-1 M with one CHOLMOD factor.
+// - Shift strategy (THEORY.md section 8): if K is positive definite (a held body: CB interior)
+//   sigma = 0 and the caller's factor of K is reused. A body that may have rigid-body modes
+//   (free_body) gets a NEGATIVE shift scaled to its spectrum: a cheap first pass (12 pairs,
+//   loose tol) at sigma0 = -1e-6 max_i(K_ii/M_ii) estimates the first flexible eigenvalue
+//   lambda_f (the lowest one above 1e-6 of the largest found); the real pass uses
+//   sigma = -lambda_f / 2, so rigid (0) and flexible eigenvalues map to operator eigenvalues
+//   of the same order and K - sigma M is as well conditioned as it can be. A shift at -10
+//   against lambda_f = 4e7 loses modes (THEORY.md 8): this is what the strategy avoids.
+// - Every pair is checked by its residual ||K x - lambda M x|| / max(||K x||, |sigma| ||M x||)
+//   (the second term keeps rigid-body pairs, K x ~ 0, meaningful).
+// - Sturm check: an LDL' factorisation of K - s M (no pivoting, CHOLMOD simplicial) counts
+//   the eigenvalues below s by Sylvester's law of inertia, with s placed in the first clear gap
+//   above the last wanted eigenvalue (between two returned ones). The count must equal the
+//   number returned below s; otherwise the solve is repeated with more vectors (a missing
+//   member of a repeated pair, a skipped mode) up to max_passes times.
+// - Small problems (n <= dense_max) are solved densely with LAPACK (complete by construction).
+// - Every ARPACK failure (info < 0, maxit reached, too few converged) becomes
+//   FMBD_ERR_CONVERGE with the number of converged pairs.
+#ifndef FMBD_EIG_H
+#define FMBD_EIG_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "fmbd_chol.h"
+#include "fmbd_csr.h"
+
+/// Progress report: stage ("Lanczos", "Sturm check", "residuals"), solves so far in this
+/// stage, pairs wanted.
+typedef void (*fmbd_eig_progress_fn)(void *ctx, const char *stage, int64_t solves, int64_t nev);
+
+/// Options; fill with fmbd_eig_defaults, then change.
+typedef struct fmbd_eig_opts {
+  int64_t nev;         ///< pairs wanted (count mode); in bound mode the first guess (0: 20)
+  double lambda_max;   ///< > 0: bound mode, every eigenvalue <= lambda_max. Default 0
+  bool free_body;      ///< K may be singular (rigid-body modes): negative shift. Default false
+  double tol;          ///< ARPACK tol (relative Ritz accuracy). Default 1e-12
+  double resid_tol;    ///< accepted relative residual of each pair. Default 1e-6
+  int maxit;           ///< ARPACK restarts per run. Default 500
+  int max_passes;      ///< runs with more vectors after a failed check. Default 4
+  bool sturm;          ///< do the Sturm count check. Default true
+  int64_t ncv;         ///< Lanczos basis size (0: automatic, max(2 nev + 1, nev + 20) capped)
+  int64_t dense_max;   ///< solve densely with LAPACK up to this order. Default 400
+  fmbd_eig_progress_fn progress; ///< may be NULL (default)
+  void *progress_ctx;
+} fmbd_eig_opts;
+
+/// @brief The defaults documented above.
+void fmbd_eig_defaults(fmbd_eig_opts *o);
+
+/// The solution and its cost. Free the arrays with fmbd_eig_result_free.
+typedef struct fmbd_eig_result {
+  int64_t n;            ///< order of the problem
+  int64_t nev;          ///< pairs returned
+  double *lambda;       ///< (nev) ascending; owned
+  double *X;            ///< n x nev column-major, X' M X = I; owned
+  double *resid;        ///< (nev) relative residual of each pair; owned
+  double next_lambda;   ///< lowest eigenvalue found above the last returned (NAN if none)
+  double sigma;         ///< shift of the final Lanczos pass
+  double sturm_shift;   ///< shift of the Sturm check (NAN if none)
+  int64_t sturm_count;  ///< eigenvalues below sturm_shift by inertia (-1 if not checked)
+  bool dense;           ///< solved densely (LAPACK)
+  int passes;           ///< Lanczos runs, including the estimate pass
+  int64_t n_solves;     ///< operator applications (sparse solves)
+  int64_t n_restarts;   ///< ARPACK restart iterations, summed over runs
+  double t_factor_s;    ///< shifted factorisations done here (not the caller's)
+  double t_lanczos_s;   ///< ARPACK iterations + solves + eigenvector extraction
+  double t_sturm_s;     ///< LDL' factorisations of the Sturm check
+  double t_check_s;     ///< residual computation
+} fmbd_eig_result;
+
+/// @brief Lowest eigenpairs of K x = lambda M x (see the file comment).
+/// @param[in] K, M  borrowed, ndof x ndof, symmetric (full storage; not checked here)
+/// @param[in] F     borrowed, may be NULL: a factor analysed for K (and M) and factored at a
+///                  shift below every eigenvalue (e.g. fmbd_chol_create_llt(K): sigma 0); used
+///                  instead of a new factorisation unless free_body asks for a negative shift
+/// @param[in] o     borrowed; NULL = defaults (then nev = 20)
+/// @param[out] res  caller frees with fmbd_eig_result_free (also on failure)
+/// @return FMBD_OK; FMBD_ERR_VALUE (nev >= n, bad options); FMBD_ERR_SINGULAR (K singular
+///         and not free_body: the message names the row); FMBD_ERR_CONVERGE (ARPACK failed,
+///         or a check still fails after max_passes: says how many pairs converged)
+int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmbd_eig_opts *o,
+                   fmbd_eig_result *res);
+
+/// @brief Release the arrays and zero the struct. NULL is fine.
+void fmbd_eig_result_free(fmbd_eig_result *res);
+
+/// @brief Relative residual ||K x - lambda M x|| / max(||K x||, |scale| ||M x||) of one pair.
+/// @param[in] work  2n doubles of scratch
+double fmbd_eig_residual(const fmbd_csr *K, const fmbd_csr *M, double lambda, const double *x,
+                         double scale, double *work);
+
+#endif
