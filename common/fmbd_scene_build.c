@@ -1,0 +1,623 @@
+// common/fmbd_scene_build.c: a scene (fmbd_scene.h) turned into a multibody system (fmbd_mbs.h)
+// SPDX-License-Identifier: MIT
+//
+// Body files are opened here; every error names the scene file and the line:column of the
+// item at fault (the body's `file` key, the joint, the output), and the body file.
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_h5.h"
+#include "fmbd_log.h"
+#include "fmbd_scene.h"
+
+#define SFAIL(s, loc, code, ...)                                                             \
+  do {                                                                                     \
+    fmbd_scene_context((s), (loc));                                                        \
+    FMBD_GFAIL(code, __VA_ARGS__);                                                         \
+  } while (0)
+
+void fmbd_scene_settings(const fmbd_scene *s, fmbd_mbs_settings *set) {
+  fmbd_mbs_settings_defaults(set);
+  set->t_end = s->solver.t_end;
+  set->rho_inf = s->solver.rho_inf;
+  set->fixed = s->solver.fixed;
+  if (s->solver.fixed) set->step = s->solver.step;
+  set->first_step = s->solver.first_step;
+  set->max_step = s->solver.max_step;
+  set->min_step = s->solver.min_step;
+  set->tolerance = s->solver.tolerance;
+  set->newton_tol = s->solver.newton_tol;
+  set->newton_max = s->solver.newton_max;
+  set->output_every = s->output_every;
+  set->reactions = s->nreactions > 0;
+}
+
+static fmbd_mbs_fn to_mbs_fn(const fmbd_scene_fn *f) {
+  switch (f->kind) {
+    case FMBD_FN_RAMP: return fmbd_mbs_fn_ramp(f->t0, f->v0, f->t1, f->v1, f->smooth);
+    case FMBD_FN_SINE: return fmbd_mbs_fn_sine(f->offset, f->amplitude, f->frequency_hz, f->phase);
+    case FMBD_FN_TABLE: return fmbd_mbs_fn_table(f->n, f->t, f->v);
+    default: return fmbd_mbs_fn_constant(f->value);
+  }
+}
+
+// --- keeping the first n modes of a modal body ----------------------------------------------
+static int truncate_modes(fmbd_rflex *r, int64_t n) {
+  int64_t nm = r->nm;
+  if (n >= nm) return 0;
+  double *SS = fmbd_malloc(sizeof(double) * (size_t)(9 * n * n + 1));
+  double *Mff = fmbd_malloc(sizeof(double) * (size_t)(n * n + 1));
+  double *Kff = fmbd_malloc(sizeof(double) * (size_t)(n * n + 1));
+  if (!SS || !Mff || !Kff) {
+    fmbd_free(SS);
+    fmbd_free(Mff);
+    fmbd_free(Kff);
+    FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  }
+  for (int64_t l = 0; l < n; l++) {
+    for (int64_t k = 0; k < n; k++) {
+      memcpy(SS + 9 * k + 9 * n * l, r->SS + 9 * k + 9 * nm * l, 9 * sizeof(double));
+      Mff[k + n * l] = r->Mff[k + nm * l];
+      Kff[k + n * l] = r->Kff[k + nm * l];
+    }
+  }
+  fmbd_free(r->SS);
+  fmbd_free(r->Mff);
+  fmbd_free(r->Kff);
+  r->SS = SS;
+  r->Mff = Mff;
+  r->Kff = Kff;
+  // arrays with the mode index slowest keep their prefix: S1, XS, shapes, stress, interfaces
+  r->nm = n;
+  return 0;
+}
+
+// --- a modal body from a cb file ------------------------------------------------------------
+int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out) {
+  int rc = 0;
+  fmbd_rflex *r = NULL;
+  double *Phi = NULL, *Psi = NULL, *Xi = NULL, *chibar = NULL, *nodes = NULL, *nmass = NULL;
+  int64_t *idof = NULL, *bdof = NULL, *rigid = NULL, *dofs = NULL;
+  double *U = NULL;  // 3 x nm translations of the current node
+  char **inames = NULL;
+  int nif = 0;
+  *out = NULL;
+  int64_t d2[2] = {-1, 3}, d1[1] = {-1};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/nodes", 2, d2, &nodes));
+  d2[1] = 3;
+  int64_t nnodes = d2[0];
+  d1[0] = nnodes;
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/node_mass", 1, d1, &nmass));
+  int64_t dd[2] = {-1, 2};
+  FMBD_GCALL(fmbd_h5_read_i64(f, "/dofs", 2, dd, &dofs));
+  int64_t ndof = dd[0];
+  int64_t di[1] = {-1}, db[1] = {-1};
+  FMBD_GCALL(fmbd_h5_read_i64(f, "/cb/interior_dofs", 1, di, &idof));
+  FMBD_GCALL(fmbd_h5_read_i64(f, "/cb/boundary_dofs", 1, db, &bdof));
+  int64_t ns = di[0], nb = db[0];
+  int64_t dphi[2] = {ns, -1}, dpsi[2] = {ns, nb};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/cb/Phi", 2, dphi, &Phi));  // row-major (ns, Nd)
+  int64_t nd = dphi[1];
+  if (nb > 0) FMBD_GCALL(fmbd_h5_read_f64(f, "/cb/Psi", 2, dpsi, &Psi));  // (ns, nb)
+  int64_t dxi[2] = {nd + nb, -1}, dch[1] = {-1}, drg[1] = {-1};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/reduced/eigenvectors", 2, dxi, &Xi));  // (Nd+nb, n)
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/reduced/eigenvalues", 1, dch, &chibar));
+  int64_t nev = dxi[1];
+  FMBD_GCHECK(dch[0] == nev, FMBD_ERR_FORMAT, "/reduced/eigenvalues has %lld entries, /reduced/eigenvectors %lld columns",
+              (long long)dch[0], (long long)nev);
+  if (fmbd_h5_exists(f, "/reduced/rigid")) {
+    drg[0] = nev;
+    FMBD_GCALL(fmbd_h5_read_i64(f, "/reduced/rigid", 1, drg, &rigid));
+  }
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof *r));
+  int64_t nm = 0;
+  for (int64_t k = 0; k < nev; k++) nm += !(rigid ? rigid[k] : chibar[k] < 1e-6 * fabs(chibar[nev - 1]));
+  r->nm = nm;
+  r->ndof = ndof;
+  r->nnodes = nnodes;
+  FMBD_GALLOC(r->eigenvalue = fmbd_malloc(sizeof(double) * (size_t)(nm + 1)));
+  FMBD_GALLOC(r->frequency_hz = fmbd_malloc(sizeof(double) * (size_t)(nm + 1)));
+  FMBD_GALLOC(r->shapes = fmbd_calloc((size_t)(ndof * nm + 1), sizeof(double)));
+  // --- shapes: interior rows Phi xi_d + Psi xi_b, boundary rows xi_b ---
+  for (int64_t k = 0, j = 0; k < nev; k++) {
+    if (rigid ? rigid[k] : chibar[k] < 1e-6 * fabs(chibar[nev - 1])) continue;
+    r->eigenvalue[j] = chibar[k];
+    r->frequency_hz[j] = sqrt(fmax(chibar[k], 0)) / (2 * 3.14159265358979323846);
+    double *sh = r->shapes + ndof * j;
+    for (int64_t i = 0; i < ns; i++) {
+      double v = 0;
+      for (int64_t a = 0; a < nd; a++) v += Phi[i * nd + a] * Xi[a * nev + k];
+      for (int64_t b = 0; b < nb; b++) v += Psi[i * nb + b] * Xi[(nd + b) * nev + k];
+      FMBD_GCHECK(idof[i] >= 0 && idof[i] < ndof, FMBD_ERR_FORMAT, "/cb/interior_dofs: dof out of range");
+      sh[idof[i]] = v;
+    }
+    for (int64_t b = 0; b < nb; b++) {
+      FMBD_GCHECK(bdof[b] >= 0 && bdof[b] < ndof, FMBD_ERR_FORMAT, "/cb/boundary_dofs: dof out of range");
+      sh[bdof[b]] = Xi[(nd + b) * nev + k];
+    }
+    j++;
+  }
+  FMBD_GALLOC(r->node_xyz = fmbd_malloc(sizeof(double) * (size_t)(3 * nnodes)));
+  memcpy(r->node_xyz, nodes, sizeof(double) * (size_t)(3 * nnodes));  // (nnodes,3) row-major = 3 x nnodes col-major
+  r->node_mass = nmass;
+  nmass = NULL;
+  FMBD_GALLOC(r->dofs = fmbd_malloc(sizeof(int64_t) * (size_t)(2 * ndof)));
+  memcpy(r->dofs, dofs, sizeof(int64_t) * (size_t)(2 * ndof));
+  FMBD_GCALL(fmbd_h5_read_csr(f, "/expand", &r->expand));
+  FMBD_GCHECK(r->expand->nrows == 6 * nnodes && r->expand->ncols == ndof, FMBD_ERR_FORMAT,
+              "/expand is %lld x %lld, expected %lld x %lld", (long long)r->expand->nrows,
+              (long long)r->expand->ncols, (long long)(6 * nnodes), (long long)ndof);
+  // --- rigid-body invariants from /body ---
+  double com[3], Ic[9];
+  FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "mass", 1, &r->mass));
+  FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "center_of_mass", 3, com));
+  FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "inertia", 9, Ic));
+  double tr = (Ic[0] + Ic[4] + Ic[8]) / 2;
+  for (int a = 0; a < 3; a++) {
+    r->first_moment[a] = r->mass * com[a];
+    for (int b = 0; b < 3; b++) {
+      r->second_moment[a + 3 * b] = tr * (a == b) - Ic[3 * a + b] + r->mass * com[a] * com[b];
+    }
+  }
+  // --- flexible invariants: sums over nodes with lumped masses (Adams-style) ---
+  FMBD_GALLOC(r->S1 = fmbd_calloc((size_t)(3 * nm + 1), sizeof(double)));
+  FMBD_GALLOC(r->XS = fmbd_calloc((size_t)(9 * nm + 1), sizeof(double)));
+  FMBD_GALLOC(r->SS = fmbd_calloc((size_t)(9 * nm * nm + 1), sizeof(double)));
+  FMBD_GALLOC(r->Mff = fmbd_calloc((size_t)(nm * nm + 1), sizeof(double)));
+  FMBD_GALLOC(r->Kff = fmbd_calloc((size_t)(nm * nm + 1), sizeof(double)));
+  FMBD_GALLOC(U = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
+  const fmbd_csr *E = r->expand;
+  for (int64_t p = 0; p < nnodes; p++) {
+    double mp = r->node_mass[p];
+    if (mp == 0) continue;
+    for (int a = 0; a < 3; a++) {
+      int64_t row = 6 * p + a;
+      for (int64_t k = 0; k < nm; k++) {
+        double v = 0;
+        for (int64_t e = E->indptr[row]; e < E->indptr[row + 1]; e++) v += E->data[e] * r->shapes[E->indices[e] + ndof * k];
+        U[a + 3 * k] = v;
+      }
+    }
+    const double *x0 = nodes + 3 * p;
+    for (int64_t k = 0; k < nm; k++) {
+      for (int a = 0; a < 3; a++) {
+        r->S1[a + 3 * k] += mp * U[a + 3 * k];
+        for (int b = 0; b < 3; b++) r->XS[a + 3 * b + 9 * k] += mp * x0[a] * U[b + 3 * k];
+      }
+      for (int64_t l = 0; l < nm; l++) {
+        for (int a = 0; a < 3; a++) {
+          for (int b = 0; b < 3; b++) r->SS[a + 3 * b + 9 * k + 9 * nm * l] += mp * U[a + 3 * k] * U[b + 3 * l];
+        }
+      }
+    }
+  }
+  for (int64_t k = 0; k < nm; k++) {
+    r->Mff[k + nm * k] = 1;  // Xi is M_-orthonormal
+    r->Kff[k + nm * k] = r->eigenvalue[k];
+  }
+  // --- interfaces ---
+  FMBD_GCALL(fmbd_h5_list(f, "/interfaces", &nif, &inames));
+  FMBD_GALLOC(r->interfaces = fmbd_calloc((size_t)nif + 1, sizeof *r->interfaces));
+  r->ninterfaces = nif;
+  for (int i = 0; i < nif; i++) {
+    fmbd_rflex_interface *it = &r->interfaces[i];
+    char path[600];
+    snprintf(path, sizeof path, "/interfaces/%s", inames[i]);
+    FMBD_GALLOC(it->name = fmbd_strdup(inames[i]));
+    FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "node", 1, &it->node));
+    FMBD_GCHECK(it->node >= 0 && it->node < nnodes, FMBD_ERR_FORMAT, "%s: node out of range", path);
+    if (fmbd_h5_has_attr(f, path, "kind")) FMBD_GCALL(fmbd_h5_read_attr_str(f, path, "kind", &it->kind));
+    memcpy(it->x0, nodes + 3 * it->node, sizeof it->x0);
+    FMBD_GALLOC(it->translation = fmbd_calloc((size_t)(3 * nm + 1), sizeof(double)));
+    FMBD_GALLOC(it->rotation = fmbd_calloc((size_t)(3 * nm + 1), sizeof(double)));
+    for (int a = 0; a < 6; a++) {
+      int64_t row = 6 * it->node + a;
+      for (int64_t k = 0; k < nm; k++) {
+        double v = 0;
+        for (int64_t e = E->indptr[row]; e < E->indptr[row + 1]; e++) v += E->data[e] * r->shapes[E->indices[e] + ndof * k];
+        (a < 3 ? it->translation : it->rotation)[a % 3 + 3 * k] = v;
+      }
+    }
+  }
+  *out = r;
+  r = NULL;
+done:
+  for (int i = 0; i < nif; i++) fmbd_free(inames[i]);
+  fmbd_free(inames);
+  fmbd_rflex_destroy(&r);
+  fmbd_free(Phi);
+  fmbd_free(Psi);
+  fmbd_free(Xi);
+  fmbd_free(chibar);
+  fmbd_free(nodes);
+  fmbd_free(nmass);
+  fmbd_free(idof);
+  fmbd_free(bdof);
+  fmbd_free(rigid);
+  fmbd_free(dofs);
+  fmbd_free(U);
+  return rc;
+}
+
+// --- points --------------------------------------------------------------------------------
+static void to_world(const fmbd_scene_body *b, const double x0[3], double xw[3]) {
+  for (int i = 0; i < 3; i++) {
+    xw[i] = b->position[i];
+    for (int j = 0; j < 3; j++) xw[i] += b->rotation[3 * i + j] * x0[j];
+  }
+}
+static void to_body(const fmbd_scene_body *b, const double xw[3], double x0[3]) {
+  for (int j = 0; j < 3; j++) {
+    x0[j] = 0;
+    for (int i = 0; i < 3; i++) x0[j] += b->rotation[3 * i + j] * (xw[i] - b->position[i]);
+  }
+}
+
+static double body_size(const fmbd_rflex *r) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int64_t p = 0; p < r->nnodes; p++) {
+    for (int a = 0; a < 3; a++) {
+      lo[a] = fmin(lo[a], r->node_xyz[a + 3 * p]);
+      hi[a] = fmax(hi[a], r->node_xyz[a + 3 * p]);
+    }
+  }
+  double d = 0;
+  for (int a = 0; a < 3; a++) d += (hi[a] - lo[a]) * (hi[a] - lo[a]);
+  return sqrt(d);
+}
+
+// The node of a flexible body an attachment names; x0b: a body-frame point for DEFAULT/POINT.
+// what names the item for messages.
+static int flex_node(const fmbd_scene *s, int bi, const fmbd_rflex *r, const fmbd_scene_at *at,
+                     const double x0b[3], fmbd_scene_loc loc, const char *what, int64_t *node) {
+  int rc = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  switch (at->kind) {
+    case FMBD_AT_INTERFACE: {
+      int i = fmbd_rflex_find_interface(r, at->interface);
+      if (i < 0) {
+        char list[512] = "";
+        for (int k = 0; k < r->ninterfaces && strlen(list) < 400; k++) {
+          strcat(list, k ? ", " : "");
+          strcat(list, r->interfaces[k].name);
+        }
+        SFAIL(s, at->loc, FMBD_ERR_SCENE, "%s: body '%s' (%s) has no interface '%s' (it has: %s)", what, b->name,
+              b->file, at->interface, r->ninterfaces ? list : "none");
+      }
+      *node = r->interfaces[i].node;
+      break;
+    }
+    case FMBD_AT_NODE:
+      if (at->node >= r->nnodes) {
+        SFAIL(s, at->loc, FMBD_ERR_SCENE, "%s: body '%s' has nodes 0..%lld, not %lld", what, b->name,
+              (long long)r->nnodes - 1, (long long)at->node);
+      }
+      *node = at->node;
+      break;
+    case FMBD_AT_NEAREST:
+      *node = fmbd_rflex_nearest_node(r, at->p, NULL);
+      break;
+    default: {  // a point that must be a node
+      double dist = 0;
+      int64_t p = fmbd_rflex_nearest_node(r, x0b, &dist);
+      double tol = 1e-6 * body_size(r);
+      if (p < 0 || dist > tol) {
+        const char *itf = NULL;
+        for (int k = 0; k < r->ninterfaces; k++) {
+          if (r->interfaces[k].node == p) itf = r->interfaces[k].name;
+        }
+        SFAIL(s, loc, FMBD_ERR_SCENE,
+              "%s: the point (%g, %g, %g) (body frame) is not on body '%s': the nearest node %lld%s%s%s is %.3g m "
+              "away; name an interface, a node or 'nearest'",
+              what, x0b[0], x0b[1], x0b[2], b->name, (long long)p, itf ? " (interface '" : "", itf ? itf : "",
+              itf ? "')" : "", dist);
+      }
+      *node = p;
+    }
+  }
+done:
+  return rc;
+}
+
+// Add the mbs point of an attachment on scene body bi (or ground, bi < 0). xw: the world
+// point to use for DEFAULT (may be NULL for loads/outputs: the body origin).
+static int add_point(fmbd_scene_model *m, const fmbd_scene *s, int bi, const fmbd_scene_at *at,
+                     const double *xw, fmbd_scene_loc loc, const char *what, int *pid, int64_t *node_out) {
+  int rc = 0;
+  double *T = NULL, *R = NULL;
+  if (node_out) *node_out = -1;
+  if (bi < 0) {
+    const double *p = at->kind == FMBD_AT_POINT ? at->p : xw;
+    FMBD_GCALL(fmbd_mbs_add_point(m->mbs, FMBD_MBS_GROUND, p, NULL, NULL, pid));
+    goto done;
+  }
+  const fmbd_scene_body *b = &s->bodies[bi];
+  double x0[3] = {0, 0, 0};
+  if (at->kind == FMBD_AT_POINT) {
+    memcpy(x0, at->p, sizeof x0);
+  } else if (at->kind == FMBD_AT_DEFAULT && xw) {
+    to_body(b, xw, x0);
+  }
+  if (b->kind == FMBD_SCENE_RIGID || (at->kind == FMBD_AT_DEFAULT && !xw)) {
+    FMBD_GCALL(fmbd_mbs_add_point(m->mbs, m->body_id[bi], x0, NULL, NULL, pid));
+    goto done;
+  }
+  const fmbd_rflex *r = m->flex[bi];
+  int64_t node;
+  FMBD_GCALL(flex_node(s, bi, r, at, x0, loc, what, &node));
+  int64_t nm = r->nm;
+  FMBD_GALLOC(T = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
+  FMBD_GALLOC(R = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
+  FMBD_GCALL(fmbd_rflex_node_modes(r, node, x0, T, R));
+  FMBD_GCALL(fmbd_mbs_add_point(m->mbs, m->body_id[bi], x0, T, R, pid));
+  if (node_out) *node_out = node;
+done:
+  fmbd_free(T);
+  fmbd_free(R);
+  return rc;
+}
+
+static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
+  char **nn = fmbd_realloc(m->input_name, sizeof(char *) * (size_t)(m->ninputs + 1));
+  if (!nn) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  m->input_name = nn;
+  char(*ns)[65] = fmbd_realloc(m->input_sha, sizeof(*ns) * (size_t)(m->ninputs + 1));
+  if (!ns) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  m->input_sha = ns;
+  m->input_name[m->ninputs] = fmbd_strdup(name);
+  if (!m->input_name[m->ninputs]) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  snprintf(m->input_sha[m->ninputs], 65, "%s", sha ? sha : "");
+  m->ninputs++;
+  return 0;
+}
+
+// --- flexible bodies ---------------------------------------------------------------------
+static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need_stress) {
+  int rc = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  fmbd_h5 *f = NULL;
+  char *format = NULL;
+  fmbd_err_clear();
+  rc = fmbd_h5_open(b->file, &f);
+  if (rc) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    SFAIL(s, b->file_loc, rc, "body '%s': %s: %s", b->name, b->file, msg);
+  }
+  if (fmbd_h5_has_attr(f, "/", "format")) FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &format));
+  if (format && !strcmp(format, "fmbd-rflex")) {
+    rc = fmbd_rflex_read(f, &m->flex[bi]);
+  } else if (format && !strcmp(format, "fmbd-cb")) {
+    rc = fmbd_h5_check_format(f, "fmbd-cb", 1);
+    if (!rc) rc = fmbd_scene_rflex_from_cb(f, &m->flex[bi]);
+  } else {
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
+          "body '%s': %s is %s%s%s; a flexible body needs a fmbd-rflex file (cbcheck) or a fmbd-cb file (fe2cb)",
+          b->name, b->file, format ? "a " : "not a toolchain file", format ? format : "", format ? " file" : "");
+  }
+  if (rc) {
+    // keep the HDF5 path of the failure, prefix the scene item
+    char msg[1100], where[600];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    snprintf(where, sizeof where, "%s", fmbd_err_get()->where);
+    SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
+  }
+  FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
+  fmbd_rflex *r = m->flex[bi];
+  if (b->modes > r->nm) {
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name, (long long)b->modes,
+          b->file, (long long)r->nm);
+  }
+  if (b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
+  if (!need_stress && r->stress) {  // nothing asks for stress: do not keep it
+    fmbd_free(r->stress);
+    r->stress = NULL;
+  }
+  m->E[bi] = NAN;
+  m->nu[bi] = NAN;
+  if (fmbd_h5_has_attr(f, "/material", "E")) {
+    FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/material", "E", 1, &m->E[bi]));
+    FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/material", "nu", 1, &m->nu[bi]));
+  }
+  FMBD_GCALL(add_input(m, b->file, fmbd_h5_sha256(f)));
+  fmbd_mbs_flex_data d = {.nm = r->nm,
+                          .mass = r->mass,
+                          .S1 = r->S1,
+                          .XS = r->XS,
+                          .SS = r->SS,
+                          .Mff = r->Mff,
+                          .Kff = r->Kff,
+                          .damping_ratio = b->damping_ratio};
+  memcpy(d.first_moment, r->first_moment, sizeof d.first_moment);
+  memcpy(d.second_moment, r->second_moment, sizeof d.second_moment);
+  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
+  memcpy(s0.position, b->position, sizeof s0.position);
+  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
+  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
+  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  rc = fmbd_mbs_add_flex(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
+  if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
+done:
+  fmbd_free(format);
+  fmbd_h5_close(&f);
+  return rc;
+}
+
+int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
+  int rc = 0;
+  fmbd_scene_model *m = NULL;
+  *out = NULL;
+  FMBD_GALLOC(m = fmbd_calloc(1, sizeof *m));
+  FMBD_GCALL(fmbd_mbs_create(&m->mbs));
+  int nb = s->nbodies;
+  m->nbodies = nb;
+  FMBD_GALLOC(m->body_id = fmbd_calloc((size_t)nb + 1, sizeof(int)));
+  FMBD_GALLOC(m->flex = fmbd_calloc((size_t)nb + 1, sizeof(fmbd_rflex *)));
+  FMBD_GALLOC(m->file_kind = fmbd_calloc((size_t)nb + 1, sizeof(char *)));
+  FMBD_GALLOC(m->E = fmbd_calloc((size_t)nb + 1, sizeof(double)));
+  FMBD_GALLOC(m->nu = fmbd_calloc((size_t)nb + 1, sizeof(double)));
+  FMBD_GALLOC(m->joint_id = fmbd_calloc((size_t)s->njoints + 1, sizeof(int)));
+  m->noutputs = s->noutputs;
+  FMBD_GALLOC(m->out_point = fmbd_calloc((size_t)s->noutputs + 1, sizeof(int)));
+  FMBD_GALLOC(m->out_body = fmbd_calloc((size_t)s->noutputs + 1, sizeof(int)));
+  FMBD_GALLOC(m->out_node = fmbd_calloc((size_t)s->noutputs + 1, sizeof(int64_t)));
+  FMBD_GALLOC(m->out_sigma = fmbd_calloc((size_t)s->noutputs + 1, sizeof(double *)));
+  // --- bodies ---
+  for (int i = 0; i < nb; i++) {
+    const fmbd_scene_body *b = &s->bodies[i];
+    if (b->kind == FMBD_SCENE_RIGID) {
+      fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
+      memcpy(s0.position, b->position, sizeof s0.position);
+      memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
+      memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
+      memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+      rc = fmbd_mbs_add_rigid(m->mbs, b->name, b->mass, b->com, b->inertia, &s0, &m->body_id[i]);
+      if (rc) SFAIL(s, b->loc, rc, "body '%s': %s", b->name, fmbd_err_get()->msg);
+    } else {
+      bool need_stress = false;
+      for (int o = 0; o < s->noutputs; o++) {
+        need_stress |= s->outputs[o].body == i &&
+                       (s->outputs[o].quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN));
+      }
+      FMBD_GCALL(load_flex(m, s, i, need_stress));
+    }
+  }
+  // --- joints ---
+  for (int k = 0; k < s->njoints; k++) {
+    const fmbd_scene_joint *j = &s->joints[k];
+    char what[200];
+    snprintf(what, sizeof what, "joint '%s'", j->name);
+    double P[3];
+    if (j->has_point) {
+      memcpy(P, j->point, sizeof P);
+    } else {  // from the first attachment that names a place
+      int side = j->at[0].kind != FMBD_AT_DEFAULT ? 0 : 1;
+      int bi = j->body[side];
+      const fmbd_scene_at *at = &j->at[side];
+      if (bi < 0) {
+        memcpy(P, at->p, sizeof P);
+      } else if (s->bodies[bi].kind == FMBD_SCENE_RIGID) {
+        to_world(&s->bodies[bi], at->p, P);
+      } else {
+        int64_t node;
+        FMBD_GCALL(flex_node(s, bi, m->flex[bi], at, at->p, at->loc, what, &node));
+        to_world(&s->bodies[bi], m->flex[bi]->node_xyz + 3 * node, P);
+      }
+    }
+    int pid[2];
+    for (int sd = 0; sd < 2; sd++) {
+      fmbd_scene_loc loc = j->has_point ? j->point_loc : j->loc;
+      FMBD_GCALL(add_point(m, s, j->body[sd], &j->at[sd], P, loc, what, &pid[sd], NULL));
+    }
+    fmbd_mbs_joint_desc d = {.name = j->name, .kind = j->kind, .point = {pid[0], pid[1]}};
+    memcpy(d.axis, j->axis, sizeof d.axis);
+    memcpy(d.axis2, j->axis2, sizeof d.axis2);
+    rc = fmbd_mbs_add_joint(m->mbs, &d, &m->joint_id[k]);
+    if (rc) SFAIL(s, j->loc, rc, "%s: %s", what, fmbd_err_get()->msg);
+  }
+  // --- drivers ---
+  for (int k = 0; k < s->ndrivers; k++) {
+    const fmbd_scene_driver *d = &s->drivers[k];
+    fmbd_mbs_fn fn = to_mbs_fn(&d->fn);
+    if (d->joint >= 0) {
+      rc = fmbd_mbs_add_driver_joint(m->mbs, d->name, m->joint_id[d->joint], &fn, NULL);
+    } else {
+      rc = fmbd_mbs_add_driver_body(m->mbs, d->name, m->body_id[d->body], d->coordinate, &fn, NULL);
+    }
+    if (rc) SFAIL(s, d->loc, rc, "driver '%s': %s", d->name, fmbd_err_get()->msg);
+  }
+  // --- loads ---
+  for (int k = 0; k < s->nloads; k++) {
+    const fmbd_scene_load *l = &s->loads[k];
+    char what[200];
+    snprintf(what, sizeof what, "load '%s'", l->name);
+    int pid;
+    FMBD_GCALL(add_point(m, s, l->body, &l->at, NULL, l->loc, what, &pid, NULL));
+    fmbd_mbs_fn fn = to_mbs_fn(&l->fn);
+    rc = fmbd_mbs_add_load(m->mbs, l->name, l->kind == FMBD_LOAD_TORQUE ? FMBD_MBS_TORQUE : FMBD_MBS_FORCE, pid,
+                           l->body_frame, l->direction, &fn, NULL);
+    if (rc) SFAIL(s, l->loc, rc, "%s: %s", what, fmbd_err_get()->msg);
+  }
+  fmbd_mbs_set_gravity(m->mbs, s->gravity);
+  // --- outputs ---
+  for (int o = 0; o < s->noutputs; o++) {
+    const fmbd_scene_output *op = &s->outputs[o];
+    char what[200];
+    snprintf(what, sizeof what, "output '%s'", op->name);
+    m->out_body[o] = op->body;
+    FMBD_GCALL(add_point(m, s, op->body, &op->at, NULL, op->loc, what, &m->out_point[o], &m->out_node[o]));
+    if (op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN)) {
+      const fmbd_rflex *r = m->flex[op->body];
+      if (!r->stress) {
+        SFAIL(s, op->loc, FMBD_ERR_SCENE,
+              "%s asks for stress or strain, but %s has no /modes/stress (%s)", what, s->bodies[op->body].file,
+              !strcmp(m->file_kind[op->body], "fmbd-cb") ? "a cb file never has it; use the .rflex.h5 of cbcheck"
+                                                         : "cbcheck writes it when the fe file is at hand");
+      }
+      if ((op->quantities & FMBD_OUT_STRAIN) && !(m->E[op->body] > 0)) {
+        SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for strain, but %s has no /material E and nu", what,
+              s->bodies[op->body].file);
+      }
+      FMBD_GALLOC(m->out_sigma[o] = fmbd_malloc(sizeof(double) * (size_t)(6 * r->nm + 1)));
+      FMBD_GCALL(fmbd_rflex_node_stress(r, m->out_node[o], m->out_sigma[o]));
+    }
+  }
+  *out = m;
+  m = NULL;
+done:
+  fmbd_scene_model_destroy(&m);
+  return rc;
+}
+
+int fmbd_scene_output_stress(const fmbd_scene_model *m, int o, double sigma[6]) {
+  FMBD_CHECK(o >= 0 && o < m->noutputs && m->out_sigma[o], FMBD_ERR_VALUE, "output %d has no stress", o);
+  const double *q = NULL;
+  int64_t nm = fmbd_mbs_modal(m->mbs, m->body_id[m->out_body[o]], &q, NULL, NULL);
+  const double *S = m->out_sigma[o];
+  for (int i = 0; i < 6; i++) {
+    double v = 0;
+    for (int64_t k = 0; k < nm; k++) v += S[i + 6 * k] * q[k];
+    sigma[i] = v;
+  }
+  return 0;
+}
+
+double fmbd_scene_strain(double E, double nu, const double s[6], double e[6]) {
+  double tr = s[0] + s[1] + s[2];
+  for (int i = 0; i < 3; i++) e[i] = ((1 + nu) * s[i] - nu * tr) / E;
+  for (int i = 3; i < 6; i++) e[i] = (1 + nu) * s[i] / E;  // tensor (not engineering) shear
+  double sv = sqrt(0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) + (s[2] - s[0]) * (s[2] - s[0])) +
+                   3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
+  return 2 * (1 + nu) * sv / (3 * E);
+}
+
+void fmbd_scene_model_destroy(fmbd_scene_model **mp) {
+  if (!mp || !*mp) return;
+  fmbd_scene_model *m = *mp;
+  fmbd_mbs_destroy(&m->mbs);
+  for (int i = 0; i < m->nbodies; i++) {
+    if (m->flex) fmbd_rflex_destroy(&m->flex[i]);
+    if (m->file_kind) fmbd_free(m->file_kind[i]);
+  }
+  for (int o = 0; o < m->noutputs; o++) {
+    if (m->out_sigma) fmbd_free(m->out_sigma[o]);
+  }
+  for (int i = 0; i < m->ninputs; i++) fmbd_free(m->input_name[i]);
+  fmbd_free(m->input_name);
+  fmbd_free(m->input_sha);
+  fmbd_free(m->body_id);
+  fmbd_free(m->flex);
+  fmbd_free(m->file_kind);
+  fmbd_free(m->E);
+  fmbd_free(m->nu);
+  fmbd_free(m->joint_id);
+  fmbd_free(m->out_point);
+  fmbd_free(m->out_node);
+  fmbd_free(m->out_body);
+  fmbd_free(m->out_sigma);
+  fmbd_free(m);
+  *mp = NULL;
+}
