@@ -1,0 +1,76 @@
+// common/fmbd_mesh.h: geometry and mesh input (gmsh C API; CGAL Mesh_3 for closed surfaces)
+// SPDX-License-Identifier: MIT
+//
+// Fills the fmbd_mesh struct of fmbd_fe.h (nodes, tet4/tet10 or beam2 elements, named node
+// groups) from:
+//   .geo .step .stp .brep   geometry, meshed by gmsh: 3-D (tetrahedra) when the model has
+//                           volumes, 1-D (2-node line elements = beams) when it has only curves
+//   .msh                    a gmsh mesh, taken as stored (tetrahedra, else line elements)
+//   .stl .off               a closed triangulated surface, filled with tetrahedra by CGAL
+//                           Mesh_3 through a meshing callback (mesh2fe/cgal_shim.cpp), so
+//                           that only mesh2fe links CGAL
+// Physical groups of any dimension become node groups named by their physical name (or
+// "p<dim>_<tag>" when unnamed). Every mesh is validated (fmbd_mesh_check): no inverted or
+// degenerate element, no node outside every element.
+#ifndef FMBD_MESH_H
+#define FMBD_MESH_H
+
+#include <stdint.h>
+
+#include "fmbd_fe.h"
+
+/// A tetrahedral mesher for closed triangle surfaces (the CGAL shim). Gets the surface
+/// (nv vertices (nv, 3), nf triangles (nf, 3)) and the target size; returns FMBD_OK with
+/// *nodes (nn, 3) and *tet (nt, 4) allocated with fmbd_malloc, or an FMBD_ERR_* code with the
+/// error record set (fmbd_err_set).
+typedef int (*fmbd_surface_mesher)(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri,
+                                   double size, int64_t *nn, double **nodes, int64_t *nt,
+                                   int64_t **tet);
+
+/// Options of fmbd_mesh_read. Fill with fmbd_mesh_options_defaults, then change.
+typedef struct fmbd_mesh_options {
+  int order;        ///< 1 (tet4) or 2 (tet10); 0 (default): 2 for geometry and surfaces, as
+                    ///< stored for .msh. Beams are always 2-node (order ignored).
+  double size;      ///< target element size in m; <= 0 (default): gmsh's own sizes from the
+                    ///< geometry, and for .stl/.off the bounding-box diagonal / 25
+  int gmsh_verbose; ///< 0 (default): gmsh silent; 1: gmsh's Info lines on standard output (!)
+  fmbd_surface_mesher surface_mesher; ///< needed for .stl/.off (NULL default: FMBD_ERR_USAGE)
+} fmbd_mesh_options;
+
+/// @brief Default options (order 0 = automatic, size 0 = from the geometry, gmsh silent).
+void fmbd_mesh_options_defaults(fmbd_mesh_options *o);
+
+/// @brief Read or mesh GEOMETRY into m, then validate it (fmbd_mesh_check).
+/// @param[in] path  file name; its ending chooses the reader (case-insensitive)
+/// @param[out] m    filled (owned arrays; release with fmbd_mesh_destroy(m)); left empty
+///                  (zeroed) on failure
+/// @return FMBD_OK; FMBD_ERR_IO (missing/unreadable), FMBD_ERR_USAGE (unknown ending),
+///   FMBD_ERR_FORMAT (gmsh or the surface reader rejects the file, no volume or beam
+///   elements, unsupported element types), FMBD_ERR_VALUE (bad elements, orphan nodes,
+///   open surface), FMBD_ERR_EXTERNAL (gmsh/CGAL failure). The message names the file and
+///   the element, node or group at fault.
+int fmbd_mesh_read(const char *path, const fmbd_mesh_options *opt, fmbd_mesh *m);
+
+/// @brief Validate a mesh: every tetrahedron has a positive Jacobian determinant (tet4: the
+/// constant one; tet10: at its corners, mid-edges, centroid and the 4-point Gauss points,
+/// relative to the cube of its longest edge > 1e-10), every beam a positive length, every
+/// node belongs to an element, and groups index existing nodes.
+/// @return FMBD_OK or FMBD_ERR_VALUE naming the first bad element (0-based index) and its
+/// Jacobian, or the node.
+int fmbd_mesh_check(const fmbd_mesh *m);
+
+/// @brief Add a node group: every node with lo[k] - tol <= x[k] <= hi[k] + tol, tol = 1e-9
+/// times the mesh's bounding-box diagonal. FMBD_ERR_VALUE if the name exists already or the
+/// box holds no node; FMBD_ERR_USAGE if lo > hi in a direction.
+int fmbd_mesh_add_box_group(fmbd_mesh *m, const char *name, const double lo[3], const double hi[3]);
+
+/// @brief Turn tet4 into tet10 with straight edges: one new node at the middle of each edge,
+/// gmsh's local order (mid-edges of (0,1) (1,2) (0,2) (0,3) (2,3) (1,3)). Groups gain the
+/// mid-edge nodes whose both edge ends are in the group. No-op for tet10 or beam meshes.
+int fmbd_mesh_elevate(fmbd_mesh *m);
+
+/// @brief Volume of the tetrahedra (exact for straight-sided tet4/tet10; tet10 uses the
+/// 4-point rule on the quadratic geometry).
+double fmbd_mesh_volume(const fmbd_mesh *m);
+
+#endif
