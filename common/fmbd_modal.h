@@ -27,7 +27,10 @@
 
 #include <stdint.h>
 
+#include <stdbool.h>
+
 #include "fmbd_csr.h"
+#include "fmbd_fe.h"
 #include "fmbd_h5.h"
 
 /// Format name and version written in the root attributes of a .rflex.h5.
@@ -95,6 +98,33 @@ int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out);
 /// the caller beforehand (fmbd_fe_copy_description); the /interfaces/<name> groups must exist.
 /// @param[in] f a file from fmbd_h5_create(..., FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, ...)
 int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r);
+
+/// What the secondary reduction needs (all borrowed). Column-major matrices.
+typedef struct fmbd_modal_input {
+  const fmbd_fe_body *body;      ///< description: nodes, node_mass, dofs, expand, interfaces,
+                                 ///< /body, elements and material (for stress); K, M unused
+  int64_t ns, nb;                ///< interior and boundary dofs (ns + nb = body->ndof)
+  const int64_t *interior_dofs;  ///< (ns) rows of /dofs
+  const int64_t *boundary_dofs;  ///< (nb) rows of /dofs
+  int64_t nd;                    ///< fixed-interface modes of the reduced body
+  const double *Phi;             ///< ns x nd (leading dimension ldphi >= ns)
+  int64_t ldphi;
+  const double *Psi;             ///< ns x nb constraint modes
+  int64_t nm;                    ///< flexible modes kept
+  const double *chibar;          ///< (nm) their eigenvalues (> 0)
+  const double *Xi;              ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
+  int64_t ldxi;                  ///< leading dimension of Xi (>= nd+nb)
+  bool stress;                   ///< compute /modes/stress (fmbd_fe_nodal_stress)
+} fmbd_modal_input;
+
+/// @brief The secondary reduction [H46-H50]: shapes qF = T0 PhiT (T0 = [Phi_d Psi; 0 I] in
+/// the s/b partition), node and interface modal motion through /expand, the /ffrf invariants
+/// with the lumped nodal masses (mass, first and second moments from /body:
+/// J = tr(Ic)/2 I - Ic + m c c'), Mff = I, Kff = diag(chibar), optional modal stress.
+/// @param[out] out caller releases with fmbd_rflex_destroy
+/// @return FMBD_OK, FMBD_ERR_VALUE (inconsistent sizes), FMBD_ERR_NOMEM, errors of
+///         fmbd_fe_nodal_stress
+int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out);
 
 /// @brief Release r and its arrays; NULL and *r == NULL are fine; sets *r = NULL.
 void fmbd_rflex_destroy(fmbd_rflex **r);

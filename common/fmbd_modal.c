@@ -1,0 +1,501 @@
+// common/fmbd_modal.c: the reduced flexible body: secondary reduction, FFRF invariants,
+// fmbd-rflex file I/O
+// SPDX-License-Identifier: MIT
+#include "fmbd_modal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_dense.h"
+#include "fmbd_err.h"
+
+static void *xcalloc(size_t n, size_t sz) { return fmbd_calloc(n ? n : 1, sz); }
+
+void fmbd_rflex_destroy(fmbd_rflex **pr) {
+  if (!pr || !*pr) {
+    return;
+  }
+  fmbd_rflex *r = *pr;
+  fmbd_free(r->eigenvalue);
+  fmbd_free(r->frequency_hz);
+  fmbd_free(r->shapes);
+  fmbd_free(r->stress);
+  fmbd_free(r->node_xyz);
+  fmbd_free(r->node_mass);
+  fmbd_free(r->dofs);
+  fmbd_csr_destroy(&r->expand);
+  for (int i = 0; i < r->ninterfaces && r->interfaces; i++) {
+    fmbd_free(r->interfaces[i].name);
+    fmbd_free(r->interfaces[i].kind);
+    fmbd_free(r->interfaces[i].translation);
+    fmbd_free(r->interfaces[i].rotation);
+  }
+  fmbd_free(r->interfaces);
+  fmbd_free(r->S1);
+  fmbd_free(r->XS);
+  fmbd_free(r->SS);
+  fmbd_free(r->Mff);
+  fmbd_free(r->Kff);
+  fmbd_free(r);
+  *pr = NULL;
+}
+
+int fmbd_rflex_find_interface(const fmbd_rflex *r, const char *name) {
+  for (int i = 0; i < r->ninterfaces; i++) {
+    if (strcmp(r->interfaces[i].name, name) == 0) {
+      return i;
+    }
+  }
+  return -1;
+}
+
+int64_t fmbd_rflex_nearest_node(const fmbd_rflex *r, const double x[3], double *dist) {
+  int64_t best = -1;
+  double bd = INFINITY;
+  for (int64_t p = 0; p < r->nnodes; p++) {
+    const double *y = r->node_xyz + 3 * p;
+    double d = (y[0] - x[0]) * (y[0] - x[0]) + (y[1] - x[1]) * (y[1] - x[1]) +
+               (y[2] - x[2]) * (y[2] - x[2]);
+    if (d < bd) {
+      bd = d;
+      best = p;
+    }
+  }
+  if (dist) {
+    *dist = sqrt(bd);
+  }
+  return best;
+}
+
+int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double *T, double *R) {
+  FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
+             (long long)node, (long long)r->nnodes);
+  if (x0) {
+    memcpy(x0, r->node_xyz + 3 * node, 3 * sizeof(double));
+  }
+  for (int d = 0; d < 6; d++) {
+    double *out = d < 3 ? T : R;
+    if (!out) {
+      continue;
+    }
+    int a = d % 3;
+    for (int64_t k = 0; k < r->nm; k++) {
+      out[a + 3 * k] = 0;
+    }
+    const fmbd_csr *E = r->expand;
+    int64_t row = 6 * node + d;
+    for (int64_t q = E->indptr[row]; q < E->indptr[row + 1]; q++) {
+      double w = E->data[q];
+      const double *col = r->shapes + E->indices[q];
+      for (int64_t k = 0; k < r->nm; k++) {
+        out[a + 3 * k] += w * col[r->ndof * k];
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
+int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma) {
+  FMBD_CHECK(r->stress, FMBD_ERR_VALUE, "the body has no modal stress (/modes/stress)");
+  FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
+             (long long)node, (long long)r->nnodes);
+  for (int64_t k = 0; k < r->nm; k++) {
+    for (int i = 0; i < 6; i++) {
+      sigma[i + 6 * k] = r->stress[i + 6 * node + 6 * r->nnodes * k];
+    }
+  }
+  return FMBD_OK;
+}
+
+double fmbd_von_mises(const double s[6]) {
+  double a = s[0] - s[1], b = s[1] - s[2], c = s[2] - s[0];
+  return sqrt(0.5 * (a * a + b * b + c * c) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
+}
+
+// --- secondary reduction ------------------------------------------------------------------
+int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
+  int rc = FMBD_OK;
+  fmbd_rflex *r = NULL;
+  double *U = NULL, *Wa = NULL, *Ub = NULL;
+  const fmbd_fe_body *b = in->body;
+  int64_t ns = in->ns, nb = in->nb, nd = in->nd, nm = in->nm;
+  *out = NULL;
+  // --- check inputs ---
+  FMBD_CHECK(b && b->expand, FMBD_ERR_VALUE, "the body description has no /expand");
+  FMBD_CHECK(ns + nb == b->ndof, FMBD_ERR_VALUE,
+             "%lld interior + %lld boundary dofs, but the body has %lld dofs", (long long)ns,
+             (long long)nb, (long long)b->ndof);
+  FMBD_CHECK(nm >= 0 && in->ldxi >= nd + nb && (nd == 0 || in->ldphi >= ns), FMBD_ERR_VALUE,
+             "inconsistent sizes of the reduced modes");
+  FMBD_CHECK(b->expand->nrows == 6 * b->nnodes && b->expand->ncols == b->ndof, FMBD_ERR_VALUE,
+             "/expand is %lld x %lld, expected %lld x %lld", (long long)b->expand->nrows,
+             (long long)b->expand->ncols, (long long)(6 * b->nnodes), (long long)b->ndof);
+  for (int64_t k = 0; k < nm; k++) {
+    FMBD_CHECK(in->chibar[k] > 0, FMBD_ERR_VALUE, "flexible mode %lld has eigenvalue %g",
+               (long long)k + 1, in->chibar[k]);
+  }
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
+  int64_t ndof = b->ndof, nn = b->nnodes;
+  r->nm = nm;
+  r->ndof = ndof;
+  r->nnodes = nn;
+  FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
+  FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
+  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
+  FMBD_GALLOC(r->node_xyz = xcalloc((size_t)(3 * nn), sizeof(double)));
+  FMBD_GALLOC(r->node_mass = xcalloc((size_t)nn, sizeof(double)));
+  FMBD_GALLOC(r->dofs = xcalloc((size_t)(2 * ndof), sizeof(int64_t)));
+  memcpy(r->node_xyz, b->xyz, sizeof(double) * (size_t)(3 * nn));
+  if (b->node_mass) {
+    memcpy(r->node_mass, b->node_mass, sizeof(double) * (size_t)nn);
+  }
+  memcpy(r->dofs, b->dofs, sizeof(int64_t) * (size_t)(2 * ndof));
+  FMBD_GCALL(fmbd_csr_duplicate(b->expand, &r->expand));
+  for (int64_t k = 0; k < nm; k++) {
+    r->eigenvalue[k] = in->chibar[k];
+    r->frequency_hz[k] = sqrt(in->chibar[k]) / (2 * M_PI);
+  }
+  // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
+  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  if (nd > 0) {
+    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
+  }
+  if (nb > 0) {
+    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
+  }
+  for (int64_t k = 0; k < nm; k++) {
+    for (int64_t i = 0; i < ns; i++) {
+      int64_t row = in->interior_dofs[i];
+      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
+                  (long long)row);
+      r->shapes[row + ndof * k] = Wa[i + ns * k];
+    }
+    for (int64_t j = 0; j < nb; j++) {
+      int64_t row = in->boundary_dofs[j];
+      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "boundary dof %lld out of range",
+                  (long long)row);
+      r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
+    }
+  }
+  // --- nodal motion: U = expand * shapes, (6 nn) x nm ---
+  FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+  fmbd_csr_matmat(b->expand, nm, r->shapes, ndof, U, 6 * nn);
+  // interfaces
+  r->ninterfaces = b->ninterfaces;
+  FMBD_GALLOC(r->interfaces = xcalloc((size_t)b->ninterfaces, sizeof(fmbd_rflex_interface)));
+  for (int i = 0; i < b->ninterfaces; i++) {
+    fmbd_rflex_interface *it = &r->interfaces[i];
+    const fmbd_fe_interface *fi = &b->interfaces[i];
+    FMBD_GALLOC(it->name = fmbd_strdup(fi->name));
+    FMBD_GALLOC(it->kind = fmbd_strdup(fi->kind == FMBD_FE_RBE3 ? "rbe3" : "rbe2"));
+    it->node = fi->node;
+    FMBD_GCHECK(fi->node >= 0 && fi->node < nn, FMBD_ERR_VALUE, "interface %s: node %lld out of range",
+                fi->name, (long long)fi->node);
+    memcpy(it->x0, b->xyz + 3 * fi->node, sizeof it->x0);
+    FMBD_GALLOC(it->translation = xcalloc((size_t)(3 * nm), sizeof(double)));
+    FMBD_GALLOC(it->rotation = xcalloc((size_t)(3 * nm), sizeof(double)));
+    for (int64_t k = 0; k < nm; k++) {
+      for (int a = 0; a < 3; a++) {
+        it->translation[a + 3 * k] = U[6 * fi->node + a + 6 * nn * k];
+        it->rotation[a + 3 * k] = U[6 * fi->node + 3 + a + 6 * nn * k];
+      }
+    }
+  }
+  // --- FFRF invariants (BRIEF.md /ffrf): lumped nodal masses m_p ---
+  r->mass = b->mass;
+  for (int a = 0; a < 3; a++) {
+    r->first_moment[a] = b->mass * b->center_of_mass[a];
+  }
+  {  // J = tr(Ic)/2 I - Ic + m c c'  (inertia Ic = tr(Jc) I - Jc about the centre of mass)
+    const double *Ic = b->inertia, *c = b->center_of_mass;
+    double tr = Ic[0] + Ic[4] + Ic[8];
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        r->second_moment[a + 3 * bb] =
+            (a == bb ? 0.5 * tr : 0.0) - 0.5 * (Ic[3 * a + bb] + Ic[3 * bb + a]) + b->mass * c[a] * c[bb];
+      }
+    }
+  }
+  FMBD_GALLOC(r->S1 = xcalloc((size_t)(3 * nm), sizeof(double)));
+  FMBD_GALLOC(r->XS = xcalloc((size_t)(9 * nm), sizeof(double)));
+  FMBD_GALLOC(r->SS = xcalloc((size_t)(9 * nm * nm), sizeof(double)));
+  FMBD_GALLOC(r->Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(r->Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  for (int64_t k = 0; k < nm; k++) {
+    r->Mff[k + nm * k] = 1.0;
+    r->Kff[k + nm * k] = in->chibar[k];
+  }
+  for (int64_t p = 0; p < nn; p++) {
+    double mp = r->node_mass[p];
+    if (mp == 0) {
+      continue;
+    }
+    const double *x = r->node_xyz + 3 * p;
+    for (int64_t k = 0; k < nm; k++) {
+      for (int bb = 0; bb < 3; bb++) {
+        double u = mp * U[6 * p + bb + 6 * nn * k];
+        r->S1[bb + 3 * k] += u;
+        for (int a = 0; a < 3; a++) {
+          r->XS[a + 3 * bb + 9 * k] += x[a] * u;
+        }
+      }
+    }
+  }
+  // SS_ab = Ua' diag(m) Ub with Ua the nn x nm matrix of component a: 9 gemms
+  if (nm > 0) {
+    double *Sab = NULL;
+    FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
+    FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
+    fmbd_free(Wa);
+    Wa = NULL;
+    Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double));
+    if (!Wa) {
+      fmbd_free(Sab);
+      FMBD_GFAIL(FMBD_ERR_NOMEM, "out of memory");
+    }
+    for (int a = 0; a < 3; a++) {
+      for (int64_t k = 0; k < nm; k++) {
+        for (int64_t p = 0; p < nn; p++) {
+          double u = U[6 * p + a + 6 * nn * k];
+          Ub[p + nn * (a * nm + k)] = u;
+          Wa[p + nn * (a * nm + k)] = r->node_mass[p] * u;
+        }
+      }
+    }
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        fmbd_dense_gemm('T', 'N', nm, nm, nn, 1.0, Wa + nn * a * nm, nn, Ub + nn * bb * nm, nn, 0.0,
+                        Sab, nm);
+        for (int64_t l = 0; l < nm; l++) {
+          for (int64_t k = 0; k < nm; k++) {
+            r->SS[a + 3 * bb + 9 * k + 9 * nm * l] = Sab[k + nm * l];
+          }
+        }
+      }
+    }
+    fmbd_free(Sab);
+  }
+  // --- modal stress ---
+  if (in->stress && nm > 0) {
+    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+    FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, r->stress));
+  }
+  *out = r;
+  r = NULL;
+done:
+  fmbd_free(U);
+  fmbd_free(Wa);
+  fmbd_free(Ub);
+  fmbd_rflex_destroy(&r);
+  return rc;
+}
+
+// --- file I/O --------------------------------------------------------------------------------
+int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
+  int rc = FMBD_OK;
+  double *buf = NULL;
+  int64_t nm = r->nm, nn = r->nnodes;
+  char path[512];
+  int64_t d1[1] = {nm};
+  FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/eigenvalue", 1, d1, r->eigenvalue));
+  FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/frequency_hz", 1, d1, r->frequency_hz));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/modes/shapes", r->ndof, nm, r->shapes));
+  size_t big = (size_t)(9 * nm * nm);
+  if (r->stress && (size_t)(6 * nn * nm) > big) {
+    big = (size_t)(6 * nn * nm);
+  }
+  FMBD_GALLOC(buf = xcalloc(big, sizeof(double)));
+  if (r->stress) {  // file (nnodes, 6, Nm): [(p*6 + i)*nm + k]
+    for (int64_t k = 0; k < nm; k++) {
+      for (int64_t p = 0; p < nn; p++) {
+        for (int i = 0; i < 6; i++) {
+          buf[(p * 6 + i) * nm + k] = r->stress[i + 6 * p + 6 * nn * k];
+        }
+      }
+    }
+    int64_t d3[3] = {nn, 6, nm};
+    FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/stress", 3, d3, buf));
+  }
+  for (int i = 0; i < r->ninterfaces; i++) {
+    const fmbd_rflex_interface *it = &r->interfaces[i];
+    snprintf(path, sizeof path, "/interfaces/%s/translation", it->name);
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, 3, nm, it->translation));
+    snprintf(path, sizeof path, "/interfaces/%s/rotation", it->name);
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, 3, nm, it->rotation));
+  }
+  int64_t d0[1] = {1};
+  FMBD_GCALL(fmbd_h5_write_f64(f, "/ffrf/mass", 0, d0, &r->mass));
+  int64_t d3v[1] = {3};
+  FMBD_GCALL(fmbd_h5_write_f64(f, "/ffrf/first_moment", 1, d3v, r->first_moment));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/ffrf/second_moment", 3, 3, r->second_moment));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/ffrf/S1", 3, nm, r->S1));
+  for (int64_t k = 0; k < nm; k++) {  // file (3, 3, Nm): [(a*3 + b)*nm + k]
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        buf[(a * 3 + bb) * nm + k] = r->XS[a + 3 * bb + 9 * k];
+      }
+    }
+  }
+  int64_t dxs[3] = {3, 3, nm};
+  FMBD_GCALL(fmbd_h5_write_f64(f, "/ffrf/XS", 3, dxs, buf));
+  for (int64_t l = 0; l < nm; l++) {  // file (3, 3, Nm, Nm): [((a*3 + b)*nm + k)*nm + l]
+    for (int64_t k = 0; k < nm; k++) {
+      for (int a = 0; a < 3; a++) {
+        for (int bb = 0; bb < 3; bb++) {
+          buf[((a * 3 + bb) * nm + k) * nm + l] = r->SS[a + 3 * bb + 9 * k + 9 * nm * l];
+        }
+      }
+    }
+  }
+  int64_t dss[4] = {3, 3, nm, nm};
+  FMBD_GCALL(fmbd_h5_write_f64(f, "/ffrf/SS", 4, dss, buf));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/ffrf/Mff", nm, nm, r->Mff));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/ffrf/Kff", nm, nm, r->Kff));
+done:
+  fmbd_free(buf);
+  return rc;
+}
+
+int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out) {
+  int rc = FMBD_OK;
+  fmbd_rflex *r = NULL;
+  double *buf = NULL, *tmp = NULL;
+  int64_t *itmp = NULL;
+  char **names = NULL;
+  int nnames = 0;
+  char path[512];
+  *out = NULL;
+  FMBD_GCALL(fmbd_h5_check_format(f, FMBD_RFLEX_FORMAT, FMBD_RFLEX_MAJOR));
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
+  // --- description ---
+  int64_t dn[2] = {-1, 3};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/nodes", 2, dn, &r->node_xyz));  // row-major (nn,3) = 3 x nn col-major
+  int64_t nn = r->nnodes = dn[0];
+  int64_t dm[1] = {nn};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/node_mass", 1, dm, &r->node_mass));
+  int64_t dd[2] = {-1, 2};
+  FMBD_GCALL(fmbd_h5_read_i64(f, "/dofs", 2, dd, &r->dofs));
+  int64_t ndof = r->ndof = dd[0];
+  FMBD_GCALL(fmbd_h5_read_csr(f, "/expand", &r->expand));
+  if (r->expand->nrows != 6 * nn || r->expand->ncols != ndof) {
+    fmbd_err_context(fmbd_h5_name(f), "/expand");
+    FMBD_GFAIL(FMBD_ERR_FORMAT, "shape %lld x %lld, expected %lld x %lld",
+               (long long)r->expand->nrows, (long long)r->expand->ncols, (long long)(6 * nn),
+               (long long)ndof);
+  }
+  // --- modes ---
+  int64_t de[1] = {-1};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/eigenvalue", 1, de, &r->eigenvalue));
+  int64_t nm = r->nm = de[0];
+  de[0] = nm;
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/frequency_hz", 1, de, &r->frequency_hz));
+  int64_t rows = ndof, cols = nm;
+  FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/modes/shapes", &rows, &cols, &r->shapes));
+  if (fmbd_h5_exists(f, "/modes/stress")) {
+    int64_t ds[3] = {nn, 6, nm};
+    FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/stress", 3, ds, &buf));
+    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+    for (int64_t k = 0; k < nm; k++) {
+      for (int64_t p = 0; p < nn; p++) {
+        for (int i = 0; i < 6; i++) {
+          r->stress[i + 6 * p + 6 * nn * k] = buf[(p * 6 + i) * nm + k];
+        }
+      }
+    }
+    fmbd_free(buf);
+    buf = NULL;
+  }
+  // --- interfaces ---
+  FMBD_GCALL(fmbd_h5_list(f, "/interfaces", &nnames, &names));
+  FMBD_GALLOC(r->interfaces = xcalloc((size_t)nnames, sizeof(fmbd_rflex_interface)));
+  for (int i = 0; i < nnames; i++) {
+    fmbd_rflex_interface *it = &r->interfaces[i];
+    r->ninterfaces = i + 1;
+    snprintf(path, sizeof path, "/interfaces/%s", names[i]);
+    FMBD_GALLOC(it->name = fmbd_strdup(names[i]));
+    FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "node", 1, &it->node));
+    if (it->node < 0 || it->node >= nn) {
+      fmbd_err_context(fmbd_h5_name(f), path);
+      FMBD_GFAIL(FMBD_ERR_FORMAT, "attribute node = %lld out of range (%lld nodes)",
+                 (long long)it->node, (long long)nn);
+    }
+    if (fmbd_h5_has_attr(f, path, "kind")) {
+      FMBD_GCALL(fmbd_h5_read_attr_str(f, path, "kind", &it->kind));
+    } else {
+      FMBD_GALLOC(it->kind = fmbd_strdup("rbe2"));
+    }
+    memcpy(it->x0, r->node_xyz + 3 * it->node, sizeof it->x0);
+    snprintf(path, sizeof path, "/interfaces/%s/translation", names[i]);
+    rows = 3;
+    cols = nm;
+    FMBD_GCALL(fmbd_h5_read_f64_cm(f, path, &rows, &cols, &it->translation));
+    snprintf(path, sizeof path, "/interfaces/%s/rotation", names[i]);
+    rows = 3;
+    cols = nm;
+    FMBD_GCALL(fmbd_h5_read_f64_cm(f, path, &rows, &cols, &it->rotation));
+  }
+  // --- ffrf ---
+  int64_t d0[1] = {1};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/ffrf/mass", 0, d0, &tmp));
+  r->mass = tmp[0];
+  fmbd_free(tmp);
+  tmp = NULL;
+  int64_t d3[1] = {3};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/ffrf/first_moment", 1, d3, &tmp));
+  memcpy(r->first_moment, tmp, sizeof r->first_moment);
+  fmbd_free(tmp);
+  tmp = NULL;
+  rows = 3;
+  cols = 3;
+  FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/ffrf/second_moment", &rows, &cols, &tmp));
+  memcpy(r->second_moment, tmp, sizeof r->second_moment);
+  fmbd_free(tmp);
+  tmp = NULL;
+  rows = 3;
+  cols = nm;
+  FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/ffrf/S1", &rows, &cols, &r->S1));
+  int64_t dxs[3] = {3, 3, nm};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/ffrf/XS", 3, dxs, &buf));
+  FMBD_GALLOC(r->XS = xcalloc((size_t)(9 * nm), sizeof(double)));
+  for (int64_t k = 0; k < nm; k++) {
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        r->XS[a + 3 * bb + 9 * k] = buf[(a * 3 + bb) * nm + k];
+      }
+    }
+  }
+  fmbd_free(buf);
+  buf = NULL;
+  int64_t dss[4] = {3, 3, nm, nm};
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/ffrf/SS", 4, dss, &buf));
+  FMBD_GALLOC(r->SS = xcalloc((size_t)(9 * nm * nm), sizeof(double)));
+  for (int64_t l = 0; l < nm; l++) {
+    for (int64_t k = 0; k < nm; k++) {
+      for (int a = 0; a < 3; a++) {
+        for (int bb = 0; bb < 3; bb++) {
+          r->SS[a + 3 * bb + 9 * k + 9 * nm * l] = buf[((a * 3 + bb) * nm + k) * nm + l];
+        }
+      }
+    }
+  }
+  rows = nm;
+  cols = nm;
+  FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/ffrf/Mff", &rows, &cols, &r->Mff));
+  rows = nm;
+  cols = nm;
+  FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/ffrf/Kff", &rows, &cols, &r->Kff));
+  *out = r;
+  r = NULL;
+done:
+  for (int i = 0; i < nnames; i++) {
+    fmbd_free(names[i]);
+  }
+  fmbd_free(names);
+  fmbd_free(buf);
+  fmbd_free(tmp);
+  fmbd_free(itmp);
+  fmbd_rflex_destroy(&r);
+  return rc;
+}
