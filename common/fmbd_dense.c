@@ -110,17 +110,19 @@ void fmbd_dense_gemm(char ta, char tb, int64_t m, int64_t n, int64_t k, double a
                      double *C, int64_t ldc) {
   if (m <= 0 || n <= 0) return;
   int at = is_trans(ta), bt = is_trans(tb);
+  if (k <= 0) {  // C = beta C (BLAS would insist on leading dimensions of empty A and B)
+    for (int64_t j = 0; j < n; j++) {
+      for (int64_t i = 0; i < m; i++) C[i + j * ldc] = beta == 0.0 ? 0.0 : beta * C[i + j * ldc];
+    }
+    return;
+  }
   if (m <= LAPACK_INT_MAX && n <= LAPACK_INT_MAX && k <= LAPACK_INT_MAX &&
       lda <= LAPACK_INT_MAX && ldb <= LAPACK_INT_MAX && ldc <= LAPACK_INT_MAX) {
-    // BLAS requires ld >= max(1, rows) even when k == 0
-    int64_t arows = at ? k : m, brows = bt ? n : k;
-    if (lda < 1 || lda < arows || ldb < 1 || ldb < brows || ldc < m) goto loop;
     cblas_dgemm(CblasColMajor, at ? CblasTrans : CblasNoTrans, bt ? CblasTrans : CblasNoTrans,
                 (int)m, (int)n, (int)k, alpha, A, (int)lda, B, (int)ldb, beta, C, (int)ldc);
     return;
   }
-loop:
-  // plain loop: only for sizes BLAS cannot take (or leading dimensions it would reject)
+  // sizes a 32-bit BLAS cannot take: a plain loop (slow, correct)
   for (int64_t j = 0; j < n; j++) {
     for (int64_t i = 0; i < m; i++) {
       double s = 0.0;
