@@ -87,7 +87,7 @@ $(LIB): $(LIB_OBJ)
 	$(Q)rm -f $@ && ar rcs $@ $^
 
 .SECONDEXPANSION:
-$(BUILD)/bin/%: $$(patsubst %.c,$(BUILD)/%.o,$$(wildcard %/*.c)) $$(patsubst %.cpp,$(BUILD)/%.o,$$(wildcard %/*.cpp)) $(LIB)
+$(BUILD)/bin/%: $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard %/*.c)))) $$(addprefix $(BUILD)/,$$(addsuffix .o,$$(basename $$(wildcard %/*.cpp)))) $(LIB)
 	$(call msg,LD,$@)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(filter %.o,$^) $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
