@@ -25,6 +25,7 @@
 typedef struct ctx {
   yaml_document_t doc;
   const char *file;
+  const char *body_dir;  // folder of body files (fe, cb, rflex); NULL: the scene's folder
   fmbd_scene *s;
 } ctx;
 
@@ -736,13 +737,14 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     const char *f;
     TRY(as_str(c, x, "file", &f));
     // resolve against the scene's folder
-    size_t len = strlen(c->s->dir) + strlen(f) + 2;
+    const char *bdir = c->body_dir ? c->body_dir : c->s->dir;
+    size_t len = strlen(bdir) + strlen(f) + 2;
     b->file = fmbd_malloc(len);
     if (!b->file) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
-    if (f[0] == '/' || !strcmp(c->s->dir, ".")) {
+    if (f[0] == '/' || !strcmp(bdir, ".")) {
       snprintf(b->file, len, "%s", f);
     } else {
-      snprintf(b->file, len, "%s/%s", c->s->dir, f);
+      snprintf(b->file, len, "%s/%s", bdir, f);
     }
     if ((x = get(c, n, "modes"))) TRY(as_int(c, x, "modes", 1, &b->modes));
     if ((x = get(c, n, "damping_ratio"))) {
@@ -769,13 +771,15 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
         } else {
           TRY(as_str(c, y, fields[i].k, &t));
         }
-        size_t l2 = strlen(c->s->dir) + strlen(t) + 2;
+        // the geometry is a source beside the scene; fe and cb files are made, beside the body file
+        const char *fdir = i == 0 ? c->s->dir : c->body_dir ? c->body_dir : c->s->dir;
+        size_t l2 = strlen(fdir) + strlen(t) + 2;
         *fields[i].p = fmbd_malloc(l2);
         if (!*fields[i].p) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
-        if (!fields[i].path || t[0] == '/' || !strcmp(c->s->dir, ".")) {
+        if (!fields[i].path || t[0] == '/' || !strcmp(fdir, ".")) {
           snprintf(*fields[i].p, l2, "%s", t);
         } else {
-          snprintf(*fields[i].p, l2, "%s/%s", c->s->dir, t);
+          snprintf(*fields[i].p, l2, "%s/%s", fdir, t);
         }
       }
       if (b->chain.mesh2fe_args && !b->chain.geometry) return fail_at(c, x, "make: 'mesh2fe' options need 'geometry'");
@@ -1120,11 +1124,16 @@ static int parse_root(ctx *c, yaml_node_t *root) {
 }
 
 int fmbd_scene_parse(const char *file, const char *text, int64_t len, fmbd_scene **out) {
+  return fmbd_scene_parse_dir(file, NULL, text, len, out);
+}
+
+int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *text, int64_t len,
+                         fmbd_scene **out) {
   int rc = 0;
   *out = NULL;
   yaml_parser_t parser;
   bool parser_ok = false, doc_ok = false;
-  ctx c = {.file = file};
+  ctx c = {.file = file, .body_dir = body_dir};
   fmbd_scene *s = fmbd_calloc(1, sizeof *s);
   FMBD_GALLOC(s);
   c.s = s;
@@ -1185,7 +1194,9 @@ done:
   return rc;
 }
 
-int fmbd_scene_read(const char *file, fmbd_scene **out) {
+int fmbd_scene_read(const char *file, fmbd_scene **out) { return fmbd_scene_read_dir(file, NULL, out); }
+
+int fmbd_scene_read_dir(const char *file, const char *body_dir, fmbd_scene **out) {
   int rc = 0;
   char *buf = NULL;
   size_t n = 0, cap = 0;
@@ -1210,7 +1221,7 @@ int fmbd_scene_read(const char *file, fmbd_scene **out) {
     fmbd_err_context(file, "");
     FMBD_GFAIL(FMBD_ERR_IO, "cannot read the scene");
   }
-  rc = fmbd_scene_parse(file, buf, (int64_t)n, out);
+  rc = fmbd_scene_parse_dir(file, body_dir, buf, (int64_t)n, out);
 done:
   if (fp && fp != stdin) fclose(fp);
   fmbd_free(buf);

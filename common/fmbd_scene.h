@@ -196,6 +196,12 @@ int fmbd_scene_read(const char *file, fmbd_scene **out);
 /// @brief Same from a string (`file` only names it in messages; body files resolve against
 /// its folder).
 int fmbd_scene_parse(const char *file, const char *text, int64_t len, fmbd_scene **out);
+/// @brief Same, with body files (`file`, and the `make` chain's fe and cb) resolved against
+/// body_dir instead of the scene's folder (NULL: the scene's folder); the chain's geometry
+/// stays relative to the scene. Lets a build keep made files out of the source tree.
+int fmbd_scene_read_dir(const char *file, const char *body_dir, fmbd_scene **out);
+int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *text, int64_t len,
+                         fmbd_scene **out);
 /// @brief Release a scene; NULL fine; *s = NULL.
 void fmbd_scene_destroy(fmbd_scene **s);
 /// @brief Body index by name, -1 if none ("ground" is -1 too).

@@ -373,6 +373,8 @@ static void usage(void) {
       "                          (THEORY.md section 7), written to /reference and printed\n"
       "      --plot PREFIX       SVG plots PREFIX<output>-position.svg and -trajectory.svg\n"
       "      --t-end T           end the run at T seconds instead of the scene's t_end\n"
+      "      --body-dir DIR      body files (and the fe/cb files of -M rules) in DIR instead of\n"
+      "                          the scene's folder (the geometry stays beside the scene)\n"
       "  -M                      print the make rules of the files the scene needs and exit\n"
       "  -q, --quiet             errors only\n"
       "  -v, --verbose           progress and details (-vv: debug)\n"
@@ -387,7 +389,7 @@ int main(int argc, char **argv) {
   fmbd_cli_init("fmbd-run", argc, argv);
   int rc = 0, quiet = 0, verbose = 0;
   bool make_rules = false, interrupted = false;
-  const char *opt_o = NULL, *ref = NULL, *plot = NULL;
+  const char *opt_o = NULL, *ref = NULL, *plot = NULL, *body_dir = NULL;
   double t_end = 0;
   char *out_name = NULL, *rules = NULL;
   fmbd_scene *s = NULL;
@@ -397,6 +399,7 @@ int main(int argc, char **argv) {
                                            {"reference", required_argument, NULL, 'r'},
                                            {"plot", required_argument, NULL, 'p'},
                                            {"t-end", required_argument, NULL, 't'},
+                                           {"body-dir", required_argument, NULL, 'b'},
                                            {"quiet", no_argument, NULL, 'q'},
                                            {"verbose", no_argument, NULL, 'v'},
                                            {"help", no_argument, NULL, 'h'},
@@ -409,6 +412,7 @@ int main(int argc, char **argv) {
       case 'o': opt_o = optarg; break;
       case 'r': ref = optarg; break;
       case 'p': plot = optarg; break;
+      case 'b': body_dir = optarg; break;
       case 't':
         rc = fmbd_cli_parse_double("--t-end", optarg, &t_end);
         if (rc) goto done;
@@ -432,7 +436,7 @@ int main(int argc, char **argv) {
     goto out;
   }
   const char *scene_file = argv[optind];
-  FMBD_GCALL(fmbd_scene_read(scene_file, &s));
+  FMBD_GCALL(fmbd_scene_read_dir(scene_file, body_dir, &s));
   if (t_end > 0) s->solver.t_end = t_end;
 
   // --- -M: make rules --------------------------------------------------------------------
