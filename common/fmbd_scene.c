@@ -230,12 +230,12 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
   }
   static const char *const keys[] = {"type", "value", "t0", "t1", "v0", "v1", "smooth",
                                      "amplitude", "frequency_hz", "phase", "phase_deg",
-                                     "offset", "t", "v", "points", NULL};
+                                     "offset", "t", "v", "points", "rate", NULL};
   char buf[160];
   snprintf(buf, sizeof buf, "function of %s", what);
   TRY(check_map(c, n, buf, keys));
   yaml_node_t *ty = get(c, n, "type");
-  if (!ty) return fail_at(c, n, "%s: missing key 'type' (constant, ramp, sine or table)", buf);
+  if (!ty) return fail_at(c, n, "%s: missing key 'type' (constant, linear, ramp, sine or table)", buf);
   const char *t;
   TRY(as_str(c, ty, "function type", &t));
   // keys each type accepts
@@ -244,6 +244,7 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
   static const char *const ksine[] = {"type", "amplitude", "frequency_hz", "phase", "phase_deg",
                                       "offset", NULL};
   static const char *const ktable[] = {"type", "t", "v", "points", NULL};
+  static const char *const klinear[] = {"type", "t0", "v0", "rate", NULL};
   yaml_node_t *x;
   if (!strcmp(t, "constant")) {
     f->kind = FMBD_FN_CONSTANT;
@@ -279,6 +280,13 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
       f->phase *= M_PI / 180;
     }
     if ((x = get(c, n, "offset"))) TRY(as_double(c, x, "offset", &f->offset));
+  } else if (!strcmp(t, "linear")) {
+    f->kind = FMBD_FN_LINEAR;
+    TRY(check_map(c, n, "a linear function", klinear));
+    if (!(x = get(c, n, "rate"))) return fail_at(c, n, "linear function: missing key 'rate'");
+    TRY(as_double(c, x, "rate", &f->rate));
+    if ((x = get(c, n, "t0"))) TRY(as_double(c, x, "t0", &f->t0));
+    if ((x = get(c, n, "v0"))) TRY(as_double(c, x, "v0", &f->v0));
   } else if (!strcmp(t, "table")) {
     f->kind = FMBD_FN_TABLE;
     TRY(check_map(c, n, "a table function", ktable));
@@ -324,7 +332,7 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
       }
     }
   } else {
-    return fail_at(c, ty, "unknown function type '%s' (constant, ramp, sine or table)", t);
+    return fail_at(c, ty, "unknown function type '%s' (constant, linear, ramp, sine or table)", t);
   }
   return 0;
 }
@@ -333,6 +341,10 @@ double fmbd_scene_fn_eval(const fmbd_scene_fn *f, double t, double *d1, double *
   double v = 0, a = 0, b = 0;
   switch (f->kind) {
     case FMBD_FN_CONSTANT: v = f->value; break;
+    case FMBD_FN_LINEAR:
+      v = f->v0 + f->rate * (t - f->t0);
+      a = f->rate;
+      break;
     case FMBD_FN_RAMP: {
       double T = f->t1 - f->t0, dv = f->v1 - f->v0;
       if (t < f->t0) {

@@ -28,11 +28,13 @@ enum fmbd_scene_fn_kind {
   FMBD_FN_RAMP,          ///< v0 until t0, linear (or smooth: C1 cubic) to v1 at t1, then v1
   FMBD_FN_SINE,          ///< offset + amplitude * sin(2 pi frequency_hz t + phase)
   FMBD_FN_TABLE,         ///< piecewise linear through (t[i], v[i]), constant outside
+  FMBD_FN_LINEAR,        ///< v0 + rate (t - t0) for all t (constant-speed drivers)
 };
 typedef struct fmbd_scene_fn {
   int kind;                 ///< fmbd_scene_fn_kind
   double value;             ///< constant
-  double t0, t1, v0, v1;    ///< ramp
+  double t0, t1, v0, v1;    ///< ramp; linear uses t0, v0
+  double rate;              ///< linear: slope (unit/s)
   bool smooth;              ///< ramp: 3s^2 - 2s^3 blend instead of linear
   double amplitude, frequency_hz, phase, offset;  ///< sine
   int64_t n;                ///< table: number of points (>= 2, t strictly increasing)

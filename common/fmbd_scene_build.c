@@ -40,6 +40,7 @@ static fmbd_mbs_fn to_mbs_fn(const fmbd_scene_fn *f) {
     case FMBD_FN_RAMP: return fmbd_mbs_fn_ramp(f->t0, f->v0, f->t1, f->v1, f->smooth);
     case FMBD_FN_SINE: return fmbd_mbs_fn_sine(f->offset, f->amplitude, f->frequency_hz, f->phase);
     case FMBD_FN_TABLE: return fmbd_mbs_fn_table(f->n, f->t, f->v);
+    case FMBD_FN_LINEAR: return fmbd_mbs_fn_linear(f->t0, f->v0, f->rate);
     default: return fmbd_mbs_fn_constant(f->value);
   }
 }
