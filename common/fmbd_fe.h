@@ -230,6 +230,12 @@ int fmbd_fe_beam_matrices(const double x0[3], const double x1[3], const double v
                           double nu, double rho, double A, double Iy, double Iz, double J,
                           int64_t elem, double *Ke, double *Me);
 
+/// @brief HRZ lumped mass of a beam element (global 12x12 row-major, block diagonal per node):
+/// local translations rho*A*L/2, torsion rho*J*L/2, bending rotations rho*A*L^3/78 (the
+/// consistent diagonal scaled by HRZ's factor of the paired transverse translation).
+int fmbd_fe_beam_lumped(const double x0[3], const double x1[3], const double v[3], double rho,
+                        double A, double J, int64_t elem, double *Me);
+
 /// @brief HRZ lumping of an element mass matrix (Hinton, Rock, Zienkiewicz 1976): keep the
 /// diagonal, scaled so that the diagonal of the translational dofs of each direction sums to
 /// the element mass `m`. For the scalar tet mass: lumped[a] = m * Me[a][a] / sum_b Me[b][b].

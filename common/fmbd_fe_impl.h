@@ -1,0 +1,25 @@
+// common/fmbd_fe_impl.h: internals shared by fmbd_fe.c, fmbd_fe_tie.c and fmbd_fe_io.c
+// SPDX-License-Identifier: MIT
+#ifndef FMBD_FE_IMPL_H
+#define FMBD_FE_IMPL_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "fmbd_csr.h"
+#include "fmbd_fe.h"
+
+/// Build the map from the full dofs (fdof[p] .. fdof[p+1]-1 of node p, 3 or 6 of them) to the
+/// active dofs, from the body's interfaces and clamps: fills b->ndof, b->dofs, b->node_dof and
+/// b->expand, and returns T (nfull x ndof) with u_full = T q. *selection is true when T only
+/// selects dofs (no tie), so that K' = K(active, active).
+/// @param[out] T caller destroys
+int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, bool *selection);
+
+/// Derive b->node_dof from b->dofs (checks that /dofs is node-major and in range).
+int fmbd_fe_index_dofs(fmbd_fe_body *b);
+
+/// Make A exactly symmetric, A := (A + A')/2, assuming a symmetric pattern.
+int fmbd_fe_symmetrize(fmbd_csr *A);
+
+#endif
