@@ -45,7 +45,8 @@ typedef struct fmbd_eig_opts {
   double lambda_max;   ///< > 0: bound mode, every eigenvalue <= lambda_max. Default 0
   bool free_body;      ///< K may be singular (rigid-body modes): negative shift. Default false
   double tol;          ///< ARPACK tol (relative Ritz accuracy). Default 1e-12
-  double resid_tol;    ///< accepted relative residual of each pair. Default 1e-6
+  double resid_tol;    ///< accepted relative residual of each pair. Default 1e-6, or the
+                       ///< attainable 1e3 eps max(K_ii/M_ii) / lambda if larger
   int maxit;           ///< ARPACK restarts per run. Default 500
   int max_passes;      ///< runs with more vectors after a failed check. Default 4
   bool sturm;          ///< do the Sturm count check. Default true

@@ -1,0 +1,814 @@
+// common/fmbd_cb.c: Craig-Bampton (and normal-mode) reduction of one FE body, the fmbd-cb file
+// SPDX-License-Identifier: MIT
+//
+// Equations: THEORY.md section 1 (Han et al. 2020 [H10-H22]); the closed form of the reduced
+// matrices follows from T0 = [Phi Psi; 0 I] with Ks Phi = Ms Phi Lambda, Phi' Ms Phi = I and
+// Ks Psi = -Kc: T0' K T0 = [Lambda, Phi'(Ks Psi + Kc); ., Psi' Ks Psi + 2 sym(Psi' Kc) + Kb]
+// = [Lambda 0; 0 Kb + Kc' Psi], and T0' M T0 = [I, Phi'(Ms Psi + Mc); ., Mb_].
+#include "fmbd_cb.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_dense.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+
+static const char *const DIRNAME[6] = {"ux", "uy", "uz", "rx", "ry", "rz"};
+
+void fmbd_cb_defaults(fmbd_cb_opts *o) {
+  memset(o, 0, sizeof *o);
+  o->nm = false;
+  o->hold = false;
+  o->nmodes = 20;
+  o->fmax_hz = 0.0;
+  o->rigid_rtol = 1e-6;
+  o->sym_rtol = 1e-10;
+  fmbd_eig_defaults(&o->eig);
+}
+
+void fmbd_cb_destroy(fmbd_cb **pcb) {
+  if (!pcb || !*pcb) return;
+  fmbd_cb *cb = *pcb;
+  fmbd_free(cb->interior);
+  fmbd_free(cb->boundary);
+  fmbd_free(cb->held);
+  fmbd_free(cb->kappa);
+  fmbd_free(cb->Phi);
+  fmbd_free(cb->Psi);
+  fmbd_free(cb->A);
+  fmbd_free(cb->KsinvA);
+  fmbd_free(cb->KsinvMsKsinvA);
+  fmbd_free(cb->PhitA);
+  fmbd_free(cb->Mr);
+  fmbd_free(cb->Kr);
+  fmbd_free(cb->chibar);
+  fmbd_free(cb->Xi);
+  fmbd_free(cb->rigid);
+  fmbd_free(cb->fe_file);
+  fmbd_free(cb);
+  *pcb = NULL;
+}
+
+// "dof 12 (node 4, uz)" for messages
+static const char *dof_label(const int64_t *dofs, int64_t i, char *buf, size_t size) {
+  if (dofs && dofs[2 * i + 1] >= 0 && dofs[2 * i + 1] < 6) {
+    snprintf(buf, size, "dof %lld (node %lld, %s)", (long long)i, (long long)dofs[2 * i],
+             DIRNAME[dofs[2 * i + 1]]);
+  } else {
+    snprintf(buf, size, "dof %lld", (long long)i);
+  }
+  return buf;
+}
+
+static void *alloc_f64(int64_t n) { return fmbd_malloc((size_t)(n > 0 ? n : 1) * sizeof(double)); }
+
+// --- partition ------------------------------------------------------------------------------
+int fmbd_cb_boundary(const fmbd_fe_body *b, int ngroups, const char *const *groups, int64_t *nb,
+                     int64_t **boundary) {
+  int rc = FMBD_OK;
+  char *mark = NULL;
+  *nb = 0;
+  *boundary = NULL;
+  FMBD_GALLOC(mark = fmbd_calloc((size_t)(b->ndof ? b->ndof : 1), 1));
+  for (int k = 0; k < b->ninterfaces; k++) {
+    for (int d = 0; d < 6; d++) {
+      int64_t i = fmbd_fe_dof(b, b->interfaces[k].node, d);
+      if (i >= 0) mark[i] = 1;
+    }
+  }
+  for (int g = 0; g < ngroups; g++) {
+    int64_t added = 0;
+    int k = fmbd_fe_find_interface(b, groups[g]);
+    if (k >= 0) {
+      for (int d = 0; d < 6; d++) {
+        int64_t i = fmbd_fe_dof(b, b->interfaces[k].node, d);
+        if (i >= 0) mark[i] = 1, added++;
+      }
+    } else {
+      int gi = -1;
+      for (int j = 0; j < b->ngroups; j++) {
+        if (!strcmp(b->group_name[j], groups[g])) gi = j;
+      }
+      FMBD_GCHECK(gi >= 0, FMBD_ERR_VALUE,
+                  "--boundary %s: no mesh group or interface of that name in /mesh/groups",
+                  groups[g]);
+      for (int64_t p = b->group_ptr[gi]; p < b->group_ptr[gi + 1]; p++) {
+        for (int d = 0; d < 6; d++) {
+          int64_t i = fmbd_fe_dof(b, b->group_node[p], d);
+          if (i >= 0) mark[i] = 1, added++;
+        }
+      }
+    }
+    if (added == 0) {
+      fmbd_log(FMBD_LOG_WARN, "--boundary %s: the group has no active dof (tied or clamped)",
+               groups[g]);
+    }
+  }
+  int64_t n = 0;
+  for (int64_t i = 0; i < b->ndof; i++) n += mark[i];
+  FMBD_GALLOC(*boundary = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+  n = 0;
+  for (int64_t i = 0; i < b->ndof; i++) {
+    if (mark[i]) (*boundary)[n++] = i;
+  }
+  *nb = n;
+done:
+  fmbd_free(mark);
+  return rc;
+}
+
+int fmbd_cb_check_body(const fmbd_fe_body *b, double sym_rtol) {
+  char lab[96];
+  const char *name[2] = {"/K", "/M"};
+  const fmbd_csr *mat[2] = {b->K, b->M};
+  for (int k = 0; k < 2; k++) {
+    const fmbd_csr *A = mat[k];
+    if (!A) {
+      fmbd_err_context(NULL, name[k]);
+      FMBD_FAIL(FMBD_ERR_FORMAT, "missing matrix (an fmbd-fe file holds /K and /M)");
+    }
+    if (A->nrows != b->ndof || A->ncols != b->ndof) {
+      fmbd_err_context(NULL, name[k]);
+      FMBD_FAIL(FMBD_ERR_FORMAT, "shape %lld x %lld, expected %lld x %lld (the rows of /dofs)",
+                (long long)A->nrows, (long long)A->ncols, (long long)b->ndof, (long long)b->ndof);
+    }
+    int64_t bad = -1;
+    if (!fmbd_csr_is_symmetric(A, sym_rtol, &bad)) {
+      fmbd_err_context(NULL, name[k]);
+      FMBD_FAIL(FMBD_ERR_VALUE, "matrix is not symmetric (|A(i,j) - A(j,i)| > %.0e max|A|) at row %s",
+                sym_rtol, dof_label(b->dofs, bad, lab, sizeof lab));
+    }
+    for (int64_t i = 0; i < b->ndof; i++) {
+      double d = fmbd_csr_get(A, i, i);
+      if (d < 0.0 || (k == 0 && d == 0.0)) {
+        fmbd_err_context(NULL, name[k]);
+        FMBD_FAIL(FMBD_ERR_VALUE, "diagonal entry %.6g at %s (%s)", d,
+                  dof_label(b->dofs, i, lab, sizeof lab),
+                  k == 0 ? "a stiffness matrix has a positive diagonal" : "negative mass");
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
+// --- reduced problem ---------------------------------------------------------------------------
+// Rebuild Mr, Kr of order nd + nb from kappa, PhitA and the boundary blocks of the current
+// Mr, Kr (order cb->nr, boundary block at the end), then solve the reduced eigenproblem.
+int fmbd_cb_update_reduced(fmbd_cb *cb, double rigid_rtol) {
+  int rc = FMBD_OK;
+  int64_t nd = cb->nd, nb = cb->nb, nr = nd + nb, old = cb->nr;
+  double *Mr = NULL, *Kr = NULL, *Ma = NULL, *Ka = NULL, *w = NULL;
+  int64_t *rigid = NULL;
+  FMBD_GALLOC(Mr = alloc_f64(nr * nr));
+  FMBD_GALLOC(Kr = alloc_f64(nr * nr));
+  memset(Mr, 0, (size_t)(nr * nr) * sizeof(double));
+  memset(Kr, 0, (size_t)(nr * nr) * sizeof(double));
+  for (int64_t k = 0; k < nd; k++) {
+    Mr[k + k * nr] = 1.0;
+    Kr[k + k * nr] = cb->kappa[k];
+  }
+  if (nb > 0) {
+    FMBD_GCHECK(cb->Mr && cb->Kr && old >= nb, FMBD_ERR_INTERNAL, "no boundary blocks");
+    int64_t o = old - nb;
+    for (int64_t j = 0; j < nb; j++) {
+      for (int64_t i = 0; i < nb; i++) {
+        Mr[(nd + i) + (nd + j) * nr] = cb->Mr[(o + i) + (o + j) * old];
+        Kr[(nd + i) + (nd + j) * nr] = cb->Kr[(o + i) + (o + j) * old];
+      }
+      for (int64_t k = 0; k < nd; k++) {
+        double v = cb->PhitA[k + j * nd];
+        Mr[k + (nd + j) * nr] = v;
+        Mr[(nd + j) + k * nr] = v;
+      }
+    }
+  }
+  // reduced eigenproblem (LAPACK dsygvd on copies)
+  FMBD_GALLOC(Ma = alloc_f64(nr * nr));
+  FMBD_GALLOC(Ka = alloc_f64(nr * nr));
+  FMBD_GALLOC(w = alloc_f64(nr));
+  FMBD_GALLOC(rigid = fmbd_calloc((size_t)(nr ? nr : 1), sizeof(int64_t)));
+  memcpy(Ma, Mr, (size_t)(nr * nr) * sizeof(double));
+  memcpy(Ka, Kr, (size_t)(nr * nr) * sizeof(double));
+  rc = fmbd_dense_sygv(nr, Ka, Ma, w);
+  if (rc == FMBD_ERR_SINGULAR) {
+    FMBD_GFAIL(rc, "reduced mass matrix (%lld x %lld) is not positive definite: a boundary dof "
+               "without mass (massless interface node?)", (long long)nr, (long long)nr);
+  }
+  FMBD_GCALL(rc);
+  // rigid-body modes: chibar below rigid_rtol of the first fixed-interface eigenvalue (a
+  // flexible scale of the body); without modes, of the largest diagonal ratio of K_/M_
+  double scale = 0.0;
+  if (nd > 0) {
+    scale = cb->kappa[0];
+  } else {
+    for (int64_t i = 0; i < nr; i++) {
+      if (Mr[i + i * nr] > 0.0) scale = fmax(scale, Kr[i + i * nr] / Mr[i + i * nr]);
+    }
+    rigid_rtol *= 1e-3;
+  }
+  int64_t nrig = 0;
+  for (int64_t i = 0; i < nr; i++) {
+    rigid[i] = fabs(w[i]) <= rigid_rtol * scale;
+    nrig += rigid[i];
+  }
+  fmbd_free(cb->Mr);
+  fmbd_free(cb->Kr);
+  fmbd_free(cb->chibar);
+  fmbd_free(cb->Xi);
+  fmbd_free(cb->rigid);
+  cb->Mr = Mr;
+  cb->Kr = Kr;
+  cb->chibar = w;
+  cb->Xi = Ka;
+  cb->rigid = rigid;
+  cb->nr = nr;
+  cb->n_rigid = nrig;
+  Mr = Kr = w = Ka = NULL;
+  rigid = NULL;
+done:
+  fmbd_free(Mr);
+  fmbd_free(Kr);
+  fmbd_free(Ma);
+  fmbd_free(Ka);
+  fmbd_free(w);
+  fmbd_free(rigid);
+  return rc;
+}
+
+// K(rows, cols) of the boundary / interior partition
+static int sub(const fmbd_csr *A, int64_t nr, const int64_t *r, int64_t nc, const int64_t *c,
+               fmbd_csr **out) {
+  return fmbd_csr_submatrix(A, nr, r, nc, c, out);
+}
+
+// C (nb x m, ldc) += S' X  for a sparse S (ns x nb) and dense X (ns x m, ld ns)
+static void csr_tmult(const fmbd_csr *S, int64_t m, const double *X, int64_t ns, double *C,
+                      int64_t ldc) {
+  for (int64_t i = 0; i < S->nrows; i++) {
+    for (int64_t p = S->indptr[i]; p < S->indptr[i + 1]; p++) {
+      int64_t j = S->indices[p];
+      double v = S->data[p];
+      for (int64_t c = 0; c < m; c++) C[j + c * ldc] += v * X[i + c * ns];
+    }
+  }
+}
+
+static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
+                            const int64_t *dofs, int64_t nb) {
+  int64_t r = fmbd_chol_failed_row(F);
+  if (rc != FMBD_ERR_SINGULAR || r < 0) return rc;
+  char lab[96], prev[700];
+  snprintf(prev, sizeof prev, "%.600s", fmbd_err_get()->msg);
+  fmbd_err_context(NULL, "/K");
+  FMBD_FAIL(FMBD_ERR_SINGULAR,
+            "the interior stiffness Ks is singular at %s: a region of the body is not held by "
+            "the %lld boundary dofs (a floating part, or a mechanism); add an interface or a "
+            "--boundary group there [%s]",
+            dof_label(dofs, interior[r], lab, sizeof lab), (long long)nb, prev);
+}
+
+static void progress_sink(void *ctx, const char *stage, int64_t solves, int64_t nev) {
+  (void)ctx;
+  fmbd_progress("%s: %lld solves, %lld modes wanted", stage, (long long)solves, (long long)nev);
+}
+
+// the fixed-interface (or held / free) modes
+static int modes(const fmbd_csr *Ks, const fmbd_csr *Ms, fmbd_chol *F, const fmbd_cb_opts *o,
+                 int64_t nev, double lambda_max, bool free_body, fmbd_eig_result *er) {
+  fmbd_eig_opts eo = o->eig;
+  eo.nev = nev;
+  eo.lambda_max = lambda_max;
+  eo.free_body = free_body;
+  if (!eo.progress && fmbd_progress_enabled()) eo.progress = progress_sink;
+  return fmbd_eig_solve(Ks, Ms, free_body ? NULL : F, &eo, er);
+}
+
+static void take_eig_time(fmbd_cb *cb, const fmbd_eig_result *er) {
+  cb->time.factor += er->t_factor_s;
+  cb->time.lanczos += er->t_lanczos_s;
+  cb->time.sturm += er->t_sturm_s;
+  cb->time.residuals += er->t_check_s;
+  cb->time.solves += er->n_solves;
+  cb->time.eig_passes += er->passes;
+  cb->sturm_shift = er->sturm_shift;
+  cb->sturm_count = er->sturm_count;
+  cb->max_residual = 0.0;
+  for (int64_t k = 0; k < er->nev; k++) cb->max_residual = fmax(cb->max_residual, er->resid[k]);
+}
+
+static double hz(double lambda) { return sqrt(fabs(lambda)) / (2.0 * M_PI); }
+
+// nm free-free: the lowest flexible modes of the whole body (rigid-body modes removed)
+static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts *o, fmbd_cb *cb) {
+  int rc = FMBD_OK;
+  int64_t n = K->nrows;
+  fmbd_eig_result er = {0};
+  double lmax = o->fmax_hz > 0.0 ? pow(2.0 * M_PI * o->fmax_hz, 2) : 0.0;
+  // rigid-body eigenvalues: round-off of the spectrum's top (max K_ii/M_ii); flexible ones lie
+  // far above 1e-9 of it for any mesh of fewer than ~1e4 elements along the body
+  double top = 0.0;
+  for (int64_t i = 0; i < n; i++) {
+    double m = fmbd_csr_get(M, i, i);
+    if (m > 0.0) top = fmax(top, fmbd_csr_get(K, i, i) / m);
+  }
+  double rig_thr = 1e-9 * top;
+  int64_t extra = 6;  // rigid-body modes expected at most (more: a mechanism, asked again)
+  for (int round = 0;; round++) {
+    int64_t nev = o->nmodes + extra;
+    if (lmax <= 0.0 && nev > n) nev = n;
+    fmbd_eig_result_free(&er);
+    double t0 = fmbd_wall_s();
+    FMBD_GCALL(modes(K, M, NULL, o, nev, lmax, true, &er));
+    (void)t0;
+    int64_t nrig = 0;
+    while (nrig < er.nev && er.lambda[nrig] <= rig_thr) nrig++;
+    int64_t nflex = er.nev - nrig;
+    if (lmax <= 0.0 && nflex < o->nmodes && nev < n && round < 4) {
+      extra = nrig + 6;
+      continue;
+    }
+    if (lmax <= 0.0) {
+      FMBD_GCHECK(nflex >= o->nmodes, FMBD_ERR_VALUE, "%lld free-free flexible modes asked for, "
+                  "but the body has only %lld (%lld rigid-body modes among %lld dofs)",
+                  (long long)o->nmodes, (long long)nflex, (long long)nrig, (long long)n);
+      nflex = o->nmodes;
+    }
+    FMBD_GCHECK(nflex > 0, FMBD_ERR_VALUE, "--fmax %g Hz lies below the first flexible mode "
+                "(%.6g Hz)", o->fmax_hz, isnan(er.next_lambda) ? NAN : hz(er.next_lambda));
+    take_eig_time(cb, &er);
+    cb->n_rigid_removed = nrig;
+    cb->nd = nflex;
+    FMBD_GALLOC(cb->kappa = alloc_f64(nflex));
+    FMBD_GALLOC(cb->Phi = alloc_f64(n * nflex));
+    memcpy(cb->kappa, er.lambda + nrig, (size_t)nflex * sizeof(double));
+    memcpy(cb->Phi, er.X + nrig * n, (size_t)(n * nflex) * sizeof(double));
+    cb->kappa_next = nrig + nflex < er.nev ? er.lambda[nrig + nflex] : er.next_lambda;
+    if (nrig > 0) {
+      fmbd_log(FMBD_LOG_INFO, "free-free body: %lld rigid-body modes removed (|lambda| <= %.3g, "
+               "first flexible %.6g Hz)", (long long)nrig, rig_thr, hz(cb->kappa[0]));
+    }
+    if (nrig > 6) {
+      fmbd_log(FMBD_LOG_WARN, "%lld zero-frequency modes: the body is a mechanism", (long long)nrig);
+    }
+    break;
+  }
+done:
+  fmbd_eig_result_free(&er);
+  return rc;
+}
+
+int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, int64_t nb,
+                   const int64_t *boundary, const fmbd_cb_opts *oin, fmbd_cb **out) {
+  int rc = FMBD_OK;
+  fmbd_cb_opts o;
+  if (oin) {
+    o = *oin;
+  } else {
+    fmbd_cb_defaults(&o);
+  }
+  fmbd_cb *cb = NULL;
+  fmbd_csr *Ks = NULL, *Kc = NULL, *Kb = NULL, *Ms = NULL, *Mc = NULL, *Mb = NULL;
+  fmbd_chol *F = NULL;
+  fmbd_eig_result er = {0};
+  double *tmp = NULL;
+  char *mark = NULL;
+  *out = NULL;
+  int64_t n = K->nrows;
+  FMBD_CHECK(o.nmodes >= 0, FMBD_ERR_VALUE, "negative number of modes");
+  FMBD_GALLOC(cb = fmbd_calloc(1, sizeof *cb));
+  snprintf(cb->method, sizeof cb->method, "%s", o.nm ? "nm" : "cb");
+  cb->ndof = n;
+  cb->kappa_next = NAN;
+  cb->sturm_shift = NAN;
+  cb->sturm_count = -1;
+  double t0 = fmbd_wall_s();
+
+  // --- partition ---
+  FMBD_GALLOC(mark = fmbd_calloc((size_t)(n ? n : 1), 1));
+  for (int64_t k = 0; k < nb; k++) {
+    FMBD_GCHECK(boundary[k] >= 0 && boundary[k] < n && (k == 0 || boundary[k] > boundary[k - 1]),
+                FMBD_ERR_VALUE, "boundary dof list not sorted, unique and in range at %lld",
+                (long long)k);
+    mark[boundary[k]] = 1;
+  }
+  if (o.nm && !o.hold) {
+    // free-free normal modes of the whole body
+    cb->ns = n;
+    FMBD_GALLOC(cb->interior = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+    for (int64_t i = 0; i < n; i++) cb->interior[i] = i;
+    FMBD_GALLOC(cb->boundary = fmbd_malloc(sizeof(int64_t)));
+    cb->nb = 0;
+    cb->time.partition = fmbd_wall_s() - t0;
+    FMBD_GCALL(reduce_free(K, M, &o, cb));
+    FMBD_GCALL(fmbd_cb_update_reduced(cb, o.rigid_rtol));
+    *out = cb;
+    cb = NULL;
+    goto done;
+  }
+  int64_t ns = n - nb;
+  FMBD_GCHECK(ns > 0, FMBD_ERR_VALUE, "every dof of the body is a boundary dof: nothing to reduce");
+  cb->ns = ns;
+  FMBD_GALLOC(cb->interior = fmbd_malloc((size_t)ns * sizeof(int64_t)));
+  FMBD_GALLOC(cb->boundary = fmbd_malloc((size_t)(nb ? nb : 1) * sizeof(int64_t)));
+  for (int64_t i = 0, a = 0, b = 0; i < n; i++) {
+    if (mark[i]) cb->boundary[b++] = i;
+    else cb->interior[a++] = i;
+  }
+  cb->nb = nb;
+  FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
+  FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
+  FMBD_GCALL(sub(K, ns, cb->interior, nb, cb->boundary, &Kc));
+  FMBD_GCALL(sub(M, ns, cb->interior, nb, cb->boundary, &Mc));
+  FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
+  FMBD_GCALL(sub(M, nb, cb->boundary, nb, cb->boundary, &Mb));
+  cb->time.partition = fmbd_wall_s() - t0;
+  if (o.fmax_hz <= 0.0) {
+    FMBD_GCHECK(o.nmodes <= ns, FMBD_ERR_VALUE,
+                "%lld modes asked for, but the body has only %lld interior dofs (%lld dofs, %lld "
+                "on the boundary)", (long long)o.nmodes, (long long)ns, (long long)n, (long long)nb);
+  }
+
+  // --- the factor of Ks, once ---
+  FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
+  rc = fmbd_chol_factor(F, 0.0);
+  if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
+  {
+    fmbd_chol_stats st;
+    fmbd_chol_get_stats(F, &st);
+    cb->time.ordering = st.t_analyze_s;
+    cb->time.factor = st.t_factor_s;
+    cb->time.ordering_name = st.ordering;
+    cb->time.nnz_l = st.nnz_l;
+  }
+
+  // --- fixed-interface modes ---
+  if (o.fmax_hz > 0.0 || o.nmodes > 0) {
+    double lmax = o.fmax_hz > 0.0 ? pow(2.0 * M_PI * o.fmax_hz, 2) : 0.0;
+    FMBD_GCALL(modes(Ks, Ms, F, &o, o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes,
+                     lmax, false, &er));
+    if (o.fmax_hz > 0.0 && er.nev == 0) {
+      FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
+                 o.fmax_hz, hz(er.next_lambda));
+    }
+    take_eig_time(cb, &er);
+    cb->nd = er.nev;
+    cb->kappa = er.lambda;
+    cb->Phi = er.X;
+    cb->kappa_next = er.next_lambda;
+    er.lambda = er.X = NULL;
+  } else {
+    FMBD_GALLOC(cb->kappa = alloc_f64(0));
+    FMBD_GALLOC(cb->Phi = alloc_f64(0));
+  }
+  int64_t nd = cb->nd;
+
+  if (o.nm) {
+    // held normal modes: the boundary dofs are held, not reduced coordinates
+    cb->held = cb->boundary;
+    cb->nheld = nb;
+    cb->nb = 0;
+    FMBD_GALLOC(cb->boundary = fmbd_malloc(sizeof(int64_t)));
+    FMBD_GCALL(fmbd_cb_update_reduced(cb, o.rigid_rtol));
+    *out = cb;
+    cb = NULL;
+    goto done;
+  }
+
+  // --- constraint modes Psi = -Ks^-1 Kc: one multi-rhs solve ---
+  double t1 = fmbd_wall_s();
+  int64_t s0 = 0;
+  {
+    fmbd_chol_stats st;
+    fmbd_chol_get_stats(F, &st);
+    s0 = st.n_solves;
+  }
+  FMBD_GALLOC(cb->Psi = alloc_f64(ns * nb));
+  memset(cb->Psi, 0, (size_t)(ns * nb) * sizeof(double));
+  for (int64_t i = 0; i < ns; i++) {
+    for (int64_t p = Kc->indptr[i]; p < Kc->indptr[i + 1]; p++) {
+      cb->Psi[i + Kc->indices[p] * ns] = -Kc->data[p];
+    }
+  }
+  if (nb > 0) {
+    if (fmbd_progress_enabled()) fmbd_progress("constraint modes: %lld solves", (long long)nb);
+    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->Psi, ns));
+  }
+  cb->time.constraint = fmbd_wall_s() - t1;
+
+  // --- projections: A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, Phi' A, boundary blocks ---
+  t1 = fmbd_wall_s();
+  FMBD_GALLOC(cb->A = alloc_f64(ns * nb));
+  FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
+  FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
+  FMBD_GALLOC(cb->PhitA = alloc_f64(nd * nb));
+  if (nb > 0) {
+    fmbd_csr_matmat(Ms, nb, cb->Psi, ns, cb->A, ns);
+    for (int64_t i = 0; i < ns; i++) {
+      for (int64_t p = Mc->indptr[i]; p < Mc->indptr[i + 1]; p++) {
+        cb->A[i + Mc->indices[p] * ns] += Mc->data[p];
+      }
+    }
+    memcpy(cb->KsinvA, cb->A, (size_t)(ns * nb) * sizeof(double));
+    if (fmbd_progress_enabled()) fmbd_progress("projections: %lld solves", (long long)(2 * nb));
+    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvA, ns));
+    fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
+    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
+    fmbd_dense_gemm('T', 'N', nd, nb, ns, 1.0, cb->Phi, ns, cb->A, ns, 0.0, cb->PhitA, nd > 0 ? nd : 1);
+  }
+  // boundary blocks Kb + Kc' Psi and Psi' A + Mc' Psi + Mb, symmetrised (exactly symmetric in
+  // exact arithmetic: Kc' Psi = -Kc' Ks^-1 Kc)
+  int64_t nr0 = nb;
+  FMBD_GALLOC(cb->Kr = alloc_f64(nr0 * nr0));
+  FMBD_GALLOC(cb->Mr = alloc_f64(nr0 * nr0));
+  FMBD_GALLOC(tmp = alloc_f64(nb * nb));
+  memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
+  memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
+  for (int64_t i = 0; i < nb; i++) {
+    for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++) cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
+    for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++) cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
+  }
+  csr_tmult(Kc, nb, cb->Psi, ns, cb->Kr, nb);
+  csr_tmult(Mc, nb, cb->Psi, ns, cb->Mr, nb);
+  if (nb > 0) fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, cb->Psi, ns, cb->A, ns, 1.0, cb->Mr, nb);
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t i = 0; i < j; i++) {
+      double k = 0.5 * (cb->Kr[i + j * nb] + cb->Kr[j + i * nb]);
+      double m = 0.5 * (cb->Mr[i + j * nb] + cb->Mr[j + i * nb]);
+      cb->Kr[i + j * nb] = cb->Kr[j + i * nb] = k;
+      cb->Mr[i + j * nb] = cb->Mr[j + i * nb] = m;
+    }
+  }
+  cb->nr = nb;  // the boundary block alone; fmbd_cb_update_reduced adds the modal part
+  {
+    fmbd_chol_stats st;
+    fmbd_chol_get_stats(F, &st);
+    cb->time.solves += st.n_solves - s0;
+  }
+  cb->time.projection = fmbd_wall_s() - t1;
+
+  // --- reduced eigensolution ---
+  t1 = fmbd_wall_s();
+  FMBD_GCALL(fmbd_cb_update_reduced(cb, o.rigid_rtol));
+  cb->time.reduced_eig = fmbd_wall_s() - t1;
+  if (cb->n_rigid > 0) {
+    int64_t first = -1, last = -1;
+    for (int64_t i = 0; i < cb->nr; i++) {
+      if (cb->rigid[i]) {
+        if (first < 0) first = i;
+        last = i;
+      }
+    }
+    fmbd_log(FMBD_LOG_INFO, "reduced problem: %lld rigid-body modes (modes %lld..%lld, "
+             "|chibar| <= %.3g = %.0e kappa_1)", (long long)cb->n_rigid, (long long)first + 1,
+             (long long)last + 1, o.rigid_rtol * (nd > 0 ? cb->kappa[0] : 0.0), o.rigid_rtol);
+  }
+  *out = cb;
+  cb = NULL;
+done:
+  fmbd_cb_destroy(&cb);
+  fmbd_csr_destroy(&Ks);
+  fmbd_csr_destroy(&Kc);
+  fmbd_csr_destroy(&Kb);
+  fmbd_csr_destroy(&Ms);
+  fmbd_csr_destroy(&Mc);
+  fmbd_csr_destroy(&Mb);
+  fmbd_chol_destroy(&F);
+  fmbd_eig_result_free(&er);
+  fmbd_free(tmp);
+  fmbd_free(mark);
+  return rc;
+}
+
+// --- extension of the mode set (cbcheck) --------------------------------------------------------
+int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd_new,
+                   const fmbd_eig_opts *eig) {
+  int rc = FMBD_OK;
+  fmbd_csr *Ks = NULL, *Ms = NULL;
+  fmbd_chol *F = NULL;
+  fmbd_eig_result er = {0};
+  double *mx = NULL;
+  int64_t ns = cb->ns, nd = cb->nd;
+  FMBD_CHECK(!(cb->method[0] == 'n' && cb->nheld == 0), FMBD_ERR_VALUE,
+             "free-free normal modes cannot be extended as fixed-interface modes");
+  FMBD_CHECK(K->nrows == cb->ndof && M->nrows == cb->ndof, FMBD_ERR_VALUE,
+             "FE matrices have %lld dofs, the reduced body %lld", (long long)K->nrows,
+             (long long)cb->ndof);
+  FMBD_CHECK(nd_new >= 0 && nd_new <= ns, FMBD_ERR_VALUE,
+             "%lld modes asked for, but the body has only %lld interior dofs", (long long)nd_new,
+             (long long)ns);
+  if (nd_new <= nd) {
+    // truncation: the lowest nd_new modes stay as they are
+    if (nd_new < nd) cb->kappa_next = cb->kappa[nd_new];
+    cb->nd = nd_new;
+    if (cb->nb > 0) {
+      double *P = NULL;
+      FMBD_GALLOC(P = alloc_f64(nd_new * cb->nb));
+      for (int64_t j = 0; j < cb->nb; j++) {
+        for (int64_t k = 0; k < nd_new; k++) P[k + j * nd_new] = cb->PhitA[k + j * nd];
+      }
+      fmbd_free(cb->PhitA);
+      cb->PhitA = P;
+    }
+    FMBD_GCALL(fmbd_cb_update_reduced(cb, 1e-6));
+    goto done;
+  }
+  FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
+  FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
+  FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
+  rc = fmbd_chol_factor(F, 0.0);
+  if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, NULL, cb->nb));
+  fmbd_cb_opts o;
+  fmbd_cb_defaults(&o);
+  if (eig) o.eig = *eig;
+  FMBD_GCALL(modes(Ks, Ms, F, &o, nd_new, 0.0, false, &er));
+  FMBD_GCHECK(er.nev == nd_new, FMBD_ERR_CONVERGE, "%lld of %lld modes computed",
+              (long long)er.nev, (long long)nd_new);
+  // the old modes must be reproduced (ARPACK tol 1e-12: eigenvalues agree far below 1e-8)
+  FMBD_GALLOC(mx = alloc_f64(ns));
+  for (int64_t k = 0; k < nd; k++) {
+    FMBD_GCHECK(fabs(er.lambda[k] - cb->kappa[k]) <= 1e-8 * fabs(cb->kappa[k]), FMBD_ERR_CONVERGE,
+                "extending the mode set: mode %lld comes out at %.12g, was %.12g (the FE matrices "
+                "do not belong to this reduced body?)", (long long)k + 1, er.lambda[k], cb->kappa[k]);
+    fmbd_csr_matvec(Ms, cb->Phi + k * ns, mx);
+    double s = 0.0;
+    for (int64_t i = 0; i < ns; i++) s += mx[i] * er.X[i + k * ns];
+    if (s < 0.0) {
+      for (int64_t i = 0; i < ns; i++) er.X[i + k * ns] = -er.X[i + k * ns];
+    }
+  }
+  fmbd_free(cb->kappa);
+  fmbd_free(cb->Phi);
+  cb->kappa = er.lambda;
+  cb->Phi = er.X;
+  er.lambda = er.X = NULL;
+  cb->kappa_next = er.next_lambda;
+  cb->nd = nd_new;
+  cb->sturm_shift = er.sturm_shift;
+  cb->sturm_count = er.sturm_count;
+  if (cb->nb > 0) {
+    fmbd_free(cb->PhitA);
+    cb->PhitA = NULL;
+    FMBD_GALLOC(cb->PhitA = alloc_f64(nd_new * cb->nb));
+    fmbd_dense_gemm('T', 'N', nd_new, cb->nb, ns, 1.0, cb->Phi, ns, cb->A, ns, 0.0, cb->PhitA, nd_new);
+  }
+  FMBD_GCALL(fmbd_cb_update_reduced(cb, 1e-6));
+done:
+  fmbd_csr_destroy(&Ks);
+  fmbd_csr_destroy(&Ms);
+  fmbd_chol_destroy(&F);
+  fmbd_eig_result_free(&er);
+  fmbd_free(mx);
+  return rc;
+}
+
+// --- file I/O -----------------------------------------------------------------------------------
+static int write_vec(fmbd_h5 *f, const char *path, int64_t n, const double *v) {
+  return fmbd_h5_write_f64(f, path, 1, &n, v);
+}
+static int write_ivec(fmbd_h5 *f, const char *path, int64_t n, const int64_t *v) {
+  return fmbd_h5_write_i64(f, path, 1, &n, v);
+}
+
+int fmbd_cb_write(fmbd_h5 *f, const fmbd_cb *cb) {
+  int rc = FMBD_OK;
+  double *fr = NULL;
+  int64_t ns = cb->ns, nb = cb->nb, nd = cb->nd, nr = cb->nr;
+  FMBD_GCALL(fmbd_h5_make_group(f, "/cb"));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/cb", "method", cb->method));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/cb", "n_rigid", 1, &cb->n_rigid));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/cb", "n_rigid_removed", 1, &cb->n_rigid_removed));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/cb", "fe_file", cb->fe_file ? cb->fe_file : ""));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/cb", "fe_sha256", cb->fe_sha256));
+  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "kappa_next", 1, &cb->kappa_next));
+  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "sturm_shift", 1, &cb->sturm_shift));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/cb", "sturm_count", 1, &cb->sturm_count));
+  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "max_residual", 1, &cb->max_residual));
+  FMBD_GCALL(write_ivec(f, "/cb/interior_dofs", ns, cb->interior));
+  FMBD_GCALL(write_ivec(f, "/cb/boundary_dofs", nb, cb->boundary));
+  if (cb->nheld > 0) FMBD_GCALL(write_ivec(f, "/cb/held_dofs", cb->nheld, cb->held));
+  FMBD_GCALL(write_vec(f, "/cb/kappa", nd, cb->kappa));
+  FMBD_GALLOC(fr = alloc_f64(nr > nd ? nr : nd));
+  for (int64_t k = 0; k < nd; k++) fr[k] = hz(cb->kappa[k]);
+  FMBD_GCALL(write_vec(f, "/cb/frequency_hz", nd, fr));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/cb/Phi", ns, nd, cb->Phi));
+  if (strcmp(cb->method, "cb") == 0) {
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/cb/Psi", ns, nb, cb->Psi));
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/cb/A", ns, nb, cb->A));
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/cb/KsinvA", ns, nb, cb->KsinvA));
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/cb/KsinvMsKsinvA", ns, nb, cb->KsinvMsKsinvA));
+    FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/cb/PhitA", nd, nb, cb->PhitA));
+  }
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/reduced/M", nr, nr, cb->Mr));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/reduced/K", nr, nr, cb->Kr));
+  FMBD_GCALL(write_vec(f, "/reduced/eigenvalues", nr, cb->chibar));
+  for (int64_t k = 0; k < nr; k++) fr[k] = cb->rigid[k] ? 0.0 : hz(cb->chibar[k]);
+  FMBD_GCALL(write_vec(f, "/reduced/frequency_hz", nr, fr));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/reduced/eigenvectors", nr, nr, cb->Xi));
+  FMBD_GCALL(write_ivec(f, "/reduced/rigid", nr, cb->rigid));
+done:
+  fmbd_free(fr);
+  return rc;
+}
+
+static int read_ivec(fmbd_h5 *f, const char *path, int64_t *n, int64_t **v) {
+  int64_t d = -1;
+  FMBD_CALL(fmbd_h5_read_i64(f, path, 1, &d, v));
+  *n = d;
+  return FMBD_OK;
+}
+
+static int read_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t cols, double **A) {
+  int64_t r = rows, c = cols;
+  return fmbd_h5_read_f64_cm(f, path, &r, &c, A);
+}
+
+int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
+  int rc = FMBD_OK;
+  fmbd_cb *cb = NULL;
+  char *method = NULL;
+  *out = NULL;
+  FMBD_GCALL(fmbd_h5_check_format(f, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR));
+  FMBD_GALLOC(cb = fmbd_calloc(1, sizeof *cb));
+  FMBD_GCALL(fmbd_h5_read_attr_str(f, "/cb", "method", &method));
+  FMBD_GCHECK(!strcmp(method, "cb") || !strcmp(method, "nm"), FMBD_ERR_FORMAT,
+              "/cb method \"%s\" is neither cb nor nm", method);
+  snprintf(cb->method, sizeof cb->method, "%s", method);
+  FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/cb", "n_rigid", 1, &cb->n_rigid));
+  cb->kappa_next = NAN;
+  cb->sturm_shift = NAN;
+  cb->sturm_count = -1;
+  if (fmbd_h5_has_attr(f, "/cb", "kappa_next")) {
+    FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/cb", "kappa_next", 1, &cb->kappa_next));
+  }
+  if (fmbd_h5_has_attr(f, "/cb", "n_rigid_removed")) {
+    FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/cb", "n_rigid_removed", 1, &cb->n_rigid_removed));
+  }
+  if (fmbd_h5_has_attr(f, "/cb", "fe_file")) {
+    FMBD_GCALL(fmbd_h5_read_attr_str(f, "/cb", "fe_file", &cb->fe_file));
+  }
+  if (fmbd_h5_has_attr(f, "/cb", "fe_sha256")) {
+    char *s = NULL;
+    FMBD_GCALL(fmbd_h5_read_attr_str(f, "/cb", "fe_sha256", &s));
+    snprintf(cb->fe_sha256, sizeof cb->fe_sha256, "%s", s);
+    fmbd_free(s);
+  }
+  if (fmbd_h5_has_attr(f, "/cb", "sturm_shift")) {
+    FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/cb", "sturm_shift", 1, &cb->sturm_shift));
+    FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/cb", "sturm_count", 1, &cb->sturm_count));
+  }
+  FMBD_GCALL(read_ivec(f, "/cb/interior_dofs", &cb->ns, &cb->interior));
+  FMBD_GCALL(read_ivec(f, "/cb/boundary_dofs", &cb->nb, &cb->boundary));
+  if (fmbd_h5_exists(f, "/cb/held_dofs")) {
+    FMBD_GCALL(read_ivec(f, "/cb/held_dofs", &cb->nheld, &cb->held));
+  }
+  cb->ndof = cb->ns + cb->nb + cb->nheld;
+  int64_t ns = cb->ns, nb = cb->nb;
+  for (int64_t k = 0; k < ns; k++) {
+    if (cb->interior[k] < 0 || cb->interior[k] >= cb->ndof) {
+      fmbd_err_context(NULL, "/cb/interior_dofs");
+      FMBD_GFAIL(FMBD_ERR_FORMAT, "entry %lld = %lld out of range", (long long)k,
+                 (long long)cb->interior[k]);
+    }
+  }
+  for (int64_t k = 0; k < nb; k++) {
+    if (cb->boundary[k] < 0 || cb->boundary[k] >= cb->ndof) {
+      fmbd_err_context(NULL, "/cb/boundary_dofs");
+      FMBD_GFAIL(FMBD_ERR_FORMAT, "entry %lld = %lld out of range", (long long)k,
+                 (long long)cb->boundary[k]);
+    }
+  }
+  {
+    int64_t d = -1;
+    FMBD_GCALL(fmbd_h5_read_f64(f, "/cb/kappa", 1, &d, &cb->kappa));
+    cb->nd = d;
+  }
+  int64_t nd = cb->nd, nr = nd + nb;
+  cb->nr = nr;
+  FMBD_GCALL(read_cm(f, "/cb/Phi", ns, nd, &cb->Phi));
+  if (!strcmp(cb->method, "cb")) {
+    FMBD_GCALL(read_cm(f, "/cb/Psi", ns, nb, &cb->Psi));
+    FMBD_GCALL(read_cm(f, "/cb/A", ns, nb, &cb->A));
+    FMBD_GCALL(read_cm(f, "/cb/KsinvA", ns, nb, &cb->KsinvA));
+    FMBD_GCALL(read_cm(f, "/cb/KsinvMsKsinvA", ns, nb, &cb->KsinvMsKsinvA));
+    FMBD_GCALL(read_cm(f, "/cb/PhitA", nd, nb, &cb->PhitA));
+  }
+  FMBD_GCALL(read_cm(f, "/reduced/M", nr, nr, &cb->Mr));
+  FMBD_GCALL(read_cm(f, "/reduced/K", nr, nr, &cb->Kr));
+  {
+    int64_t d = nr;
+    FMBD_GCALL(fmbd_h5_read_f64(f, "/reduced/eigenvalues", 1, &d, &cb->chibar));
+    d = nr;
+    FMBD_GCALL(fmbd_h5_read_i64(f, "/reduced/rigid", 1, &d, &cb->rigid));
+  }
+  FMBD_GCALL(read_cm(f, "/reduced/eigenvectors", nr, nr, &cb->Xi));
+  *out = cb;
+  cb = NULL;
+done:
+  fmbd_free(method);
+  fmbd_cb_destroy(&cb);
+  return rc;
+}
