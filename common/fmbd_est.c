@@ -9,6 +9,7 @@
 #include "fmbd_alloc.h"
 #include "fmbd_dense.h"
 #include "fmbd_err.h"
+#include "fmbd_log.h"
 
 struct fmbd_est {
   int64_t nb, npool, nd;
@@ -17,6 +18,7 @@ struct fmbd_est {
   double *kappa;       // npool
   double *PhitA;       // npool x nb (column-major, leading dimension npool)
   double *Xb, *Gb;     // current, nb x nb
+  double kappa_next;   // kappa_(npool+1) or NAN
 };
 
 void fmbd_est_options_defaults(fmbd_est_options *o) {
@@ -136,6 +138,7 @@ int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd
   fmbd_est *e = fmbd_calloc(1, sizeof(*e));
   FMBD_CHECK(e, FMBD_ERR_NOMEM, "out of memory");
   e->nb = nb;
+  e->kappa_next = NAN;
   if (opt) {
     e->opt = *opt;
   } else {
@@ -196,6 +199,7 @@ int fmbd_est_set_pool(fmbd_est *e, int64_t npool, const double *kappa, const dou
   e->PhitA = pa;
   e->npool = npool;
   e->nd = npool;
+  e->kappa_next = NAN;
   memcpy(e->Xb, Xb, sizeof(double) * (size_t)(e->nb * e->nb));
   memcpy(e->Gb, Gb, sizeof(double) * (size_t)(e->nb * e->nb));
   return FMBD_OK;
@@ -236,7 +240,10 @@ int64_t fmbd_est_npool(const fmbd_est *e) { return e->npool; }
 int64_t fmbd_est_nb(const fmbd_est *e) { return e->nb; }
 const double *fmbd_est_xb(const fmbd_est *e) { return e->Xb; }
 const double *fmbd_est_gb(const fmbd_est *e) { return e->Gb; }
-bool fmbd_est_knext_known(const fmbd_est *e) { return e->nd < e->npool; }
+bool fmbd_est_knext_known(const fmbd_est *e) {
+  return e->nd < e->npool || (e->nd == e->npool && isfinite(e->kappa_next));
+}
+void fmbd_est_set_kappa_next(fmbd_est *e, double kappa_next) { e->kappa_next = kappa_next; }
 
 int fmbd_est_solve(fmbd_est *e, double *chibar, double *Xi) {
   int rc = FMBD_OK;
@@ -330,7 +337,11 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
       scale = fmax(scale, fabs(chibar[n]));
     }
   }
-  double knext = e->npool > nd ? e->kappa[nd] : (nd > 0 ? e->kappa[nd - 1] : INFINITY);
+  // kappa_(nd+1); unknown: kappa_nd (smaller, so the estimate stays above [H36])
+  double knext = e->npool > nd                ? e->kappa[nd]
+                 : isfinite(e->kappa_next)   ? e->kappa_next
+                 : nd > 0                    ? e->kappa[nd - 1]
+                                             : INFINITY;
   for (int64_t n = 0; n < nm; n++) {
     double c = chibar[n];
     const double *b = Xi + ldxi * n + nd;
@@ -342,8 +353,10 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
       continue;
     }
     double x = quad(nb, e->Xb, b), g = quad(nb, e->Gb, b);
-    // kappa_n: n counts the rigid-body modes (THEORY.md section 8); beyond nd: kappa_(nd+1)
-    double kn = n < nd ? e->kappa[n] : knext;
+    // kappa_n: n counts the rigid-body modes (THEORY.md section 8); kappa_n must be among the
+    // dominant eigenvalues [H37] (n <= nd), so modes beyond nd take kappa_nd, the largest
+    // dominant one (smaller than kappa_(nd+1): a larger, conservative estimate)
+    double kn = n < nd ? e->kappa[n] : (nd > 0 ? e->kappa[nd - 1] : knext);
     m->x[n] = x;
     m->g[n] = g;
     m->lower[n] = c * x;                         // [H45]
@@ -382,4 +395,119 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
     n = last + 1;
   }
   return FMBD_OK;
+}
+
+int fmbd_est_run(fmbd_est *e, fmbd_est_modes *m, double *Xi) {
+  int rc = FMBD_OK;
+  int64_t n = e->nd + e->nb;
+  double *chib = NULL, *X = Xi;
+  fmbd_est_modes_free(m);
+  FMBD_GALLOC(chib = fmbd_malloc(sizeof(double) * (size_t)(n + 1)));
+  if (!X) {
+    FMBD_GALLOC(X = fmbd_malloc(sizeof(double) * (size_t)(n * n + 1)));
+  }
+  FMBD_GCALL(fmbd_est_solve(e, chib, X));
+  FMBD_GCALL(fmbd_est_modes_alloc(n, m));
+  FMBD_GCALL(fmbd_est_estimate(e, chib, X, n, m));
+done:
+  fmbd_free(chib);
+  if (X != Xi) {
+    fmbd_free(X);
+  }
+  return rc;
+}
+
+double fmbd_est_pick(const fmbd_est_modes *m, int which, int64_t n) {
+  switch (which) {
+    case FMBD_EST_UPPER_NEXT: return m->upper_next[n];
+    case FMBD_EST_SECOND: return m->second[n];
+    case FMBD_EST_LOWER: return m->lower[n];
+    default: return m->upper[n];
+  }
+}
+
+// estimate of flexible mode j (1-based) of m, INFINITY if the body has fewer flexible modes
+static double flex_estimate(const fmbd_est_modes *m, int which, int64_t j) {
+  int64_t seen = 0;
+  for (int64_t n = 0; n < m->nmodes; n++) {
+    if (!m->rigid[n] && ++seen == j) {
+      return fmbd_est_pick(m, which, n);
+    }
+  }
+  return INFINITY;
+}
+
+int fmbd_est_select(fmbd_est *e, const fmbd_est_select_opts *o, fmbd_est_extend_fn extend,
+                    void *ctx, fmbd_est_select_result *res) {
+  int rc = FMBD_OK;
+  fmbd_est_modes m = {0};
+  memset(res, 0, sizeof(*res));
+  res->best_largest = INFINITY;
+  res->best_nd = -1;
+  FMBD_CHECK(o->tol > 0 && o->nm >= 1 && o->n0 >= 0, FMBD_ERR_VALUE,
+             "selection needs tol > 0, nm >= 1, n0 >= 0 (got %g, %lld, %lld)", o->tol,
+             (long long)o->nm, (long long)o->n0);
+  int64_t cap = 16;
+  FMBD_CHECK(res->log = fmbd_malloc(sizeof(fmbd_est_iter) * (size_t)cap), FMBD_ERR_NOMEM,
+             "out of memory");
+  int64_t nd = o->n0, nfirst = 1;
+  for (;;) {
+    if (nd > o->nd_max || (nd > e->npool && !extend)) {
+      res->reached = false;
+      res->nd = nd - 1;
+      break;
+    }
+    if (nd > e->npool) {
+      FMBD_GCALL(extend(ctx, e, nd));
+      res->nextend++;
+      FMBD_GCHECK(e->npool >= nd, FMBD_ERR_INTERNAL, "the pool did not grow to %lld modes",
+                  (long long)nd);
+    }
+    FMBD_GCALL(fmbd_est_set_nd(e, nd));
+    FMBD_GCALL(fmbd_est_run(e, &m, NULL));
+    double largest = 0;
+    int64_t ff = 0, ffall = 0;
+    for (int64_t j = 1; j <= o->nm; j++) {
+      double v = flex_estimate(&m, o->which, j);
+      largest = fmax(largest, v);
+      if (!(v <= o->tol)) {
+        if (!ffall) {
+          ffall = j;
+        }
+        if (!ff && j >= nfirst) {
+          ff = j;
+        }
+      }
+    }
+    if (!ff && ffall) {  // the final pass over 1..nm found a mode that got worse
+      ff = ffall;
+    }
+    if (res->niter == cap) {
+      cap *= 2;
+      fmbd_est_iter *nl = fmbd_realloc(res->log, sizeof(fmbd_est_iter) * (size_t)cap);
+      FMBD_GCHECK(nl, FMBD_ERR_NOMEM, "out of memory");
+      res->log = nl;
+    }
+    res->log[res->niter++] = (fmbd_est_iter){nd, ff, largest};
+    if (largest < res->best_largest) {
+      res->best_largest = largest;
+      res->best_nd = nd;
+    }
+    fmbd_progress("selection: Nd = %lld, first failing mode %lld, largest estimate %.3g",
+                  (long long)nd, (long long)ff, largest);
+    if (!ff) {
+      res->reached = true;
+      res->nd = nd;
+      break;
+    }
+    nfirst = ff;
+    nd++;
+  }
+  fmbd_progress(NULL);
+  if (!res->reached && res->best_nd >= 0) {
+    FMBD_GCALL(fmbd_est_set_nd(e, res->best_nd));
+  }
+done:
+  fmbd_est_modes_free(&m);
+  return rc;
 }

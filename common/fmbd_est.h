@@ -32,7 +32,8 @@
 //   second order         = chibar x + chibar^2 g                         [H36]
 //   upper, kappa_n       = (chibar + chibar^2 / kappa_n) x              [H42], kappa_n the
 //                          n-th fixed-interface eigenvalue (n counts the rigid-body modes, as
-//                          THEORY.md section 8's table does); for n > nd: kappa_(nd+1)
+//                          THEORY.md section 8's table does); kappa_n must be among the
+//                          dominant eigenvalues [H37], so for n > nd: kappa_nd
 //   upper, kappa_(nd+1)  = (chibar + chibar^2 / kappa_(nd+1)) x        (tighter, still above
 //                          [H36] since Phi_r Lambda_r^-2 Phi_r' <= Frs / kappa_(nd+1) [H38])
 // When kappa_(nd+1) is unknown (nd == npool), kappa_nd is used instead: smaller, so still a
@@ -136,8 +137,68 @@ int fmbd_est_solve(fmbd_est *e, double *chibar, double *Xi);
 /// @param[in,out] m arrays of m->nmodes entries, allocated by the caller (fmbd_est_modes_alloc)
 int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi, int64_t ldxi,
                       fmbd_est_modes *m);
-/// @brief Whether kappa_(nd+1) is known (nd < npool) for the upper_next estimate.
+/// @brief Whether kappa_(nd+1) is known (nd < npool, or nd == npool and set with
+/// fmbd_est_set_kappa_next) for the upper_next estimate.
 bool fmbd_est_knext_known(const fmbd_est *e);
+/// @brief The fixed-interface eigenvalue above the pool (kappa_(npool+1)), if known (NAN: not).
+void fmbd_est_set_kappa_next(fmbd_est *e, double kappa_next);
+
+/// @brief Solve the reduced problem at the current nd and estimate every reduced mode:
+/// m->nmodes is set to nd + nb (m is (re)allocated here; free with fmbd_est_modes_free).
+/// @param[out] Xi (nd+nb)^2 eigenvectors if not NULL (caller allocates)
+int fmbd_est_run(fmbd_est *e, fmbd_est_modes *m, double *Xi);
+
+// --- iterative selection (THEORY.md section 3, the paper's Figure 1) ------------------------
+/// Which estimate drives the selection.
+enum fmbd_est_which {
+  FMBD_EST_UPPER = 0,      ///< upper, kappa_n (the paper's [H42]; the default)
+  FMBD_EST_UPPER_NEXT = 1, ///< upper, kappa_(nd+1) (tighter)
+  FMBD_EST_SECOND = 2,     ///< second order (not a bound)
+  FMBD_EST_LOWER = 3       ///< lower (not conservative)
+};
+/// @brief The estimate `which` of mode n of m.
+double fmbd_est_pick(const fmbd_est_modes *m, int which, int64_t n);
+
+/// Grow the pool to at least nd_wanted modes (and call fmbd_est_set_pool); return an error
+/// (FMBD_ERR_*) if impossible.
+typedef int (*fmbd_est_extend_fn)(void *ctx, fmbd_est *e, int64_t nd_wanted);
+
+typedef struct fmbd_est_select_opts {
+  double tol;      ///< relative eigenvalue error tolerance e (> 0)
+  int64_t nm;      ///< flexible modes that must meet tol (mode range Nm >= 1)
+  int64_t n0;      ///< initial number of dominant modes N_init (>= 0)
+  int64_t nd_max;  ///< largest nd tried (the body's interior dofs, or a cap)
+  int which;       ///< enum fmbd_est_which (default FMBD_EST_UPPER)
+} fmbd_est_select_opts;
+
+/// One iteration of the selection log.
+typedef struct fmbd_est_iter {
+  int64_t nd;            ///< dominant modes of this iteration
+  int64_t first_failing; ///< first flexible mode (1-based) above tol, 0 if none
+  double largest;        ///< largest estimate over flexible modes 1..nm (INFINITY if the
+                         ///< reduced body has fewer than nm flexible modes)
+} fmbd_est_iter;
+
+typedef struct fmbd_est_select_result {
+  bool reached;         ///< every flexible mode 1..nm meets tol at nd
+  int64_t nd;           ///< final nd (reached) or the last tried
+  int64_t best_nd;      ///< nd with the smallest largest estimate
+  double best_largest;  ///< that largest estimate
+  int64_t niter;        ///< iterations (entries of log)
+  fmbd_est_iter *log;   ///< (niter) owned: fmbd_free
+  int64_t nextend;      ///< calls of the extend function
+} fmbd_est_select_result;
+
+/// @brief The paper's loop: nd = n0; estimate flexible modes n_first..nm with `which`; if
+/// one exceeds tol, nd += 1 (one rank-one downdate) and continue from the first failing
+/// mode. When n_first..nm all pass, a final pass checks modes 1..nm again (estimates are
+/// not monotone in nd); a mode failing there restarts the loop from it. The pool is grown
+/// through `extend` when nd exceeds it (NULL: no growth, the pool size caps nd). Stops
+/// unreached when nd would exceed nd_max. On return the estimator is at res->nd.
+/// @return FMBD_OK also when the tolerance is not reached (res->reached false); errors of
+///         the reduced solve or of extend
+int fmbd_est_select(fmbd_est *e, const fmbd_est_select_opts *o, fmbd_est_extend_fn extend,
+                    void *ctx, fmbd_est_select_result *res);
 
 /// @brief Allocate the arrays of m for n modes (zeroed). fmbd_est_modes_free releases them.
 int fmbd_est_modes_alloc(int64_t n, fmbd_est_modes *m);

@@ -209,7 +209,7 @@ int main(void) {
         g += b[i] * Gref[i + NB * j] * b[j];
       }
     }
-    double c = chib[k], kn = k < nd ? kap[k] : kap[nd];
+    double c = chib[k], kn = k < nd ? kap[k] : kap[nd - 1];
     EXPECT(!m.rigid[k], "mode %d flagged rigid", k);
     // 1e-9: quadratic forms of matrices equal to 1e-10 (above), no cancellation
     EXPECT(fabs(m.lower[k] - c * x) <= 1e-9 * fabs(c * x), "lower %d", k);

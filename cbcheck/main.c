@@ -1,0 +1,886 @@
+// cbcheck/main.c: a posteriori eigenvalue error estimates of a Craig-Bampton body, mode
+// selection to a tolerance, and the reduced flexible body (BODY.rflex.h5)
+// SPDX-License-Identifier: MIT
+//
+// A thin command line over common/: fmbd_cb_read (the reduced body), fmbd_est (estimates,
+// downdates, selection), fmbd_cb_extend (more fixed-interface modes from the fe file),
+// fmbd_eig (exact errors), fmbd_modal (secondary reduction, rflex file), fmbd_svg (plots).
+// See docs/man/cbcheck.1.
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_cb.h"
+#include "fmbd_cli.h"
+#include "fmbd_csr.h"
+#include "fmbd_eig.h"
+#include "fmbd_err.h"
+#include "fmbd_est.h"
+#include "fmbd_fe.h"
+#include "fmbd_h5.h"
+#include "fmbd_log.h"
+#include "fmbd_modal.h"
+#include "fmbd_svg.h"
+
+static const char *usage_text =
+    "Usage: cbcheck BODY.cb.h5 [--fe BODY.fe.h5] [--tol E] [--range NM] [--init N0]\n"
+    "               [--exact] [--csv FILE|-] [--plot PREFIX] [-o BODY.rflex.h5]\n"
+    "A posteriori relative eigenvalue error estimates of a Craig-Bampton body (lower: Boo\n"
+    "et al. 2016; upper: Han et al. 2020, with kappa_n and with kappa_(Nd+1); second\n"
+    "order; exact on request), iterative selection of the number of fixed-interface modes\n"
+    "to a tolerance (Han et al. 2020, Figure 1), and the reduced flexible body: the NM\n"
+    "flexible modes, interface modes, FFRF inertia invariants, modal stress (fmbd-rflex).\n"
+    "\n"
+    "BODY.cb.h5  an fmbd-cb file (fe2cb); \"-\" reads standard input\n"
+    "\n"
+    "Options:\n"
+    "  --fe FILE        the body's fmbd-fe file (default: the one recorded by fe2cb in the\n"
+    "                   /cb attribute fe_file, looked up as given and beside BODY.cb.h5).\n"
+    "                   Needed for more modes than fe2cb computed and for --exact; checked\n"
+    "                   against the SHA-256 fe2cb recorded. When present, it also gives\n"
+    "                   estimates free of the round-off of A' Ks^-1 A (see the man page)\n"
+    "  --tol E          select the number of fixed-interface modes Nd so that the upper\n"
+    "                   estimate of flexible modes 1..NM is at most E (E > 0)\n"
+    "  --range NM       flexible modes reported, and (with --tol) that must meet E\n"
+    "                   (default: with --tol 10, else every flexible mode of the body)\n"
+    "  --init N0        first Nd of the selection (default 5)\n"
+    "  --estimator W    the estimate that drives the selection: upper (kappa_n, the\n"
+    "                   paper's, default), upper-next (kappa_(Nd+1)), second, lower\n"
+    "  --max-modes N    largest Nd the selection may reach (default: interior dofs - 1)\n"
+    "  --exact          exact errors from a full eigensolution of the body (costly)\n"
+    "  --csv FILE       the table as CSV (\"-\": standard output): mode,frequency_hz,\n"
+    "                   eigenvalue,lower,second_order,upper,exact,upper_kappa_next,cluster\n"
+    "  --plot PREFIX    PREFIX-estimates.svg (estimates and exact error per mode) and\n"
+    "                   PREFIX-convergence.svg (error of chosen modes against Nd)\n"
+    "  --no-stress      do not compute the modal stresses of the rflex file\n"
+    "  -o FILE          write the reduced flexible body (\"-\": standard output). With --tol\n"
+    "                   and no -o: BODY.rflex.h5, or standard output when it is not a\n"
+    "                   terminal. Without --tol and -o, no file is written\n"
+    "  -q, --quiet      errors only\n"
+    "  -v, --verbose    progress and details (-vv: debug)\n"
+    "  -h, --help       this help\n"
+    "  -V, --version    the version\n"
+    "\n"
+    "The report table goes to standard output, or to standard error when the rflex file or\n"
+    "the CSV goes to standard output.\n"
+    "\n"
+    "Example:\n"
+    "  cbcheck rod.cb.h5 --tol 1e-3 --range 10 -o rod.rflex.h5\n";
+
+typedef struct args {
+  const char *input, *fe, *csv, *plot, *output;
+  double tol;
+  bool has_tol, exact, stress;
+  long range, init, max_modes;
+  int which;
+  int quiet, verbose;
+} args;
+
+static int parse_args(int argc, char **argv, args *a, bool *done) {
+  *done = false;
+  a->init = 5;
+  a->range = -1;
+  a->max_modes = -1;
+  a->stress = true;
+  a->which = FMBD_EST_UPPER;
+  for (int i = 1; i < argc; i++) {
+    const char *arg = argv[i];
+    const char *val = NULL;
+#define NEED_VALUE()                                                     \
+  do {                                                                   \
+    if (i + 1 >= argc) {                                                 \
+      return fmbd_cli_usage_error("option %s needs a value", arg);       \
+    }                                                                    \
+    val = argv[++i];                                                     \
+  } while (0)
+    if (!strcmp(arg, "-h") || !strcmp(arg, "--help")) {
+      fputs(usage_text, stdout);
+      fputs("\n", stdout);
+      fputs(fmbd_cli_exit_help(), stdout);
+      *done = true;
+      return 0;
+    } else if (!strcmp(arg, "-V") || !strcmp(arg, "--version")) {
+      printf("cbcheck %s\n", fmbd_version());
+      *done = true;
+      return 0;
+    } else if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) {
+      a->quiet++;
+    } else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) {
+      a->verbose++;
+    } else if (!strcmp(arg, "-vv")) {
+      a->verbose += 2;
+    } else if (!strcmp(arg, "-o")) {
+      NEED_VALUE();
+      a->output = val;
+    } else if (!strcmp(arg, "--fe")) {
+      NEED_VALUE();
+      a->fe = val;
+    } else if (!strcmp(arg, "--csv")) {
+      NEED_VALUE();
+      a->csv = val;
+    } else if (!strcmp(arg, "--plot")) {
+      NEED_VALUE();
+      a->plot = val;
+    } else if (!strcmp(arg, "--tol")) {
+      NEED_VALUE();
+      if (fmbd_cli_parse_double(arg, val, &a->tol)) {
+        return fmbd_cli_finish(FMBD_ERR_USAGE);
+      }
+      if (!(a->tol > 0)) {
+        return fmbd_cli_usage_error("--tol: the tolerance %s must be > 0", val);
+      }
+      a->has_tol = true;
+    } else if (!strcmp(arg, "--range") || !strcmp(arg, "--init") || !strcmp(arg, "--max-modes")) {
+      NEED_VALUE();
+      long v;
+      if (fmbd_cli_parse_int(arg, val, &v)) {
+        return fmbd_cli_finish(FMBD_ERR_USAGE);
+      }
+      if (!strcmp(arg, "--range")) {
+        if (v < 1) {
+          return fmbd_cli_usage_error("--range: %s must be >= 1", val);
+        }
+        a->range = v;
+      } else if (!strcmp(arg, "--init")) {
+        if (v < 0) {
+          return fmbd_cli_usage_error("--init: %s must be >= 0", val);
+        }
+        a->init = v;
+      } else {
+        if (v < 1) {
+          return fmbd_cli_usage_error("--max-modes: %s must be >= 1", val);
+        }
+        a->max_modes = v;
+      }
+    } else if (!strcmp(arg, "--estimator")) {
+      NEED_VALUE();
+      if (!strcmp(val, "upper")) {
+        a->which = FMBD_EST_UPPER;
+      } else if (!strcmp(val, "upper-next")) {
+        a->which = FMBD_EST_UPPER_NEXT;
+      } else if (!strcmp(val, "second")) {
+        a->which = FMBD_EST_SECOND;
+      } else if (!strcmp(val, "lower")) {
+        a->which = FMBD_EST_LOWER;
+      } else {
+        return fmbd_cli_usage_error("--estimator: '%s' is not upper, upper-next, second or lower", val);
+      }
+    } else if (!strcmp(arg, "--exact")) {
+      a->exact = true;
+    } else if (!strcmp(arg, "--no-stress")) {
+      a->stress = false;
+    } else if (arg[0] == '-' && arg[1] != '\0') {
+      return fmbd_cli_usage_error("unknown option '%s'", arg);
+    } else {
+      if (a->input) {
+        return fmbd_cli_usage_error("one BODY.cb.h5 expected, got '%s' and '%s'", a->input, arg);
+      }
+      a->input = arg;
+    }
+#undef NEED_VALUE
+  }
+  if (!a->input) {
+    return fmbd_cli_usage_error("no BODY.cb.h5 given");
+  }
+  if (a->output && a->csv && !strcmp(a->output, "-") && !strcmp(a->csv, "-")) {
+    return fmbd_cli_usage_error("-o - and --csv - cannot both use standard output");
+  }
+  return 0;
+}
+
+// --- the state of one run ------------------------------------------------------------------
+typedef struct run {
+  const args *a;
+  fmbd_h5 *cbf;          // the cb file
+  fmbd_cb *cb;           // its /cb, /reduced
+  fmbd_fe_body *desc;    // its description (no K, M)
+  char *fe_name;         // fe file used (or NULL)
+  char fe_sha[65];
+  fmbd_fe_body *fe;      // the fe body with K, M (NULL until needed/available)
+  fmbd_csr *Ks, *Ms;     // interior blocks (projected estimates)
+  bool fe_tried;
+  fmbd_est *est;
+  int64_t nd_max;
+  double t_extend_s, t_exact_s, t_est_s;
+  int64_t nextend;
+} run;
+
+static char *path_beside(const char *ref, const char *name) {
+  const char *slash = strrchr(ref, '/');
+  if (!slash || name[0] == '/') {
+    return fmbd_strdup(name);
+  }
+  size_t n = (size_t)(slash - ref) + strlen(name) + 2;
+  char *p = fmbd_malloc(n);
+  if (p) {
+    snprintf(p, n, "%.*s/%s", (int)(slash - ref), ref, name);
+  }
+  return p;
+}
+
+// Open and check the fe file. required: failure is an error; else a warning and fe = NULL.
+static int load_fe(run *r, bool required, const char *why) {
+  int rc = FMBD_OK;
+  fmbd_h5 *f = NULL;
+  char *cand = NULL;
+  if (r->fe) {
+    return FMBD_OK;
+  }
+  if (r->fe_tried && !required) {
+    return FMBD_OK;
+  }
+  r->fe_tried = true;
+  const char *cbname = fmbd_h5_name(r->cbf);
+  const char *name = r->a->fe ? r->a->fe : r->cb->fe_file;
+  if (!name || !name[0]) {
+    fmbd_err_context(cbname, "/cb");
+    if (required) {
+      FMBD_GFAIL(FMBD_ERR_FORMAT, "no fe file recorded (attribute fe_file) and no --fe given: %s",
+                 why);
+    }
+    goto done;
+  }
+  // as given, else beside the cb file
+  if (r->a->fe || access(name, R_OK) == 0) {
+    FMBD_GALLOC(cand = fmbd_strdup(name));
+  } else {
+    FMBD_GALLOC(cand = path_beside(cbname, name));
+    if (access(cand, R_OK) != 0) {
+      fmbd_free(cand);
+      FMBD_GALLOC(cand = fmbd_strdup(name));
+    }
+  }
+  rc = fmbd_h5_open(cand, &f);
+  if (rc != FMBD_OK) {
+    if (!required) {
+      fmbd_log(FMBD_LOG_WARN, "%s: source fe file %s not readable; estimates from the cb file alone",
+               cbname, cand);
+      fmbd_err_clear();
+      rc = FMBD_OK;
+      goto done;
+    }
+    fmbd_err_context(cbname, "/cb");
+    FMBD_GFAIL(FMBD_ERR_IO, "source fe file %s (attribute fe_file%s) cannot be read: %s", cand,
+               r->a->fe ? ", or --fe" : "", why);
+  }
+  const char *sha = fmbd_h5_sha256(f);
+  if (r->cb->fe_sha256[0] && strcmp(sha, r->cb->fe_sha256) != 0) {
+    if (!required) {
+      fmbd_log(FMBD_LOG_WARN, "%s: %s changed since fe2cb read it (SHA-256 differs); not used",
+               cbname, cand);
+      goto done;
+    }
+    fmbd_err_context(cbname, "/cb");
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "source fe file %s changed since fe2cb read it: SHA-256 %.12s..., recorded "
+               "fe_sha256 %.12s... (%s)", cand, sha, r->cb->fe_sha256, why);
+  }
+  fmbd_err_context(cand, "");
+  FMBD_GCALL(fmbd_h5_check_format(f, "fmbd-fe", 1));
+  FMBD_GCALL(fmbd_fe_read(f, &r->fe));
+  if (!r->fe->K || !r->fe->M || r->fe->ndof != r->cb->ndof) {
+    fmbd_err_context(cand, "/K");
+    fmbd_fe_body_destroy(&r->fe);
+    FMBD_GFAIL(FMBD_ERR_FORMAT, "no stiffness and mass of %lld dofs to match the cb file",
+               (long long)r->cb->ndof);
+  }
+  snprintf(r->fe_sha, sizeof r->fe_sha, "%s", sha);
+  r->fe_name = cand;
+  cand = NULL;
+  FMBD_GCALL(fmbd_csr_submatrix(r->fe->K, r->cb->ns, r->cb->interior, r->cb->ns, r->cb->interior, &r->Ks));
+  FMBD_GCALL(fmbd_csr_submatrix(r->fe->M, r->cb->ns, r->cb->interior, r->cb->ns, r->cb->interior, &r->Ms));
+done:
+  fmbd_free(cand);
+  fmbd_h5_close(&f);
+  return rc;
+}
+
+// Residual blocks at nd = pool (projected with Ks, Ms when the fe file is there) -> estimator
+static int set_pool(run *r) {
+  int rc = FMBD_OK;
+  fmbd_cb *cb = r->cb;
+  int64_t nb = cb->nb;
+  double *Xb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
+  double *Gb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
+  FMBD_GCHECK(Xb && Gb, FMBD_ERR_NOMEM, "out of memory");
+  if (nb > 0) {
+    if (r->Ks) {
+      FMBD_GCALL(fmbd_est_base_projected(r->Ks, r->Ms, nb, cb->nd, cb->A, cb->KsinvA, cb->Phi,
+                                         cb->kappa, cb->PhitA, Xb, Gb));
+    } else {
+      FMBD_GCALL(fmbd_est_base_plain(cb->ns, nb, cb->nd, cb->A, cb->KsinvA, cb->KsinvMsKsinvA,
+                                     cb->kappa, cb->PhitA, Xb, Gb, NULL));
+    }
+  }
+  FMBD_GCALL(fmbd_est_set_pool(r->est, cb->nd, cb->kappa, cb->PhitA, Xb, Gb));
+  fmbd_est_set_kappa_next(r->est, cb->kappa_next);
+done:
+  fmbd_free(Xb);
+  fmbd_free(Gb);
+  return rc;
+}
+
+static void eig_progress(void *ctx, const char *stage, int64_t solves, int64_t nev) {
+  (void)ctx;
+  fmbd_progress("more fixed-interface modes (%lld): %s, %lld solves", (long long)nev, stage,
+                (long long)solves);
+}
+
+// fmbd_est_extend_fn: grow the pool through fe2cb's library
+static int extend(void *ctx, fmbd_est *e, int64_t nd_wanted) {
+  run *r = ctx;
+  (void)e;
+  char why[128];
+  snprintf(why, sizeof why, "%lld fixed-interface modes needed, the cb file has %lld",
+           (long long)nd_wanted, (long long)r->cb->nd);
+  FMBD_CALL(load_fe(r, true, why));
+  int64_t np = r->cb->nd;
+  int64_t grow = np / 2 > 10 ? np / 2 : 10;
+  int64_t nd_new = nd_wanted > np + grow ? nd_wanted : np + grow;
+  if (nd_new > r->nd_max) {
+    nd_new = r->nd_max;
+  }
+  if (nd_new < nd_wanted) {
+    nd_new = nd_wanted;
+  }
+  fmbd_log(FMBD_LOG_INFO, "extending the fixed-interface modes from %lld to %lld", (long long)np,
+           (long long)nd_new);
+  double t0 = fmbd_wall_s();
+  fmbd_eig_opts eo;
+  fmbd_eig_defaults(&eo);
+  eo.progress = eig_progress;
+  fmbd_err_context(r->fe_name, "/K");
+  FMBD_CALL(fmbd_cb_extend(r->fe->K, r->fe->M, r->cb, nd_new, &eo));
+  fmbd_progress(NULL);
+  FMBD_CALL(set_pool(r));
+  r->t_extend_s += fmbd_wall_s() - t0;
+  r->nextend++;
+  return FMBD_OK;
+}
+
+// --- report ------------------------------------------------------------------------------------
+typedef struct table {
+  int64_t nflex;        // flexible modes listed
+  double *freq, *chib, *lower, *second, *upper, *unext, *exact;  // (nflex)
+  int64_t *cluster;     // flexible index (1-based) of the cluster's first member
+} table;
+
+static void table_free(table *t) {
+  fmbd_free(t->freq);
+  fmbd_free(t->chib);
+  fmbd_free(t->lower);
+  fmbd_free(t->second);
+  fmbd_free(t->upper);
+  fmbd_free(t->unext);
+  fmbd_free(t->exact);
+  fmbd_free(t->cluster);
+  memset(t, 0, sizeof(*t));
+}
+
+// flexible modes 1..nflex of m into t; exact from chi (full eigenvalues, NULL: none)
+static int table_fill(table *t, const fmbd_est_modes *m, int64_t nflex, const double *chi,
+                      int64_t nchi) {
+  table_free(t);
+  size_t n = (size_t)(nflex > 0 ? nflex : 1);
+  t->freq = fmbd_calloc(n, sizeof(double));
+  t->chib = fmbd_calloc(n, sizeof(double));
+  t->lower = fmbd_calloc(n, sizeof(double));
+  t->second = fmbd_calloc(n, sizeof(double));
+  t->upper = fmbd_calloc(n, sizeof(double));
+  t->unext = fmbd_calloc(n, sizeof(double));
+  t->exact = fmbd_calloc(n, sizeof(double));
+  t->cluster = fmbd_calloc(n, sizeof(int64_t));
+  FMBD_CHECK(t->freq && t->chib && t->lower && t->second && t->upper && t->unext && t->exact &&
+                 t->cluster,
+             FMBD_ERR_NOMEM, "out of memory");
+  int64_t j = 0, *flexidx = fmbd_calloc((size_t)m->nmodes + 1, sizeof(int64_t));
+  FMBD_CHECK(flexidx, FMBD_ERR_NOMEM, "out of memory");
+  for (int64_t k = 0; k < m->nmodes; k++) {
+    flexidx[k] = m->rigid[k] ? 0 : j + 1;
+    if (m->rigid[k] || j >= nflex) {
+      j += !m->rigid[k];
+      continue;
+    }
+    double c = m->chibar[k];
+    t->chib[j] = c;
+    t->freq[j] = sqrt(fmax(c, 0)) / (2 * M_PI);
+    t->lower[j] = m->lower[k];
+    t->second[j] = m->second[k];
+    t->upper[j] = m->upper[k];
+    t->unext[j] = m->upper_next[k];
+    t->cluster[j] = flexidx[m->cluster[k]];
+    t->exact[j] = (chi && k < nchi) ? c / chi[k] - 1 : NAN;
+    j++;
+  }
+  fmbd_free(flexidx);
+  t->nflex = j < nflex ? j : nflex;
+  return FMBD_OK;
+}
+
+static void print_table(FILE *fp, const table *t, bool exact) {
+  fprintf(fp, "%5s %12s %13s %10s %10s %10s %10s%s\n", "mode", "freq_hz", "eigenvalue", "lower",
+          "second", "upper", "upper_next", exact ? "      exact" : "");
+  for (int64_t j = 0; j < t->nflex; j++) {
+    fprintf(fp, "%5lld %12.5g %13.6e %10.3e %10.3e %10.3e %10.3e", (long long)j + 1, t->freq[j],
+            t->chib[j], t->lower[j], t->second[j], t->upper[j], t->unext[j]);
+    if (exact) {
+      fprintf(fp, " %10.3e", t->exact[j]);
+    }
+    if (t->cluster[j] != j + 1 || (j + 1 < t->nflex && t->cluster[j + 1] == j + 1)) {
+      fprintf(fp, "  cluster %lld", (long long)t->cluster[j]);
+    }
+    fputc('\n', fp);
+  }
+  bool any = false;
+  for (int64_t j = 0; j < t->nflex; j++) {
+    any = any || t->cluster[j] != j + 1;
+  }
+  if (any) {
+    fprintf(fp, "repeated clusters (eigenvalues within 1e-3): each member gets the cluster's largest\n"
+                "upper and second-order estimates and its smallest lower estimate\n");
+  }
+  if (exact) {  // measured bounding rates over modes with exact error below 10 %
+    int64_t n = 0, up = 0, lo = 0, un = 0;
+    for (int64_t j = 0; j < t->nflex; j++) {
+      if (isfinite(t->exact[j]) && t->exact[j] < 0.1) {
+        n++;
+        up += t->upper[j] >= t->exact[j];
+        un += t->unext[j] >= t->exact[j];
+        lo += t->lower[j] <= t->exact[j];
+      }
+    }
+    if (n > 0) {
+      fprintf(fp,
+              "modes with exact error < 10%%: %lld; upper >= exact in %lld (%.1f%%), upper_next >= "
+              "exact in %lld (%.1f%%), lower <= exact in %lld (%.1f%%)\n",
+              (long long)n, (long long)up, 100.0 * up / n, (long long)un, 100.0 * un / n,
+              (long long)lo, 100.0 * lo / n);
+    }
+  }
+}
+
+static void csv_num(FILE *fp, double v) {
+  if (isfinite(v)) {
+    fprintf(fp, ",%.10e", v);
+  } else {
+    fputc(',', fp);
+  }
+}
+
+static int write_csv(const char *name, const table *t) {
+  FILE *fp = strcmp(name, "-") ? NULL : stdout;
+  char *tmp = NULL;
+  if (!fp) {
+    size_t n = strlen(name) + 6;
+    tmp = fmbd_malloc(n);
+    FMBD_CHECK(tmp, FMBD_ERR_NOMEM, "out of memory");
+    snprintf(tmp, n, "%s.part", name);
+    fp = fopen(tmp, "w");
+    if (!fp) {
+      fmbd_free(tmp);
+      fmbd_err_context(name, "");
+      FMBD_FAIL(FMBD_ERR_IO, "cannot write the CSV file");
+    }
+  }
+  fprintf(fp, "mode,frequency_hz,eigenvalue,lower,second_order,upper,exact,upper_kappa_next,cluster\n");
+  for (int64_t j = 0; j < t->nflex; j++) {
+    fprintf(fp, "%lld", (long long)j + 1);
+    csv_num(fp, t->freq[j]);
+    csv_num(fp, t->chib[j]);
+    csv_num(fp, t->lower[j]);
+    csv_num(fp, t->second[j]);
+    csv_num(fp, t->upper[j]);
+    csv_num(fp, t->exact[j]);
+    csv_num(fp, t->unext[j]);
+    fprintf(fp, ",%lld\n", (long long)t->cluster[j]);
+  }
+  if (tmp) {
+    int bad = ferror(fp) | fclose(fp);
+    if (bad || rename(tmp, name) != 0) {
+      remove(tmp);
+      fmbd_free(tmp);
+      fmbd_err_context(name, "");
+      FMBD_FAIL(FMBD_ERR_IO, "cannot write the CSV file");
+    }
+    fmbd_free(tmp);
+  } else {
+    fflush(fp);
+  }
+  return FMBD_OK;
+}
+
+// --- exact errors ------------------------------------------------------------------------------
+static int exact_eigenvalues(run *r, int64_t nev, double **chi) {
+  FMBD_CALL(load_fe(r, true, "--exact needs the full body"));
+  fmbd_eig_opts eo;
+  fmbd_eig_defaults(&eo);
+  eo.nev = nev;
+  eo.free_body = r->cb->n_rigid > 0;
+  eo.progress = eig_progress;
+  fmbd_eig_result res = {0};
+  double t0 = fmbd_wall_s();
+  fmbd_err_context(r->fe_name, "/K");
+  int rc = fmbd_eig_solve(r->fe->K, r->fe->M, NULL, &eo, &res);
+  fmbd_progress(NULL);
+  r->t_exact_s += fmbd_wall_s() - t0;
+  if (rc == FMBD_OK) {
+    *chi = res.lambda;
+    res.lambda = NULL;
+    // the full body's rigid-body eigenvalues are round-off: exactly zero error for them
+    for (int64_t k = 0; k < r->cb->n_rigid && k < nev; k++) {
+      (*chi)[k] = 0;
+    }
+  }
+  fmbd_eig_result_free(&res);
+  return rc;
+}
+
+// --- plots -------------------------------------------------------------------------------------
+static int plot_estimates(const char *prefix, const table *t, bool exact, int64_t nd) {
+  int rc = FMBD_OK;
+  char path[1024], title[200];
+  double *x = fmbd_calloc((size_t)t->nflex + 1, sizeof(double));
+  FMBD_CHECK(x, FMBD_ERR_NOMEM, "out of memory");
+  for (int64_t j = 0; j < t->nflex; j++) {
+    x[j] = (double)(j + 1);
+  }
+  fmbd_svg_plot p;
+  fmbd_svg_plot_defaults(&p);
+  snprintf(title, sizeof title, "Relative eigenvalue error, Nd = %lld", (long long)nd);
+  p.title = title;
+  p.xlabel = "flexible mode";
+  p.ylabel = "relative eigenvalue error";
+  p.ylog = true;
+  p.legend = 4;
+  fmbd_svg_series s[5] = {
+      {"upper (kappa_n)", t->nflex, x, t->upper, "#d62728", FMBD_SVG_TRIANGLE, FMBD_SVG_DASHED},
+      {"upper (kappa_Nd+1)", t->nflex, x, t->unext, "#ff7f0e", FMBD_SVG_DIAMOND, FMBD_SVG_DOTTED},
+      {"second order", t->nflex, x, t->second, "#2ca02c", FMBD_SVG_SQUARE, FMBD_SVG_NOLINE},
+      {"lower (Boo 2016)", t->nflex, x, t->lower, "#1f77b4", FMBD_SVG_CROSS, FMBD_SVG_DASHED},
+      {"exact", t->nflex, x, t->exact, "#000000", FMBD_SVG_CIRCLE, FMBD_SVG_SOLID},
+  };
+  snprintf(path, sizeof path, "%s-estimates.svg", prefix);
+  rc = fmbd_svg_write(path, &p, exact ? 5 : 4, s);
+  fmbd_free(x);
+  return rc;
+}
+
+// error of chosen flexible modes against nd = nd_lo..nd_hi (rank-one steps of the estimator)
+static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t nd_lo, int64_t nd_hi,
+                            const double *chi, int64_t nchi, int which, double tol) {
+  int rc = FMBD_OK;
+  enum { NPICK = 6 };
+  int64_t pick[NPICK], npick = 0;
+  double *xs = NULL, *ys = NULL, *ye = NULL;
+  fmbd_est_modes m = {0};
+  char path[1024], labels[2 * NPICK][48];
+  int64_t nx = nd_hi - nd_lo + 1;
+  if (nx < 1 || nflex < 1) {
+    return FMBD_OK;
+  }
+  for (int k = 0; k < NPICK; k++) {  // modes 1, ..., nflex spread evenly, unique
+    int64_t j = 1 + (int64_t)llround((double)k * (double)(nflex - 1) / (NPICK - 1));
+    if (npick == 0 || pick[npick - 1] != j) {
+      pick[npick++] = j;
+    }
+  }
+  int64_t nd_save = fmbd_est_nd(r->est);
+  FMBD_GALLOC(xs = fmbd_calloc((size_t)nx, sizeof(double)));
+  FMBD_GALLOC(ys = fmbd_calloc((size_t)(nx * npick), sizeof(double)));
+  FMBD_GALLOC(ye = fmbd_calloc((size_t)(nx * npick), sizeof(double)));
+  for (int64_t i = 0; i < nx; i++) {
+    int64_t nd = nd_lo + i;
+    xs[i] = (double)nd;
+    FMBD_GCALL(fmbd_est_set_nd(r->est, nd));
+    FMBD_GCALL(fmbd_est_run(r->est, &m, NULL));
+    fmbd_progress("convergence sweep: Nd = %lld", (long long)nd);
+    for (int64_t q = 0; q < npick; q++) {
+      ys[i + nx * q] = ye[i + nx * q] = NAN;
+      int64_t seen = 0;
+      for (int64_t k = 0; k < m.nmodes; k++) {
+        if (!m.rigid[k] && ++seen == pick[q]) {
+          ys[i + nx * q] = fmbd_est_pick(&m, which, k);
+          if (chi && k < nchi) {
+            ye[i + nx * q] = m.chibar[k] / chi[k] - 1;
+          }
+          break;
+        }
+      }
+    }
+  }
+  fmbd_progress(NULL);
+  FMBD_GCALL(fmbd_est_set_nd(r->est, nd_save));
+  fmbd_svg_series s[2 * NPICK + 1];
+  int ns = 0;
+  static const char *const col[NPICK] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  for (int64_t q = 0; q < npick; q++) {
+    snprintf(labels[2 * q], sizeof labels[0], "mode %lld estimate", (long long)pick[q]);
+    s[ns++] = (fmbd_svg_series){labels[2 * q], nx, xs, ys + nx * q, col[q], FMBD_SVG_NONE, FMBD_SVG_DASHED};
+    if (chi) {
+      snprintf(labels[2 * q + 1], sizeof labels[0], "mode %lld exact", (long long)pick[q]);
+      s[ns++] = (fmbd_svg_series){labels[2 * q + 1], nx, xs, ye + nx * q, col[q], FMBD_SVG_NONE, FMBD_SVG_SOLID};
+    }
+  }
+  double tx[2] = {(double)nd_lo, (double)nd_hi}, ty[2] = {tol, tol};
+  if (tol > 0) {
+    s[ns++] = (fmbd_svg_series){"tolerance", 2, tx, ty, "#000000", FMBD_SVG_NONE, FMBD_SVG_DOTTED};
+  }
+  fmbd_svg_plot p;
+  fmbd_svg_plot_defaults(&p);
+  p.title = "Relative eigenvalue error against the number of fixed-interface modes";
+  p.xlabel = "fixed-interface modes Nd";
+  p.ylabel = "relative eigenvalue error";
+  p.ylog = true;
+  snprintf(path, sizeof path, "%s-convergence.svg", prefix);
+  FMBD_GCALL(fmbd_svg_write(path, &p, ns, s));
+done:
+  fmbd_est_modes_free(&m);
+  fmbd_free(xs);
+  fmbd_free(ys);
+  fmbd_free(ye);
+  return rc;
+}
+
+// --- main ----------------------------------------------------------------------------------------
+int main(int argc, char **argv) {
+  fmbd_cli_init("cbcheck", argc, argv);
+  args a = {0};
+  bool done_early = false;
+  int st = parse_args(argc, argv, &a, &done_early);
+  if (st != 0 || done_early) {
+    return st ? st : fmbd_cli_finish(0);
+  }
+  fmbd_cli_set_verbosity(a.quiet, a.verbose);
+  int rc = FMBD_OK;
+  run r = {.a = &a};
+  fmbd_est_modes m = {0};
+  fmbd_est_select_result sel = {0};
+  table t = {0};
+  double *chi = NULL, *Xi = NULL;
+  int64_t nchi = 0;
+  fmbd_rflex *rf = NULL;
+  fmbd_h5 *out = NULL;
+  char *outname = NULL;
+  FILE *rep = stdout;
+
+  // --- the reduced body ---
+  FMBD_GCALL(fmbd_h5_open(a.input, &r.cbf));
+  FMBD_GCALL(fmbd_h5_check_format(r.cbf, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR));
+  FMBD_GCALL(fmbd_cb_read(r.cbf, &r.cb));
+  FMBD_GCALL(fmbd_fe_read(r.cbf, &r.desc));
+  fmbd_cb *cb = r.cb;
+  const char *cbname = fmbd_h5_name(r.cbf);
+  int64_t nflex_body = cb->ndof - cb->n_rigid - cb->nheld;
+  int64_t nflex_red = cb->nr - cb->n_rigid;
+  r.nd_max = cb->ns - 1;
+  if (a.max_modes > 0 && a.max_modes < r.nd_max) {
+    r.nd_max = a.max_modes;
+  }
+  int64_t nm = a.range > 0 ? a.range : (a.has_tol ? 10 : nflex_red);
+  if (nm > nflex_body) {
+    fmbd_err_context(cbname, "/dofs");
+    FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the body has only %lld flexible modes (%lld dofs, %lld rigid-body modes)",
+               (long long)nm, (long long)nflex_body, (long long)cb->ndof, (long long)cb->n_rigid);
+  }
+  if (!a.has_tol && nm > nflex_red) {
+    fmbd_err_context(cbname, "/reduced/eigenvalues");
+    FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the reduced body has only %lld flexible modes (give --tol to add modes)",
+               (long long)nm, (long long)nflex_red);
+  }
+  // output streams: the report leaves stdout to the rflex or the CSV
+  bool want_rflex = a.output || a.has_tol;
+  if (want_rflex) {
+    static const char *const strip[] = {".cb.h5", ".h5", NULL};
+    FMBD_GCALL(fmbd_cli_output_name(a.input, a.output, strip, ".rflex.h5", &outname));
+  }
+  if ((outname && !strcmp(outname, "-")) || (a.csv && !strcmp(a.csv, "-"))) {
+    rep = stderr;
+  }
+  if (a.quiet) {
+    rep = NULL;
+  }
+
+  // --- estimator: fe file if available (exact arithmetic of the residual blocks) ---
+  double t0 = fmbd_wall_s();
+  FMBD_GCALL(load_fe(&r, false, ""));
+  {
+    int64_t nb = cb->nb, nd = cb->nd, nr = cb->nr;
+    double *Mbb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
+    double *Kbb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
+    FMBD_GCHECK(Mbb && Kbb, FMBD_ERR_NOMEM, "out of memory");
+    for (int64_t j = 0; j < nb; j++) {
+      for (int64_t i = 0; i < nb; i++) {
+        Mbb[i + nb * j] = cb->Mr[(nd + i) + nr * (nd + j)];
+        Kbb[i + nb * j] = cb->Kr[(nd + i) + nr * (nd + j)];
+      }
+    }
+    fmbd_est_options eopt;
+    fmbd_est_options_defaults(&eopt);
+    rc = fmbd_est_create(nb, Mbb, Kbb, &eopt, &r.est);
+    fmbd_free(Mbb);
+    fmbd_free(Kbb);
+    FMBD_GCALL(rc);
+  }
+  FMBD_GCALL(set_pool(&r));
+  if (rep) {
+    fprintf(rep, "cbcheck: %s: method %s, %lld dofs, %lld boundary dofs, %lld fixed-interface modes, %lld rigid-body modes\n",
+            cbname, cb->method, (long long)cb->ndof, (long long)cb->nb, (long long)cb->nd,
+            (long long)cb->n_rigid);
+    fprintf(rep, "residual flexibility: %s\n",
+            r.Ks ? "projected with the FE matrices of the fe file (no cancellation)"
+                 : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone (may lose digits on slender bodies)");
+  }
+
+  // --- selection or plain estimates ---
+  if (a.has_tol) {
+    fmbd_est_select_opts so = {a.tol, nm, a.init, r.nd_max, a.which};
+    FMBD_GCALL(fmbd_est_select(r.est, &so, extend, &r, &sel));
+    if (rep) {
+      fprintf(rep, "selection: tol %g on flexible modes 1..%lld, estimator %s, from Nd = %ld\n", a.tol,
+              (long long)nm,
+              a.which == FMBD_EST_UPPER ? "upper (kappa_n)" : a.which == FMBD_EST_UPPER_NEXT ? "upper (kappa_(Nd+1))"
+              : a.which == FMBD_EST_SECOND ? "second order" : "lower",
+              a.init);
+      fprintf(rep, "%6s %14s %14s\n", "Nd", "first_failing", "largest");
+      for (int64_t i = 0; i < sel.niter; i++) {
+        fprintf(rep, "%6lld %14lld %14.4e\n", (long long)sel.log[i].nd, (long long)sel.log[i].first_failing,
+                sel.log[i].largest);
+      }
+    }
+  } else {
+    FMBD_GCALL(fmbd_est_set_nd(r.est, cb->nd));
+  }
+  int64_t nd = fmbd_est_nd(r.est), nr = nd + cb->nb;
+  FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nr + 1)));
+  FMBD_GCALL(fmbd_est_run(r.est, &m, Xi));
+  r.t_est_s = fmbd_wall_s() - t0 - r.t_extend_s;
+  if (!a.has_tol) {  // the re-solved reduced problem must be the file's
+    for (int64_t k = 0; k < m.nmodes && k < cb->nr; k++) {
+      double d = fabs(m.chibar[k] - cb->chibar[k]);
+      if (!m.rigid[k] && d > 1e-6 * fabs(cb->chibar[k])) {
+        fmbd_log(FMBD_LOG_WARN, "%s: /reduced/eigenvalues[%lld] = %.10g, the closed form gives %.10g",
+                 cbname, (long long)k, cb->chibar[k], m.chibar[k]);
+        break;
+      }
+    }
+  }
+  int64_t nrig = 0;
+  for (int64_t k = 0; k < m.nmodes; k++) {
+    nrig += m.rigid[k];
+  }
+  if (nrig != cb->n_rigid) {
+    fmbd_log(FMBD_LOG_WARN, "%s: %lld rigid-body modes found at Nd = %lld, /cb n_rigid = %lld", cbname,
+             (long long)nrig, (long long)nd, (long long)cb->n_rigid);
+  }
+  int64_t nlist = nm < m.nmodes - nrig ? nm : m.nmodes - nrig;
+  if (a.exact) {
+    nchi = nrig + nlist;
+    FMBD_GCALL(exact_eigenvalues(&r, nchi, &chi));
+  }
+  FMBD_GCALL(table_fill(&t, &m, nlist, chi, nchi));
+  if (rep) {
+    fprintf(rep, "Nd = %lld fixed-interface modes%s\n", (long long)nd,
+            fmbd_est_knext_known(r.est) ? "" : " (kappa_(Nd+1) unknown: upper_next uses kappa_Nd)");
+    print_table(rep, &t, a.exact);
+  }
+  if (a.csv) {
+    FMBD_GCALL(write_csv(a.csv, &t));
+  }
+  if (a.plot) {
+    FMBD_GCALL(plot_estimates(a.plot, &t, a.exact, nd));
+    int64_t lo = a.has_tol ? (a.init > 0 ? a.init : 1) : 1;
+    int64_t hi = nd > lo ? nd : lo;
+    if (hi > fmbd_est_npool(r.est)) {
+      hi = fmbd_est_npool(r.est);
+    }
+    FMBD_GCALL(plot_convergence(&r, a.plot, nlist, lo, hi, chi, nchi, a.which, a.has_tol ? a.tol : 0));
+  }
+  if (a.has_tol && !sel.reached) {
+    fmbd_err_context(cbname, "/cb/kappa");
+    FMBD_GFAIL(FMBD_ERR_CONVERGE,
+               "tolerance %g not reached for flexible modes 1..%lld with up to Nd = %lld "
+               "fixed-interface modes%s; best reached: largest estimate %.4g at Nd = %lld",
+               a.tol, (long long)nm, (long long)(sel.nd > 0 ? sel.nd : 0),
+               r.nd_max == cb->ns - 1 ? " (the body's interior dofs)" : " (--max-modes)",
+               sel.best_largest, (long long)sel.best_nd);
+  }
+
+  // --- the reduced flexible body ---
+  if (outname) {
+    FMBD_GCHECK(nlist == nm, FMBD_ERR_VALUE, "the reduced body has only %lld flexible modes", (long long)nlist);
+    double *chif = fmbd_calloc((size_t)nm + 1, sizeof(double));
+    double *Xif = fmbd_calloc((size_t)(nr * nm) + 1, sizeof(double));
+    FMBD_GCHECK(chif && Xif, FMBD_ERR_NOMEM, "out of memory");
+    int64_t j = 0;
+    for (int64_t k = 0; k < m.nmodes && j < nm; k++) {
+      if (!m.rigid[k]) {
+        chif[j] = m.chibar[k];
+        memcpy(Xif + nr * j, Xi + nr * k, sizeof(double) * (size_t)nr);
+        j++;
+      }
+    }
+    fmbd_modal_input mi = {r.desc, cb->ns, cb->nb, cb->interior, cb->boundary, nd, cb->Phi, cb->ns,
+                           cb->Psi, nm, chif, Xif, nr, a.stress};
+    rc = fmbd_modal_build(&mi, &rf);
+    fmbd_free(chif);
+    fmbd_free(Xif);
+    FMBD_GCALL(rc);
+    FMBD_GCALL(fmbd_h5_create(outname, FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, &out));
+    FMBD_GCALL(fmbd_h5_add_input(out, a.input, fmbd_h5_sha256(r.cbf)));
+    if (r.fe_name) {
+      FMBD_GCALL(fmbd_h5_add_input(out, r.fe_name, r.fe_sha));
+    }
+    FMBD_GCALL(fmbd_fe_copy_description(r.cbf, out));
+    FMBD_GCALL(fmbd_rflex_write(out, rf));
+    int64_t ndv = nd;
+    FMBD_GCALL(fmbd_h5_write_attr_i64(out, "/modes", "n_fixed_interface_modes", 1, &ndv));
+    double maxest = 0;
+    for (int64_t q = 0; q < t.nflex; q++) {
+      maxest = fmax(maxest, a.which == FMBD_EST_UPPER_NEXT ? t.unext[q] : a.which == FMBD_EST_SECOND ? t.second[q]
+                            : a.which == FMBD_EST_LOWER ? t.lower[q] : t.upper[q]);
+    }
+    FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "max_estimate", 1, &maxest));
+    if (a.has_tol) {
+      FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "tolerance", 1, &a.tol));
+    }
+    FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
+  }
+  if (a.verbose) {
+    fmbd_log(FMBD_LOG_INFO, "time: estimates %.3f s, extensions %.3f s (%lld), exact %.3f s",
+             r.t_est_s, r.t_extend_s, (long long)r.nextend, r.t_exact_s);
+  }
+  if (a.has_tol) {
+    fmbd_cli_summary("%s: Nd = %lld meets %g on flexible modes 1..%lld (%lld iterations, %lld extensions), %lld modes kept",
+                     outname, (long long)nd, a.tol, (long long)nm, (long long)sel.niter,
+                     (long long)sel.nextend, (long long)nm);
+  } else if (outname) {
+    fmbd_cli_summary("%s: %lld flexible modes of Nd = %lld", outname, (long long)nm, (long long)nd);
+  } else {
+    fmbd_cli_summary("%s: estimates of %lld flexible modes at Nd = %lld", cbname, (long long)t.nflex,
+                     (long long)nd);
+  }
+done:
+  if (rep) {
+    fflush(rep);
+  }
+  fmbd_h5_close(&out);
+  fmbd_rflex_destroy(&rf);
+  table_free(&t);
+  fmbd_est_modes_free(&m);
+  fmbd_free(sel.log);
+  fmbd_free(chi);
+  fmbd_free(Xi);
+  fmbd_free(outname);
+  fmbd_est_destroy(&r.est);
+  fmbd_csr_destroy(&r.Ks);
+  fmbd_csr_destroy(&r.Ms);
+  fmbd_fe_body_destroy(&r.fe);
+  fmbd_fe_body_destroy(&r.desc);
+  fmbd_free(r.fe_name);
+  fmbd_cb_destroy(&r.cb);
+  fmbd_h5_close(&r.cbf);
+  return fmbd_cli_finish(rc);
+}
