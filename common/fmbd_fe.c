@@ -485,12 +485,22 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
   if (opt->mass == FMBD_FE_MASS_CONSISTENT) {
     FMBD_GCALL(fmbd_csr_pattern_from_elements(nfull, nel, kmax, edofs, &Mf));
   } else {
-    // lumped: each node's dofs are one "element" (diagonal; 3x3 rotational block on beam nodes)
-    FMBD_GALLOC(ndofs = fmbd_malloc((size_t)(6 * nn) * sizeof *ndofs));
+    // lumped: a diagonal pattern, plus the 3x3 rotational block of 6-dof nodes; "elements" of
+    // 3 dofs: each translation alone (padded with -1), the rotations of a node together
+    FMBD_GALLOC(ndofs = fmbd_malloc((size_t)(12 * nn) * sizeof *ndofs));
+    int64_t ne = 0;
     for (int64_t p = 0; p < nn; p++) {
-      for (int k = 0; k < 6; k++) ndofs[6 * p + k] = fdof[p] + k < fdof[p + 1] ? fdof[p] + k : -1;
+      for (int k = 0; k < 3; k++) {
+        ndofs[3 * ne] = fdof[p] + k;
+        ndofs[3 * ne + 1] = ndofs[3 * ne + 2] = -1;
+        ne++;
+      }
+      if (fdof[p + 1] - fdof[p] == 6) {
+        for (int k = 0; k < 3; k++) ndofs[3 * ne + k] = fdof[p] + 3 + k;
+        ne++;
+      }
     }
-    FMBD_GCALL(fmbd_csr_pattern_from_elements(nfull, nn, 6, ndofs, &Mf));
+    FMBD_GCALL(fmbd_csr_pattern_from_elements(nfull, ne, 3, ndofs, &Mf));
   }
   double Mr[36] = {0};
   for (int64_t e = 0; e < m->ntet; e++) {
@@ -504,14 +514,19 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
     fmbd_fe_hrz_scalar(tn, Me, me, d);
     for (int a = 0; a < tn; a++) b->node_mass[en[a]] += d[a];
     rigid_solid(tn, en, m->xyz, Me, Mr);
-    memset(Me3, 0, (size_t)(kt * kt) * sizeof *Me3);
-    for (int a = 0; a < tn; a++) {
-      for (int c = 0; c < tn; c++) {
-        double v = opt->mass == FMBD_FE_MASS_CONSISTENT ? Me[a * tn + c] : (a == c ? d[a] : 0.0);
-        for (int k = 0; k < 3; k++) Me3[(3 * a + k) * kt + 3 * c + k] = v;
+    if (opt->mass == FMBD_FE_MASS_CONSISTENT) {
+      memset(Me3, 0, (size_t)(kt * kt) * sizeof *Me3);
+      for (int a = 0; a < tn; a++) {
+        for (int c = 0; c < tn; c++) {
+          for (int k = 0; k < 3; k++) Me3[(3 * a + k) * kt + 3 * c + k] = Me[a * tn + c];
+        }
+      }
+      FMBD_GCALL(fmbd_csr_add_block(Mf, kt, edofs + e * kmax, Me3));
+    } else { // the lumped pattern is diagonal on translations
+      for (int a = 0; a < 3 * tn; a++) {
+        FMBD_GCALL(fmbd_csr_add_block(Mf, 1, edofs + e * kmax + a, d + a / 3));
       }
     }
-    FMBD_GCALL(fmbd_csr_add_block(Mf, kt, edofs + e * kmax, Me3));
   }
   for (int64_t e = 0; e < m->nbeam; e++) {
     const double *x0 = m->xyz + 3 * m->beam[2 * e], *x1 = m->xyz + 3 * m->beam[2 * e + 1];
@@ -525,8 +540,19 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
     FMBD_GCALL(fmbd_fe_beam_lumped(x0, x1, v, b->rho, b->area, b->J, e, Me3));
     b->node_mass[m->beam[2 * e]] += Me3[0];
     b->node_mass[m->beam[2 * e + 1]] += Me3[6 * 12 + 6];
-    FMBD_GCALL(fmbd_csr_add_block(Mf, 12, edofs + (m->ntet + e) * kmax,
-                                  opt->mass == FMBD_FE_MASS_CONSISTENT ? Me : Me3));
+    if (opt->mass == FMBD_FE_MASS_CONSISTENT) {
+      FMBD_GCALL(fmbd_csr_add_block(Mf, 12, edofs + (m->ntet + e) * kmax, Me));
+    } else { // HRZ: translations diagonal (isotropic m/2), rotations a 3x3 block per node
+      for (int a = 0; a < 2; a++) {
+        const int64_t *nd = edofs + (m->ntet + e) * kmax + 6 * a;
+        double B3[9];
+        for (int i = 0; i < 3; i++) {
+          FMBD_GCALL(fmbd_csr_add_block(Mf, 1, nd + i, Me3 + (6 * a + i) * 13));
+          for (int j = 0; j < 3; j++) B3[i * 3 + j] = Me3[(6 * a + 3 + i) * 12 + 6 * a + 3 + j];
+        }
+        FMBD_GCALL(fmbd_csr_add_block(Mf, 3, nd + 3, B3));
+      }
+    }
   }
   b->volume = vol_solid + vol_beam;
   body_properties(b, Mr);

@@ -20,7 +20,7 @@ typedef struct edge_map {
   int64_t cap, *key_a, *key_b, *val;
 } edge_map;
 
-static int64_t edge_get(edge_map *h, int64_t a, int64_t b, int64_t *next) {
+static inline int64_t edge_get(edge_map *h, int64_t a, int64_t b, int64_t *next) {
   if (a > b) {
     int64_t t = a;
     a = b;
@@ -37,7 +37,7 @@ static int64_t edge_get(edge_map *h, int64_t a, int64_t b, int64_t *next) {
   return h->val[k];
 }
 
-static void add_groups(fmbd_mesh *m, int ng, const char *const *names, int (*in)(const double *, int, void *),
+static inline void add_groups(fmbd_mesh *m, int ng, const char *const *names, int (*in)(const double *, int, void *),
                        void *ctx) {
   m->ngroups = ng;
   m->group_name = fmbd_calloc((size_t)ng, sizeof *m->group_name);
@@ -57,7 +57,7 @@ typedef struct box_ctx {
   double a;
 } box_ctx;
 
-static int box_in(const double *x, int g, void *ctx) {
+static inline int box_in(const double *x, int g, void *ctx) {
   double a = ((box_ctx *)ctx)->a;
   if (g == 0) return fabs(x[0]) < 1e-12 * a;
   if (g == 1) return fabs(x[0] - a) < 1e-12 * a;
@@ -65,7 +65,7 @@ static int box_in(const double *x, int g, void *ctx) {
 }
 
 /// Box mesh of order 1 (tet4) or 2 (tet10, straight mid-side nodes).
-static void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, int ny, int nz, int order) {
+static inline void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, int ny, int nz, int order) {
   memset(m, 0, sizeof *m);
   int64_t nv = (int64_t)(nx + 1) * (ny + 1) * (nz + 1);
   int64_t ncell = (int64_t)nx * ny * nz, ntet = 6 * ncell;
@@ -139,10 +139,10 @@ static void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, int ny,
   add_groups(m, 3, names, box_in, &bc);
 }
 
-static int beam_in(const double *x, int g, void *ctx) { (void)x; (void)g; (void)ctx; return 0; }
+static inline int beam_in(const double *x, int g, void *ctx) { (void)x; (void)g; (void)ctx; return 0; }
 
 /// Straight beam of n elements from p0 to p1; groups end0 = {0}, end1 = {n}.
-static void beam_mesh(fmbd_mesh *m, const double p0[3], const double p1[3], int n) {
+static inline void beam_mesh(fmbd_mesh *m, const double p0[3], const double p1[3], int n) {
   memset(m, 0, sizeof *m);
   m->nnodes = n + 1;
   m->xyz = fmbd_malloc((size_t)(3 * (n + 1)) * sizeof *m->xyz);
@@ -164,7 +164,7 @@ static void beam_mesh(fmbd_mesh *m, const double p0[3], const double p1[3], int 
 }
 
 /// Dense copy (column-major n x n) of a CSR matrix.
-static double *csr_dense(const fmbd_csr *A) {
+static inline double *csr_dense(const fmbd_csr *A) {
   double *D = fmbd_calloc((size_t)(A->nrows * A->ncols), sizeof *D);
   for (int64_t i = 0; i < A->nrows; i++) {
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) D[i + A->nrows * A->indices[p]] += A->data[p];
