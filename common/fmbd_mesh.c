@@ -365,6 +365,70 @@ double fmbd_mesh_volume(const fmbd_mesh *m) {
   return v;
 }
 
+int fmbd_mesh_group_affine_dim(const fmbd_mesh *m, int g) {
+  const int64_t *nd = m->group_node + m->group_ptr[g];
+  int64_t n = m->group_ptr[g + 1] - m->group_ptr[g];
+  if (n < 2) {
+    return 0;
+  }
+  // p0: the first node; p1: the farthest from p0; p2: the farthest from the line p0 p1
+  const double *x0 = m->xyz + 3 * nd[0];
+  double d1 = 0.0, u[3] = {0, 0, 0};
+  for (int64_t i = 1; i < n; i++) {
+    const double *x = m->xyz + 3 * nd[i];
+    double d = 0.0;
+    for (int k = 0; k < 3; k++) {
+      d += (x[k] - x0[k]) * (x[k] - x0[k]);
+    }
+    if (d > d1) {
+      d1 = d;
+      for (int k = 0; k < 3; k++) {
+        u[k] = x[k] - x0[k];
+      }
+    }
+  }
+  double ext = sqrt(d1);
+  if (!(ext > 0.0)) {
+    return 0;
+  }
+  for (int k = 0; k < 3; k++) {
+    u[k] /= ext;
+  }
+  double d2 = 0.0, w[3] = {0, 0, 0};
+  for (int64_t i = 1; i < n; i++) {
+    const double *x = m->xyz + 3 * nd[i];
+    double r[3], t = 0.0, d = 0.0;
+    for (int k = 0; k < 3; k++) {
+      r[k] = x[k] - x0[k];
+      t += r[k] * u[k];
+    }
+    for (int k = 0; k < 3; k++) {
+      r[k] -= t * u[k];
+      d += r[k] * r[k];
+    }
+    if (d > d2) {
+      d2 = d;
+      memcpy(w, r, sizeof w);
+    }
+  }
+  if (!(sqrt(d2) > 1e-8 * ext)) {
+    return 1;
+  }
+  double nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  double nn = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+  for (int64_t i = 1; i < n; i++) {
+    const double *x = m->xyz + 3 * nd[i];
+    double h = 0.0;
+    for (int k = 0; k < 3; k++) {
+      h += (x[k] - x0[k]) * nrm[k] / nn;
+    }
+    if (fabs(h) > 1e-8 * ext) {
+      return 3;
+    }
+  }
+  return 2;
+}
+
 // --- node compaction, elevation ---------------------------------------------------------------
 
 // Keep the nodes with keep[p] != 0, renumbering elements and groups (elements must refer to

@@ -69,6 +69,12 @@ int fmbd_mesh_add_box_group(fmbd_mesh *m, const char *name, const double lo[3], 
 /// mid-edge nodes whose both edge ends are in the group. No-op for tet10 or beam meshes.
 int fmbd_mesh_elevate(fmbd_mesh *m);
 
+/// @brief Affine dimension of the nodes of group g: 0 (one point), 1 (collinear), 2 (coplanar)
+/// or 3. A node counts as off the line (plane) through the others when its distance exceeds
+/// 1e-8 times the group's extent. An RBE3 tie needs 2 or more (three non-collinear nodes) to
+/// carry a moment about every axis.
+int fmbd_mesh_group_affine_dim(const fmbd_mesh *m, int g);
+
 /// @brief Volume of the tetrahedra (exact for straight-sided tet4/tet10; tet10 uses the
 /// 4-point rule on the quadratic geometry).
 double fmbd_mesh_volume(const fmbd_mesh *m);
