@@ -308,14 +308,10 @@ static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts 
   int64_t n = K->nrows;
   fmbd_eig_result er = {0};
   double lmax = o->fmax_hz > 0.0 ? pow(2.0 * M_PI * o->fmax_hz, 2) : 0.0;
-  // rigid-body eigenvalues: round-off of the spectrum's top (max K_ii/M_ii); flexible ones lie
-  // far above 1e-9 of it for any mesh of fewer than ~1e4 elements along the body
-  double top = 0.0;
-  for (int64_t i = 0; i < n; i++) {
-    double m = fmbd_csr_get(M, i, i);
-    if (m > 0.0) top = fmax(top, fmbd_csr_get(K, i, i) / m);
-  }
-  double rig_thr = 1e-9 * top;
+  // rigid-body eigenvalues are zeros up to round-off: the leading group of eigenvalues
+  // followed by a jump of more than 1e5 (no flexible spectrum has such a gap between
+  // neighbours; round-off zeros lie ~1e-8 below the first flexible one)
+  double rig_thr = 0.0;
   int64_t extra = 6;  // rigid-body modes expected at most (more: a mechanism, asked again)
   for (int round = 0;; round++) {
     int64_t nev = o->nmodes + extra;
@@ -325,7 +321,15 @@ static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts 
     FMBD_GCALL(modes(K, M, NULL, o, nev, lmax, true, &er));
     (void)t0;
     int64_t nrig = 0;
-    while (nrig < er.nev && er.lambda[nrig] <= rig_thr) nrig++;
+    double mk = er.nev > 0 ? fabs(er.lambda[0]) : 0.0;
+    for (int64_t k = 1; k < er.nev; k++) {
+      if (er.lambda[k] > 1e5 * mk) {
+        nrig = k;
+        rig_thr = mk;
+        break;
+      }
+      mk = fmax(mk, fabs(er.lambda[k]));
+    }
     int64_t nflex = er.nev - nrig;
     if (lmax <= 0.0 && nflex < o->nmodes && nev < n && round < 4) {
       extra = nrig + 6;
