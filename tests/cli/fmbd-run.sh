@@ -1,0 +1,144 @@
+#!/bin/bash
+# tests/cli/fmbd-run.sh: fmbd-run on bad input: every failure exits with the documented status,
+# names the file and the scene line:column (or the time and the constraint), and leaves no
+# output target behind; an interrupted run keeps RUN.h5.part marked incomplete.
+set -u
+T=$ROOT/$BUILD/test-tmp/fmbd-run
+rm -rf "$T" && mkdir -p "$T" && cd "$T" || exit 1
+fail=0
+PY=${PYTHON:-/usr/bin/python3}
+
+# expect NAME STATUS REGEX -- command...: exit status, stderr matching REGEX, no out.run.h5
+expect() {
+  local name=$1 status=$2 re=$3
+  shift 4
+  rm -f out.run.h5 out.run.h5.part
+  "$@" >stdout.txt 2>stderr.txt
+  local st=$?
+  if [ $st -ne "$status" ]; then
+    echo "$name: exit $st, expected $status"; cat stderr.txt; fail=1; return
+  fi
+  if ! grep -Eq -- "$re" stderr.txt; then
+    echo "$name: stderr does not match '$re':"; cat stderr.txt; fail=1
+  fi
+  if [ -e out.run.h5 ]; then echo "$name: out.run.h5 left behind"; fail=1; fi
+}
+
+head='solver: {t_end: 1}
+bodies:
+  - {name: p, mass: 1, inertia: [1, 1, 1], position: [1, 0, 0]}
+'
+# --- scene errors: file:line:column -------------------------------------------------------
+printf '%sjoints:\n  - name: j1\n    type: spherical\n    body1: ground\n    body2: p\n    point: [0, 0, 0]\n    foo: 1\n' "$head" >unknown.yaml
+expect unknown-key 1 "^fmbd-run: error: unknown.yaml:10:5: unknown key 'foo' in joint 'j1'$" -- fmbd-run unknown.yaml -o out.run.h5
+
+printf '%sjoints:\n  - {name: j1, type: spherical, body1: ground, body2: q, point: [0, 0, 0]}\n' "$head" >nobody.yaml
+expect missing-body 1 "nobody.yaml:5:55: body2: no body named 'q'" -- fmbd-run nobody.yaml -o out.run.h5
+
+printf 'solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 0, inertia: [1, 1, 1]}\n' >massless.yaml
+expect zero-mass 1 "massless.yaml:3:21: .*mass matrix singular" -- fmbd-run massless.yaml -o out.run.h5
+
+printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: missing.rflex.h5}\n' >nofile.yaml
+expect missing-file 1 "nofile.yaml:3:39: body 'rod': missing.rflex.h5" -- fmbd-run nofile.yaml -o out.run.h5
+
+printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: nofile.yaml}\n' >notfmbd.yaml
+expect not-hdf5 1 "notfmbd.yaml:3:39: body 'rod': nofile.yaml" -- fmbd-run notfmbd.yaml -o out.run.h5
+
+expect no-scene 1 "missing.yaml: cannot open the scene" -- fmbd-run missing.yaml -o out.run.h5
+expect usage 2 "no scene file given" -- fmbd-run -o out.run.h5
+expect bad-t-end 2 "t-end" -- fmbd-run unknown.yaml --t-end -1 -o out.run.h5
+
+# --- initial conditions that cannot be projected: a bar hangs from a spherical joint 0.5 m
+# from its centre, and a driver asks for its centre 5 m from that joint
+cat >apart.yaml <<'EOF'
+solver: {t_end: 1}
+bodies:
+  - {name: bar, mass: 1, inertia: [0.1, 0.1, 0.1], position: [0, 0.5, 0], orientation: {axis: z, angle_deg: 90}}
+joints:
+  - {name: hang, type: spherical, body1: ground, body2: bar, at1: {point: [0, 0, 0]}, at2: {point: [-0.5, 0, 0]}}
+drivers:
+  - {name: far, body: bar, coordinate: x, function: 5}
+EOF
+expect no-projection 1 "apart.yaml: initial positions cannot be made consistent.*(joint 'hang'|driver 'far'|body 'bar')" -- fmbd-run apart.yaml -o out.run.h5
+
+# --- Newton failure at the smallest step: a driver pulls the bob of a 1 m pendulum beyond
+# its reach (x = 0.5 + t > 1 for t > 0.5 s): the run must stop near t = 0.5 s naming the
+# time and an equation, keep the prefix as out.run.h5.part (complete = 0), and no target
+cat >reach.yaml <<'EOF'
+gravity: [0, -9.81, 0]
+solver: {t_end: 1, first_step: 1e-3, max_step: 1e-2, min_step: 1e-7}
+bodies:
+  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [0.5, -0.8660254037844386, 0]}
+joints:
+  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], at2: {point: [-0.5, 0.8660254037844386, 0]}, axis: z}
+drivers:
+  - {name: pull, body: bob, coordinate: x, function: {type: linear, v0: 0.5, rate: 1}}
+outputs:
+  points: [{name: bob, body: bob}]
+EOF
+expect newton 1 "t = 0\.(4[5-9]|5[0-2])[0-9]* s.*(joint 'pivot'|driver 'pull'|body 'bob')" -- fmbd-run reach.yaml -o out.run.h5
+if [ -f out.run.h5.part ]; then
+  "$PY" - <<'EOF' || fail=1
+import h5py, sys
+with h5py.File("out.run.h5.part", "r") as f:
+    c, n, t = f["stats"].attrs["complete"], f["time"].shape[0], f["time"][-1]
+    # the prefix: at least the initial row, the last row before the failure near 0.5 s
+    if c != 0 or n < 2 or not (0.3 < t < 0.53):
+        sys.exit(f"newton: prefix complete={c} rows={n} t_last={t}")
+EOF
+else
+  echo "newton: no out.run.h5.part kept"; fail=1
+fi
+
+# --- interruption: SIGINT keeps a valid prefix marked incomplete, exit 1, no target
+cat >long.yaml <<'EOF'
+gravity: [0, -9.81, 0]
+solver: {t_end: 100000, step: 1e-4}
+bodies:
+  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}
+joints:
+  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}
+outputs:
+  points: [{name: bob, body: bob}]
+EOF
+rm -f out.run.h5 out.run.h5.part
+fmbd-run long.yaml -o out.run.h5 2>stderr.txt &
+pid=$!
+for _ in $(seq 50); do [ -f out.run.h5.part ] && break; sleep 0.1; done
+sleep 1
+kill -INT $pid
+wait $pid
+st=$?
+[ $st -eq 1 ] || { echo "sigint: exit $st, expected 1"; cat stderr.txt; fail=1; }
+grep -q "interrupted by signal 2" stderr.txt || { echo "sigint: message"; cat stderr.txt; fail=1; }
+[ -e out.run.h5 ] && { echo "sigint: target left"; fail=1; }
+if [ -f out.run.h5.part ]; then
+  "$PY" - <<'EOF' || fail=1
+import h5py, sys
+with h5py.File("out.run.h5.part", "r") as f:
+    c, n = f["stats"].attrs["complete"], f["time"].shape[0]
+    m = f["outputs/bob/position"].shape[0]
+    if c != 0 or n < 10 or m != n:
+        sys.exit(f"sigint: prefix complete={c} time rows={n} position rows={m}")
+EOF
+else
+  echo "sigint: no out.run.h5.part"; fail=1
+fi
+
+# --- flexible bodies: need a reduced body from the toolchain ------------------------------
+if mesh2fe "$ROOT/examples/geometry/rodbeam.geo" --circle 0.015 --interface end0 --interface end1 -o rod.fe.h5 -q 2>mesh.err &&
+  fe2cb rod.fe.h5 --modes 10 -o rod.cb.h5 -q 2>cb.err &&
+  cbcheck rod.cb.h5 --fe rod.fe.h5 -o rod.rflex.h5 -q >/dev/null 2>check.err; then
+  printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.fe.h5}\n' >wrongkind.yaml
+  expect wrong-kind 1 "wrongkind.yaml:3:42: body 'rod': rod.fe.h5 is a fmbd-fe file" -- fmbd-run wrongkind.yaml -o out.run.h5
+  printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5}\njoints:\n  - {name: j, type: spherical, body1: ground, body2: rod, point: [0.1, 0.02, 0]}\n' >offbody.yaml
+  expect off-body 1 "offbody.yaml:5:65: joint 'j': the point \(0.1, 0.02, 0\) \(body frame\) is not on body 'rod'" -- fmbd-run offbody.yaml -o out.run.h5
+  printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5}\njoints:\n  - {name: j, type: fixed, body1: ground, body2: rod, at2: {interface: middle}}\n' >noif.yaml
+  expect no-interface 1 "noif.yaml:5:67: joint 'j': body 'rod' .* has no interface 'middle' \(it has: end0, end1\)" -- fmbd-run noif.yaml -o out.run.h5
+  printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5, modes: 500}\n' >toomany.yaml
+  expect too-many-modes 1 "toomany.yaml:3:42: body 'rod' asks for 500 modes" -- fmbd-run toomany.yaml -o out.run.h5
+else
+  echo "flexible-body cases: the toolchain could not make rod.rflex.h5:"; cat mesh.err cb.err check.err 2>/dev/null
+  fail=1
+fi
+exit $fail
