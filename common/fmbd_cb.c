@@ -261,14 +261,13 @@ static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
                             const int64_t *dofs, int64_t nb) {
   int64_t r = fmbd_chol_failed_row(F);
   if (rc != FMBD_ERR_SINGULAR || r < 0) return rc;
-  char lab[96], prev[700];
-  snprintf(prev, sizeof prev, "%.600s", fmbd_err_get()->msg);
+  char lab[96];
   fmbd_err_context(NULL, "/K");
   FMBD_FAIL(FMBD_ERR_SINGULAR,
             "the interior stiffness Ks is singular at %s: a region of the body is not held by "
             "the %lld boundary dofs (a floating part, or a mechanism); add an interface or a "
-            "--boundary group there [%s]",
-            dof_label(dofs, interior[r], lab, sizeof lab), (long long)nb, prev);
+            "--boundary group there",
+            dof_label(dofs, interior[r], lab, sizeof lab), (long long)nb);
 }
 
 static void progress_sink(void *ctx, const char *stage, int64_t solves, int64_t nev) {

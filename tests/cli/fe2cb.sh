@@ -1,0 +1,89 @@
+#!/bin/bash
+# tests/cli/fe2cb.sh: fe2cb on tiny bodies (tests/py/fegen.py): good runs, pipes, bad input.
+# Every failing run must exit 1 (data) or 2 (usage), name fe2cb, the file and the HDF5 path or
+# the dof at fault, and leave no output file (neither the target nor its .part).
+set -u
+ROOT=${ROOT:-$(cd "$(dirname "$0")/../.." && pwd)}
+BUILD=${BUILD:-build}
+PYTHON=${PYTHON:-/usr/bin/python3}
+export PATH="$ROOT/$BUILD/bin:$PATH"
+T=$ROOT/$BUILD/test-tmp/cli-fe2cb
+rm -rf "$T" && mkdir -p "$T" && cd "$T" || exit 1
+fail=0
+bad() { echo "FAIL: $*"; fail=1; }
+
+# --- fixtures ---------------------------------------------------------------------------------
+PYTHONPATH=$ROOT/tests/py "$PYTHON" - <<'PY' || exit 1
+import h5py, numpy as np, fegen
+b = fegen.beam(n_el=40, interfaces={"end0": [0], "end1": [40]})
+a = fegen.write("good.fe.h5", b)
+fegen.write("newer.fe.h5", b, format_version="2.0")
+fegen.write("kind.fe.h5", b, fmt="fmbd-rflex")
+K = a["K"].copy(); K.data[5] = np.nan
+fegen.write("nan.fe.h5", b, K=K)
+K = a["K"].tolil(); K[3, 10] = K[3, 10] + 1e6; K = K.tocsr()
+fegen.write("nonsym.fe.h5", b, K=K)
+# element 20 left out: nodes 21..39 float (held by nothing, end1 is not an interface here)
+fl = fegen.beam(n_el=40, interfaces={"end0": [0]}, skip=(20,))
+fegen.write("floating.fe.h5", fl)
+small = fegen.lattice(nx=3, ny=2, nz=2, interfaces={"a": "x0"})
+fegen.write("small.fe.h5", small)
+PY
+printf 'not an hdf5 file\n' > text.fe.h5
+
+# expect_fail STATUS PATTERN OUTPUT -- args...: exit status, a regex the message must match
+expect_fail() {
+  local st=$1 pat=$2 out=$3; shift 4
+  fe2cb "$@" > stdout.txt 2> stderr.txt
+  local rc=$?
+  [ $rc -eq "$st" ] || bad "fe2cb $*: exit $rc, expected $st ($(cat stderr.txt))"
+  grep -q '^fe2cb: error: ' stderr.txt || bad "fe2cb $*: no 'fe2cb: error:' line: $(cat stderr.txt)"
+  grep -Eq -e "$pat" stderr.txt || bad "fe2cb $*: message does not match /$pat/: $(cat stderr.txt)"
+  [ -n "$out" ] && { [ -e "$out" ] || [ -e "$out.part" ]; } && bad "fe2cb $*: output $out left behind"
+  head -n 1 stderr.txt  # the message, for the log
+  return 0
+}
+
+# --- good runs ----------------------------------------------------------------------------------
+fe2cb good.fe.h5 -o good.cb.h5 --modes 6 -q 2> err.txt || bad "good run failed: $(cat err.txt)"
+[ -s err.txt ] && bad "-q printed: $(cat err.txt)"
+fe2cb good.fe.h5 -o good.cb.h5 --modes 6 2> err.txt || bad "good run failed"
+grep -Eq '^fe2cb: good\.cb\.h5: 6 fixed-interface \+ 12 constraint modes, [0-9.]+ s wall, [0-9.]+ s cpu$' err.txt \
+  || bad "summary line: $(cat err.txt)"
+fe2cb good.fe.h5 -o v.cb.h5 --modes 6 -v 2> err.txt || bad "-v run failed"
+grep -q 'ordering' err.txt && grep -q 'factorisation' err.txt && grep -q 'Lanczos' err.txt \
+  && grep -q 'constraint modes' err.txt && grep -q 'projections' err.txt || bad "-v breakdown missing: $(cat err.txt)"
+# the man page's example name rule: BODY.fe.h5 -> BODY.cb.h5 (stdout is a file here, so give -o)
+# pipe: standard input to standard output
+cat good.fe.h5 | fe2cb - --modes 4 -q > piped.cb.h5 || bad "pipe run failed"
+"$PYTHON" -c "
+import h5py, sys
+f = h5py.File('piped.cb.h5', 'r')
+assert f.attrs['format'] in ('fmbd-cb', b'fmbd-cb'), f.attrs['format']
+assert f['cb/kappa'].shape == (4,) and f['reduced/M'].shape == (16, 16)
+assert 'mesh' in f and 'dofs' in f and 'interfaces' in f and 'K' not in f
+" || bad "piped output is not a valid fmbd-cb file with the description copied"
+fe2cb good.fe.h5 -o nm.cb.h5 --method nm --modes 5 -q || bad "--method nm failed"
+
+# --- bad input (exit 1) ---------------------------------------------------------------------------
+expect_fail 1 'kind\.fe\.h5.*(fmbd-rflex|expected fmbd-fe)' out1.cb.h5 -- kind.fe.h5 -o out1.cb.h5
+expect_fail 1 'text\.fe\.h5' out2.cb.h5 -- text.fe.h5 -o out2.cb.h5
+expect_fail 1 'newer\.fe\.h5.*(version|2\.0)' out3.cb.h5 -- newer.fe.h5 -o out3.cb.h5
+expect_fail 1 'nan\.fe\.h5:/K' out4.cb.h5 -- nan.fe.h5 -o out4.cb.h5
+expect_fail 1 'nonsym\.fe\.h5:/K: .*not symmetric.*node' out5.cb.h5 -- nonsym.fe.h5 -o out5.cb.h5
+expect_fail 1 'floating\.fe\.h5:/K: .*singular at dof [0-9]+ \(node (2[1-9]|3[0-9]|40), ' out6.cb.h5 -- floating.fe.h5 -o out6.cb.h5
+expect_fail 1 'small\.fe\.h5.*1000 modes.*only [0-9]+ interior dofs' out7.cb.h5 -- small.fe.h5 -o out7.cb.h5 --modes 1000
+expect_fail 1 'good\.fe\.h5.*--fmax 1 Hz lies below the first fixed-interface mode' out8.cb.h5 -- good.fe.h5 -o out8.cb.h5 --fmax 1
+expect_fail 1 'missing\.fe\.h5' out9.cb.h5 -- missing.fe.h5 -o out9.cb.h5
+expect_fail 1 'good\.fe\.h5.*--boundary nosuch' out10.cb.h5 -- good.fe.h5 -o out10.cb.h5 --boundary nosuch
+
+# --- usage (exit 2) -------------------------------------------------------------------------------
+expect_fail 2 'unknown option' u1.cb.h5 -- good.fe.h5 -o u1.cb.h5 --bogus
+expect_fail 2 'exclusive' u2.cb.h5 -- good.fe.h5 -o u2.cb.h5 --modes 3 --fmax 100
+expect_fail 2 'negative' u3.cb.h5 -- good.fe.h5 -o u3.cb.h5 --modes -1
+expect_fail 2 'no BODY' u4.cb.h5 --
+expect_fail 2 'cb or nm' u5.cb.h5 -- good.fe.h5 -o u5.cb.h5 --method xx
+expect_fail 2 '--hold needs' u6.cb.h5 -- good.fe.h5 -o u6.cb.h5 --hold
+
+[ $fail -eq 0 ] && echo "fe2cb.sh: all passed"
+exit $fail
