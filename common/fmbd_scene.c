@@ -1017,7 +1017,7 @@ static int parse_load(ctx *c, yaml_node_t *n, int idx) {
 }
 
 static int parse_outputs(ctx *c, yaml_node_t *n) {
-  static const char *const keys[] = {"every", "energy", "points", "reactions", NULL};
+  static const char *const keys[] = {"every", "energy", "momentum", "points", "reactions", NULL};
   TRY(check_map(c, n, "outputs", keys));
   fmbd_scene *s = c->s;
   yaml_node_t *x;
@@ -1026,6 +1026,7 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
     if (s->output_every < 0) return fail_at(c, x, "every must not be negative");
   }
   if ((x = get(c, n, "energy"))) TRY(as_bool(c, x, "energy", &s->energy));
+  if ((x = get(c, n, "momentum"))) TRY(as_bool(c, x, "momentum", &s->momentum));
   if ((x = get(c, n, "points"))) {
     if (x->type != YAML_SEQUENCE_NODE) return fail_at(c, x, "points must be a list");
     for (yaml_node_item_t *it = x->data.sequence.items.start; it < x->data.sequence.items.top; it++) {

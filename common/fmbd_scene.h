@@ -188,6 +188,7 @@ typedef struct fmbd_scene {
   int *reactions;           ///< joint indices whose reactions are written
   fmbd_scene_loc *reaction_locs;
   bool energy;              ///< write /energy/{kinetic,potential,strain}
+  bool momentum;            ///< write /momentum/{linear,angular} (about the world origin)
   double output_every;      ///< output interval in s; 0 = every accepted step
 } fmbd_scene;
 

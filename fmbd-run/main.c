@@ -91,6 +91,7 @@ typedef struct run {
   col time;
   col (*out)[NQ];      // noutputs x NQ (s == NULL: not asked)
   col energy[3];
+  col momentum[2];
   col (*react)[2];     // reactions x {force, torque}
   hist t_hist;
   hist *h[3];          // per output: position, velocity, acceleration history (NULL arrays unused)
@@ -122,6 +123,7 @@ static int flush_all(run *r) {
     for (int q = 0; q < NQ; q++) FMBD_CALL(col_flush(&r->out[o][q]));
   }
   for (int e = 0; e < 3; e++) FMBD_CALL(col_flush(&r->energy[e]));
+  for (int e = 0; e < 2; e++) FMBD_CALL(col_flush(&r->momentum[e]));
   for (int k = 0; k < r->s->nreactions; k++) {
     FMBD_CALL(col_flush(&r->react[k][0]));
     FMBD_CALL(col_flush(&r->react[k][1]));
@@ -176,6 +178,12 @@ static int record(run *r) {
     double e[3];
     fmbd_mbs_energy(mb, &e[0], &e[1], &e[2]);
     for (int k = 0; k < 3; k++) FMBD_CALL(col_push(&r->energy[k], &e[k]));
+  }
+  if (s->momentum) {
+    double L[3], H[3];
+    fmbd_mbs_momentum(mb, L, H);
+    FMBD_CALL(col_push(&r->momentum[0], L));
+    FMBD_CALL(col_push(&r->momentum[1], H));
   }
   for (int k = 0; k < s->nreactions; k++) {
     double F[3], T[3];
@@ -509,6 +517,10 @@ int main(int argc, char **argv) {
     static const char *const en[3] = {"/energy/kinetic", "/energy/potential", "/energy/strain"};
     for (int k = 0; k < 3; k++) FMBD_GCALL(col_open(r.f, en[k], 0, &r.energy[k]));
   }
+  if (s->momentum) {
+    FMBD_GCALL(col_open(r.f, "/momentum/linear", 3, &r.momentum[0]));
+    FMBD_GCALL(col_open(r.f, "/momentum/angular", 3, &r.momentum[1]));
+  }
   FMBD_GALLOC(r.react = fmbd_calloc((size_t)s->nreactions + 1, sizeof *r.react));
   for (int k = 0; k < s->nreactions; k++) {
     char path[600];
@@ -554,6 +566,7 @@ int main(int argc, char **argv) {
       for (int q = 0; q < NQ; q++) col_close(&r.out[o][q]);
     }
     for (int k = 0; k < 3; k++) col_close(&r.energy[k]);
+    for (int k = 0; k < 2; k++) col_close(&r.momentum[k]);
     for (int k = 0; k < s->nreactions; k++) {
       col_close(&r.react[k][0]);
       col_close(&r.react[k][1]);
@@ -578,6 +591,8 @@ done:
       }
       col_close(&r.time);
       for (int k = 0; k < 3; k++) col_close(&r.energy[k]);
+      for (int k = 0; k < 2; k++) col_close(&r.momentum[k]);
+    for (int k = 0; k < 2; k++) col_close(&r.momentum[k]);
       for (int k = 0; k < s->nreactions; k++) {
         col_close(&r.react[k][0]);
         col_close(&r.react[k][1]);
@@ -596,6 +611,7 @@ done:
     }
   }
   for (int k = 0; k < 3; k++) col_close(&r.energy[k]);
+  for (int k = 0; k < 2; k++) col_close(&r.momentum[k]);
   if (r.react) {
     for (int k = 0; k < s->nreactions; k++) {
       col_close(&r.react[k][0]);
