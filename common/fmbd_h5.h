@@ -4,7 +4,10 @@
 // Conventions (DESIGN.md, docs/FORMAT.md):
 // - root attributes format, format_version ("MAJOR.MINOR"), creator, command_line, inputs
 //   ((n, 2) strings: name, SHA-256 hex), wall_time_s, cpu_time_s;
-// - dense arrays row-major with the shape h5py shows; large ones chunked + shuffle + deflate;
+// - dense arrays row-major with the shape h5py shows; those of 8192 values or more chunked
+//   (about 1 MiB a chunk) + shuffle + deflate: integers level 4, floats level 1 up to 4 M
+//   values and uncompressed beyond (compressing doubles costs ~0.2 us each and saves little;
+//   FMBD_H5_DEFLATE=0..9 in the environment forces one level for all); smaller ones contiguous;
 // - sparse matrices as CSR groups (data, indices, indptr int64; attrs encoding-type =
 //   "csr_matrix", shape (2,) int64), full symmetric storage.
 // A file name "-" reads the whole file from standard input (an HDF5 file image) or writes it
