@@ -4,7 +4,7 @@
 // Every fallible fmbd_* function returns int: 0 (FMBD_OK) or a negative code from
 // FMBD_ERROR_LIST. The code's details (message, source location, and the context the
 // caller set: file name and HDF5 path or scene line) are kept in one error record that
-// only main() reads, through fmbd_err_get() / fmbd_cli_report_error().
+// only main() reads, through fmbd_err_get() / fmbd_cli_finish().
 #ifndef FMBD_ERR_H
 #define FMBD_ERR_H
 
