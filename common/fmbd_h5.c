@@ -109,10 +109,12 @@ static void close_id(hid_t *id, herr_t (*fn)(hid_t)) {
 bool fmbd_h5_exists(fmbd_h5 *f, const char *path) {
   if (!f || !path) return false;
   size_t n = strlen(path);
+  while (n > 1 && path[n - 1] == '/') n--;  // "/mesh/" is "/mesh"
   if (n == 0) return false;
   char buf[1024];
   if (n >= sizeof buf) return false;
-  memcpy(buf, path, n + 1);
+  memcpy(buf, path, n);
+  buf[n] = '\0';
   // check each prefix: H5Lexists fails when an intermediate link is missing
   for (size_t i = 1; i <= n; i++) {
     if (buf[i] != '/' && buf[i] != '\0') continue;
@@ -126,7 +128,7 @@ bool fmbd_h5_exists(fmbd_h5 *f, const char *path) {
     buf[i] = c;
     if (e <= 0) return false;
   }
-  return H5Oexists_by_name(f->fid, path, H5P_DEFAULT) > 0;
+  return H5Oexists_by_name(f->fid, buf, H5P_DEFAULT) > 0;
 }
 
 static bool is_group(fmbd_h5 *f, const char *path) {
@@ -623,6 +625,17 @@ static int open_numeric(fmbd_h5 *f, const char *path, int rank, int64_t *dims, h
     }
     dims[k] = (int64_t)hd[k];
   }
+  // the element count must fit memory arithmetic (a corrupt header could claim anything)
+  {
+    uint64_t total = 1;
+    for (int k = 0; k < rank; k++) {
+      if (hd[k] && total > (uint64_t)(INT64_MAX / 16) / hd[k]) {
+        FMBD_GFAIL(FMBD_ERR_FORMAT, "dataset too large (extent %d is %llu)", k,
+                   (unsigned long long)hd[k]);
+      }
+      total *= hd[k];
+    }
+  }
   *out = d;
   d = -1;
 done:
@@ -852,7 +865,8 @@ int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
                 "encoding-type is '%s', expected csr_matrix", enc);
   }
   FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "shape", 2, shape));
-  FMBD_GCHECK(shape[0] >= 0 && shape[1] >= 0, FMBD_ERR_FORMAT, "negative shape");
+  FMBD_GCHECK(shape[0] >= 0 && shape[1] >= 0 && shape[0] < INT64_MAX / 16, FMBD_ERR_FORMAT,
+              "bad shape (%lld, %lld)", (long long)shape[0], (long long)shape[1]);
   // nnz from the data dataset, checked against indptr afterwards
   {
     bool fl;
@@ -1013,6 +1027,7 @@ int fmbd_h5_write_attr_str(fmbd_h5 *f, const char *obj, const char *name, const 
   FMBD_H5(t = vlen_str_type(), FMBD_ERR_EXTERNAL, "cannot make a string type");
   FMBD_H5(sp = H5Screate(H5S_SCALAR), FMBD_ERR_EXTERNAL, "H5Screate failed");
   FMBD_GCALL(new_attr(o, name, t, sp, &a));
+  if (!value) value = "";
   FMBD_H5(H5Awrite(a, t, &value), FMBD_ERR_IO, "cannot write attribute '%s'", name);
 done:
   close_id(&a, H5Aclose);

@@ -105,6 +105,10 @@ int fmbd_h5_list(fmbd_h5 *f, const char *group, int *n, char ***names);
 int fmbd_h5_make_group(fmbd_h5 *f, const char *path);
 
 // --- attributes (obj is a path; "/" for the root) -----------------------------------------
+// Writers create obj as a group when it does not exist, and replace an existing attribute.
+// Strings are variable-length UTF-8 (h5py: str). One number (n == 1) is a scalar attribute
+// (h5py: a number), n > 1 a 1-D array. Attributes live in the object header: keep them small
+// (under 64 KiB; arrays belong in datasets).
 int fmbd_h5_write_attr_str(fmbd_h5 *f, const char *obj, const char *name, const char *value);
 int fmbd_h5_write_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
                            const double *values);

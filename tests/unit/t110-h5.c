@@ -143,7 +143,8 @@ static void test_dense(void) {
   EXPECT(fmbd_h5_read_i64(f, "/bad/frac", 1, d, &iy) == FMBD_ERR_FORMAT && !iy, "fraction");
   EXPECT(fmbd_h5_read_f64(f, "/a", 0, d, &y) == FMBD_ERR_FORMAT, "group as dataset");
   EXPECT(fmbd_h5_exists(f, "/g3/f64") && !fmbd_h5_exists(f, "/g3/nope") &&
-             !fmbd_h5_exists(f, "/g3/f64/x") && !fmbd_h5_exists(f, "/zz/yy") && fmbd_h5_exists(f, "/"),
+             !fmbd_h5_exists(f, "/g3/f64/x") && !fmbd_h5_exists(f, "/zz/yy") && fmbd_h5_exists(f, "/") &&
+             fmbd_h5_exists(f, "/g3/") && fmbd_h5_exists(f, "g3/f64"),
          "exists");
   // writing into a read handle is refused
   EXPECT(fmbd_h5_write_f64(f, "/w", 1, &one, &seven) != FMBD_OK, "write to read handle");
