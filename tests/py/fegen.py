@@ -360,3 +360,46 @@ def read_cb(path):
         out["attrs"] = dict(f["cb"].attrs)
         out["root"] = dict(f.attrs)
     return out
+
+
+def write_ccx_deck(fe, path, nfreq, clamp_groups):
+    """A CalculiX deck of the tet10 mesh of an fmbd-fe file, the tied nodes of an interface
+    clamped (TOOLCHAIN.md 3g)."""
+    with h5py.File(fe, "r") as f:
+        xyz = f["/mesh/nodes"][()]
+        tet = f["/mesh/elements/tet10"][()]
+        if isinstance(clamp_groups, str):
+            clamp_groups = [clamp_groups]
+        fix = np.concatenate([f["/interfaces/%s/nodes" % g][()] for g in clamp_groups])
+        E, nu, rho = (float(f["/material"].attrs[k]) for k in ("E", "nu", "rho"))
+    nmesh = tet.max() + 1
+    with open(path, "w") as d:
+        d.write("*NODE, NSET=NALL\n")
+        for i in range(nmesh):
+            # %.12e keeps every field within ccx's 20 characters (gotcha 10)
+            d.write("%d, %.12e, %.12e, %.12e\n" % (i + 1, *xyz[i]))
+        d.write("*ELEMENT, TYPE=C3D10, ELSET=EALL\n")
+        for e, t in enumerate(tet):
+            t = t[[0, 1, 2, 3, 4, 5, 6, 7, 9, 8]] + 1
+            d.write("%d, %s\n" % (e + 1, ", ".join(str(x) for x in t)))
+        d.write("*NSET, NSET=FIX\n")
+        for k in range(0, len(fix), 8):
+            d.write(", ".join(str(x + 1) for x in fix[k:k + 8]) + ",\n")
+        d.write("*BOUNDARY\nFIX, 1, 3\n*MATERIAL, NAME=M\n*ELASTIC\n%.9e, %.9e\n*DENSITY\n%.9e\n"
+                % (E, nu, rho))
+        d.write("*SOLID SECTION, ELSET=EALL, MATERIAL=M\n*STEP\n*FREQUENCY\n%d\n*END STEP\n" % nfreq)
+
+
+def read_ccx_freq(dat):
+    f = []
+    lines = open(dat).read().splitlines()
+    for k, line in enumerate(lines):
+        if "E I G E N V A L U E   O U T P U T" in line:
+            for row in lines[k + 1:]:
+                parts = row.split()
+                if len(parts) == 5 and parts[0].isdigit():
+                    f.append(float(parts[3]))
+                elif f and not row.strip():
+                    break
+            break
+    return np.array(f)

@@ -12,7 +12,6 @@ import os
 import subprocess
 import sys
 
-import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -41,47 +40,6 @@ def sh(*args, cwd=TMP):
     return p
 
 
-def write_ccx_deck(fe, path, nfreq, clamp_group):
-    """A CalculiX deck of the tet10 mesh of an fmbd-fe file, the tied nodes of an interface
-    clamped (TOOLCHAIN.md 3g)."""
-    with h5py.File(fe, "r") as f:
-        xyz = f["/mesh/nodes"][()]
-        tet = f["/mesh/elements/tet10"][()]
-        fix = f["/interfaces/%s/nodes" % clamp_group][()]
-        E, nu, rho = (float(f["/material"].attrs[k]) for k in ("E", "nu", "rho"))
-    nmesh = tet.max() + 1
-    with open(path, "w") as d:
-        d.write("*NODE, NSET=NALL\n")
-        for i in range(nmesh):
-            # %.12e keeps every field within ccx's 20 characters (gotcha 10)
-            d.write("%d, %.12e, %.12e, %.12e\n" % (i + 1, *xyz[i]))
-        d.write("*ELEMENT, TYPE=C3D10, ELSET=EALL\n")
-        for e, t in enumerate(tet):
-            t = t[[0, 1, 2, 3, 4, 5, 6, 7, 9, 8]] + 1
-            d.write("%d, %s\n" % (e + 1, ", ".join(str(x) for x in t)))
-        d.write("*NSET, NSET=FIX\n")
-        for k in range(0, len(fix), 8):
-            d.write(", ".join(str(x + 1) for x in fix[k:k + 8]) + ",\n")
-        d.write("*BOUNDARY\nFIX, 1, 3\n*MATERIAL, NAME=M\n*ELASTIC\n%.9e, %.9e\n*DENSITY\n%.9e\n"
-                % (E, nu, rho))
-        d.write("*SOLID SECTION, ELSET=EALL, MATERIAL=M\n*STEP\n*FREQUENCY\n%d\n*END STEP\n" % nfreq)
-
-
-def read_ccx_freq(dat):
-    f = []
-    lines = open(dat).read().splitlines()
-    for k, line in enumerate(lines):
-        if "E I G E N V A L U E   O U T P U T" in line:
-            for row in lines[k + 1:]:
-                parts = row.split()
-                if len(parts) == 5 and parts[0].isdigit():
-                    f.append(float(parts[3]))
-                elif f and not row.strip():
-                    break
-            break
-    return np.array(f)
-
-
 geo = os.path.join(ROOT, "examples", "geometry", "rod.geo")
 fe = os.path.join(TMP, "rod.fe.h5")
 # h = 8 mm: 12957 dofs, small enough for make check (mesh2fe ~1 s, fe2cb ~1.5 s, ccx ~2 s cpu)
@@ -91,9 +49,9 @@ N = 12
 sh(os.path.join(BIN, "fe2cb"), fe, "--modes", str(N), "-o", cb, "-q")
 d = fegen.read_cb(cb)
 f_cb = np.sqrt(d["cb/kappa"]) / (2 * np.pi)
-write_ccx_deck(fe, os.path.join(TMP, "rod.inp"), N, "end0")
+fegen.write_ccx_deck(fe, os.path.join(TMP, "rod.inp"), N, "end0")
 sh("ccx", "-i", "rod")
-f_ccx = read_ccx_freq(os.path.join(TMP, "rod.dat"))
+f_ccx = fegen.read_ccx_freq(os.path.join(TMP, "rod.dat"))
 print("fe2cb:", np.array2string(f_cb, precision=2))
 print("ccx:  ", np.array2string(f_ccx, precision=2))
 check(len(f_ccx) == N, "ccx returned %d of %d frequencies" % (len(f_ccx), N))
