@@ -85,5 +85,19 @@ expect_fail 2 'no BODY' u4.cb.h5 --
 expect_fail 2 'cb or nm' u5.cb.h5 -- good.fe.h5 -o u5.cb.h5 --method xx
 expect_fail 2 '--hold needs' u6.cb.h5 -- good.fe.h5 -o u6.cb.h5 --hold
 
+# --- the examples of docs/man/fe2cb.1, as written there --------------------------------------
+cp "$ROOT/examples/geometry/rod.geo" .
+mesh2fe rod.geo --size 0.008 --interface end0 --interface end1 -o rod.fe.h5 -q || bad "example: mesh2fe"
+fe2cb rod.fe.h5 --modes 24 -o rod.cb.h5 -q || bad "example: fe2cb --modes 24"
+fe2cb rod.fe.h5 --fmax 5000 -o rod.cb.h5 -v 2> ex.err || bad "example: fe2cb --fmax 5000: $(cat ex.err)"
+fe2cb rod.fe.h5 --method nm --modes 10 -o rod.nm.h5 -q || bad "example: fe2cb --method nm"
+if command -v cbcheck > /dev/null; then
+  mesh2fe rod.geo --interface end0 | fe2cb - | cbcheck - -o rod.rflex.h5 2> ex.err \
+    || bad "example: mesh2fe | fe2cb | cbcheck: $(cat ex.err)"
+  [ -s rod.rflex.h5 ] || bad "example pipe: no rod.rflex.h5"
+else
+  bad "cbcheck not built: the pipe example of fe2cb.1 cannot run"
+fi
+
 [ $fail -eq 0 ] && echo "fe2cb.sh: all passed"
 exit $fail
