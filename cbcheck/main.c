@@ -848,6 +848,9 @@ int main(int argc, char **argv) {
     }
     FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
   }
+  if (rep) {
+    fflush(rep);
+  }
   if (a.verbose) {
     fmbd_log(FMBD_LOG_INFO, "time: estimates %.3f s, extensions %.3f s (%lld), exact %.3f s",
              r.t_est_s, r.t_extend_s, (long long)r.nextend, r.t_exact_s);
