@@ -207,9 +207,21 @@ for k, col in (("eig", "eigenvalue"), ("lower", "lower"), ("second", "second_ord
 # relative), giving ~1e-7 in the worst case. 1e-6 keeps a margin; a wrong formula or index
 # (kappa_n of the wrong mode, a missing term) moves the values by more than 1e-3.
 check(worst <= 1e-6, "rod1: estimates differ from the numpy evaluation by %.2e > 1e-6" % worst)
-pl = np.max(np.abs(est["plain_lower"] - est["lower"]) / est["lower"])
-print("rod1: the brief's plain formula A'Ks^-1A - (Phi'A)'Lambda^-1(Phi'A) differs from the projected one "
-      "by %.2e (relative, largest over modes)" % pl)
+# cbcheck without the fe file evaluates the brief's plain formula A'Ks^-1A - (Phi'A)'Lambda^-1(Phi'A)
+# from the cb file alone (a warning says so). On this well-conditioned solid (cond(Ks) ~ 1e5,
+# A'Ks^-1A / Xb ~ 1e3) it loses ~8 digits at most: 1e-5 relative is its expected accuracy.
+# On the slender beam of part 1 (cond ~ 4e11, ratio ~ 3e5) the plain formula evaluated with
+# dense LAPACK solves lost every digit of the bending modes (fmbd_est.h ROUND-OFF); with fe2cb's
+# CHOLMOD solves it fares better: printed, not asserted.
+for body, tol in (("rod1", 1e-5), ("beam", None)):
+    run("cbcheck", body + ".cb.h5", "--fe", "no-such.fe.h5", "--csv", body + "-plain.csv", "-q")
+    tp, tq = read_csv(body + "-plain.csv"), read_csv(body + ".csv")
+    n = min(len(tp["lower"]), len(tq["lower"]))
+    rel = np.abs(tp["lower"][:n] / tq["lower"][:n] - 1)
+    print("%s: plain formula (cb file alone) vs projected: lower estimates differ by %.1e (largest relative)"
+          % (body, rel.max()))
+    if tol is not None:
+        check(rel.max() <= tol, "%s: plain formula differs by %.1e > %g" % (body, rel.max(), tol))
 
 if failures:
     print("%d failure(s)" % len(failures))
