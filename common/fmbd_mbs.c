@@ -339,7 +339,7 @@ struct fmbd_mbs {
   double am, af, beta, gamma;
   double h_next, h_fact, h_prop;
   int64_t k_out;
-  bool need_factor, first_fail_retry;
+  bool need_factor, after_reject;
   // --- sparse matrix and KLU ---
   int64_t nnz;
   SuiteSparse_long *Ap, *Ai;
@@ -861,9 +861,10 @@ void fmbd_mbs_set_gravity(fmbd_mbs *m, const double g[3]) { memcpy(m->g, g, size
 // ============================================================================================
 // body equations (fmbd_mbs.h, EQUATIONS)
 // ============================================================================================
-#ifndef PMASS
+// mass given to the direction p of the Euler parameters (relative to the normalisation
+// scale): makes the dynamics block regular (the mass-weighted projections of fmbd_mbs_init
+// and the conditioning of the iteration matrix); physics unchanged since G p = 0
 #define PMASS 0.25
-#endif
 // body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
@@ -2110,7 +2111,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     double c = h * h * fabs(be - 1.0 / 6.0), e = 0;
     for (int64_t i = 0; i < n; i++) {
       double sc = fmax(m->scale[i], m->floor_[i]);
-      double v = c * fabs(m->a[i] - m->an[i]) / (m->set.tolerance * sc);
+            double v = c * fabs(m->a[i] - m->an[i]) / (m->set.tolerance * sc);
       if (!(v <= e)) e = v;
     }
     *err = e;
@@ -2167,12 +2168,17 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
                   m->t + h, h, buf);
       }
       m->h_next = fmax(h / 4, hmin);
+      m->after_reject = true;
       retried_fresh = false;
       continue;
+    }
+    if (fmbd_log_level() >= FMBD_LOG_DEBUG) {
+      fmbd_log(FMBD_LOG_DEBUG, "t = %.9g h = %.3g err = %.3g%s", m->t, h, err, err > 1 ? " rejected" : "");
     }
     if (!m->set.fixed && err > 1 && h > m->set.min_step * (1 + 1e-9)) {
       restore_state(m);
       m->st.rejected++;
+      m->after_reject = true;
       double f = fmax(0.2, 0.9 * pow(err, -1.0 / 3.0));
       m->h_next = fmax(h * f, m->set.min_step);
       retried_fresh = false;
@@ -2199,11 +2205,16 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
     if (m->set.fixed) {
       m->h_next = m->set.step;
     } else {
+      // elementary controller (order 2 method: local error ~ h^3) with a dead band that
+      // keeps h (and the factorised matrix) unchanged for small proposed increases, and no
+      // increase right after a rejection (Hairer, Norsett & Wanner I, sec. II.4)
       double f = err > 0 ? 0.9 * pow(err, -1.0 / 3.0) : 2.0;
       f = fmin(2.0, fmax(0.2, f));
+      if (f > 1 && (f < 1.25 || m->after_reject)) f = 1;
       double hn = h * f;
       if (clipped && m->h_prop > hn) hn = m->h_prop;
       m->h_next = fmin(m->set.max_step, fmax(m->set.min_step, hn));
+      m->after_reject = false;
     }
     return FMBD_OK;
   }

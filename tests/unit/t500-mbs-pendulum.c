@@ -7,6 +7,7 @@
 
 #include "check.h"
 #include "fmbd_err.h"
+#include "fmbd_log.h"
 #include "fmbd_mbs.h"
 
 static const double G0 = 9.81, LEN = 1.0, MASS = 2.0, RAD = 0.01;
@@ -104,6 +105,7 @@ done:
 }
 
 int main(void) {
+  fmbd_log_init("t5", FMBD_LOG_WARN);
   const double th0 = 2.0; // rad: large amplitude, K(k) far from pi/2
   // I_O = m L^2/12 + m (L/2)^2 = m L^2/3 about the hinge (z): w0^2 = m g (L/2) / I_O
   const double w0 = sqrt(3 * G0 / (2 * LEN));
