@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include <gmshc.h>
 
@@ -908,15 +909,15 @@ static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_options *opt,
   for (size_t p = 0; p < nn; p++) {
     if (use[p] == 0) {
       fmbd_err_contextf(NULL, "node tag %zu", ntag[p]);
-      FMBD_GFAIL(FMBD_ERR_VALUE, "node tag %zu at (%g, %g, %g) is attached to no element",
-                 ntag[p], coord[3 * p], coord[3 * p + 1], coord[3 * p + 2]);
+      FMBD_GFAIL(FMBD_ERR_VALUE, "the node at (%g, %g, %g) is attached to no element",
+                 coord[3 * p], coord[3 * p + 1], coord[3 * p + 2]);
     }
     if (use[p] == 2) {
       fmbd_err_contextf(NULL, "node tag %zu", ntag[p]);
       FMBD_GFAIL(FMBD_ERR_VALUE,
-                 "node tag %zu at (%g, %g, %g) lies on no %s element (only on lower-dimensional "
+                 "the node at (%g, %g, %g) lies on no %s element (only on lower-dimensional "
                  "ones: a surface or curve outside the solid?)",
-                 ntag[p], coord[3 * p], coord[3 * p + 1], coord[3 * p + 2],
+                 coord[3 * p], coord[3 * p + 1], coord[3 * p + 2],
                  vol_type ? "tetrahedron" : "line");
     }
   }
@@ -1353,6 +1354,13 @@ int fmbd_mesh_read(const char *path, const fmbd_mesh_options *opt, fmbd_mesh *m)
               dot && !strchr(dot, '/') ? dot : "(no extension)");
   }
   // gmsh reports an unreadable file poorly: check first
+  struct stat st;
+  if (stat(path, &st) != 0) {
+    FMBD_FAIL(FMBD_ERR_IO, "cannot open: %s", strerror(errno));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    FMBD_FAIL(FMBD_ERR_IO, "not a regular file");
+  }
   FILE *f = fopen(path, "rb");
   if (!f) {
     FMBD_FAIL(FMBD_ERR_IO, "cannot open: %s", strerror(errno));

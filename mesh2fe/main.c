@@ -225,8 +225,9 @@ static int parse_box(args *a, const char *text) {
   return 0;
 }
 
-// Returns 0 to go on, -1 when done (help/version printed), else an exit status.
-static int parse_args(int argc, char **argv, args *a) {
+// Returns 0 (go on; *done when --help/--version was printed), 2 (usage error, reported), or
+// a negative FMBD_ERR_* code with the error record set.
+static int parse_args(int argc, char **argv, args *a, bool *done) {
   static double section[4];
   bool have_section = false, have_circle = false;
   for (int i = 1; i < argc; i++) {
@@ -252,10 +253,12 @@ static int parse_args(int argc, char **argv, args *a) {
   } while (0)
     if (!strcmp(arg, "-h") || !strcmp(arg, "--help")) {
       print_help();
-      return -1;
+      *done = true;
+      return 0;
     } else if (!strcmp(arg, "-V") || !strcmp(arg, "--version")) {
       printf("mesh2fe %s\n", fmbd_version());
-      return -1;
+      *done = true;
+      return 0;
     } else if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) {
       a->quiet++;
     } else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) {
@@ -268,42 +271,32 @@ static int parse_args(int argc, char **argv, args *a) {
     } else if (!strcmp(arg, "--order")) {
       NEED_VALUE();
       long o;
-      if (fmbd_cli_parse_int(arg, val, &o)) {
-        return 2;
-      }
+      FMBD_CALL(fmbd_cli_parse_int(arg, val, &o));
       if (o != 1 && o != 2) {
         return fmbd_cli_usage_error("--order: %ld is not 1 or 2", o);
       }
       a->mesh.order = (int)o;
     } else if (!strcmp(arg, "--size")) {
       NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->mesh.size)) {
-        return 2;
-      }
+      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->mesh.size));
       if (!(a->mesh.size > 0)) {
         return fmbd_cli_usage_error("--size: %s is not a positive length", val);
       }
     } else if (!strcmp(arg, "--E")) {
       NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->fe.E)) {
-        return 2;
-      }
+      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->fe.E));
       if (!(a->fe.E > 0)) {
         return fmbd_cli_usage_error("--E: Young's modulus %s must be > 0", val);
       }
     } else if (!strcmp(arg, "--nu")) {
       NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->fe.nu)) {
-        return 2;
-      }
+      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->fe.nu));
       if (!(a->fe.nu > -1.0 && a->fe.nu < 0.5)) {
         return fmbd_cli_usage_error("--nu: Poisson's ratio %s is outside (-1, 0.5)", val);
       }
     } else if (!strcmp(arg, "--rho")) {
       NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->fe.rho)) {
-        return 2;
-      }
+      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->fe.rho));
       if (!(a->fe.rho > 0)) {
         return fmbd_cli_usage_error("--rho: density %s must be > 0", val);
       }
@@ -350,9 +343,7 @@ static int parse_args(int argc, char **argv, args *a) {
     } else if (!strcmp(arg, "--circle")) {
       NEED_VALUE();
       double r;
-      if (fmbd_cli_parse_double(arg, val, &r)) {
-        return 2;
-      }
+      FMBD_CALL(fmbd_cli_parse_double(arg, val, &r));
       if (!(r > 0)) {
         return fmbd_cli_usage_error("--circle: radius %s must be > 0", val);
       }
@@ -453,11 +444,12 @@ int main(int argc, char **argv) {
   fmbd_mesh_options_defaults(&a.mesh);
   a.mesh.surface_mesher = cgal_mesher;
   fmbd_fe_options_defaults(&a.fe);
-  int st = parse_args(argc, argv, &a);
+  bool done_early = false;
+  int st = parse_args(argc, argv, &a, &done_early);
   fmbd_cli_set_verbosity(a.quiet, a.verbose);
-  if (st) {
+  if (st || done_early) {
     args_free(&a);
-    return st < 0 ? 0 : st;
+    return fmbd_cli_finish(st);
   }
 
   int rc = FMBD_OK;
