@@ -686,9 +686,14 @@ int fmbd_cb_write(fmbd_h5 *f, const fmbd_cb *cb) {
   FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/cb", "n_rigid_removed", 1, &cb->n_rigid_removed));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, "/cb", "fe_file", cb->fe_file ? cb->fe_file : ""));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, "/cb", "fe_sha256", cb->fe_sha256));
-  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "kappa_next", 1, &cb->kappa_next));
-  FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "sturm_shift", 1, &cb->sturm_shift));
-  FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/cb", "sturm_count", 1, &cb->sturm_count));
+  // unknown values (NaN) are left out: readers refuse non-finite numbers
+  if (isfinite(cb->kappa_next)) {
+    FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "kappa_next", 1, &cb->kappa_next));
+  }
+  if (isfinite(cb->sturm_shift)) {
+    FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "sturm_shift", 1, &cb->sturm_shift));
+    FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/cb", "sturm_count", 1, &cb->sturm_count));
+  }
   FMBD_GCALL(fmbd_h5_write_attr_f64(f, "/cb", "max_residual", 1, &cb->max_residual));
   FMBD_GCALL(write_ivec(f, "/cb/interior_dofs", ns, cb->interior));
   FMBD_GCALL(write_ivec(f, "/cb/boundary_dofs", nb, cb->boundary));
