@@ -10,11 +10,26 @@
 #ifndef FMBD_H
 #define FMBD_H
 
+// infrastructure
 #include "fmbd_alloc.h"
 #include "fmbd_cli.h"
-#include "fmbd_csr.h"
 #include "fmbd_err.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
+#include "fmbd_svg.h"
+// linear algebra
+#include "fmbd_chol.h"
+#include "fmbd_csr.h"
+#include "fmbd_dense.h"
+#include "fmbd_eig.h"
+// finite elements and reduction (mesh2fe, fe2cb, cbcheck)
+#include "fmbd_cb.h"
+#include "fmbd_est.h"
+#include "fmbd_fe.h"
+#include "fmbd_mesh.h"
+#include "fmbd_modal.h"
+// multibody simulation (fmbd-run)
+#include "fmbd_mbs.h"
+#include "fmbd_scene.h"
 
 #endif
