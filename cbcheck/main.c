@@ -129,9 +129,6 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
       if (fmbd_cli_parse_double(arg, val, &a->tol)) {
         return fmbd_cli_finish(FMBD_ERR_USAGE);
       }
-      if (!(a->tol > 0)) {
-        return fmbd_cli_usage_error("--tol: the tolerance %s must be > 0", val);
-      }
       a->has_tol = true;
     } else if (!strcmp(arg, "--range") || !strcmp(arg, "--init") || !strcmp(arg, "--max-modes")) {
       NEED_VALUE();
@@ -184,6 +181,10 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
   }
   if (!a->input) {
     return fmbd_cli_usage_error("no BODY.cb.h5 given");
+  }
+  if (a->has_tol && !(a->tol > 0)) {
+    return fmbd_cli_usage_error("%s: --tol %g: the relative eigenvalue error tolerance must be > 0",
+                                a->input, a->tol);
   }
   if (a->output && a->csv && !strcmp(a->output, "-") && !strcmp(a->csv, "-")) {
     return fmbd_cli_usage_error("-o - and --csv - cannot both use standard output");
