@@ -120,6 +120,19 @@ if command -v script >/dev/null 2>&1; then
   [ -f named.fe.h5 ] || bad "named.geo with a terminal on stdout: no named.fe.h5"
 fi
 
+# every example command of the man page and of --help, as written there (run from the top of
+# the tree, output redirected into the scratch folder)
+n=0
+while IFS= read -r cmd; do
+  n=$((n + 1))
+  # shellcheck disable=SC2086
+  (cd "$ROOT" && $cmd -o "$T/example$n.fe.h5" -q) || bad "example '$cmd': exit $?"
+  [ -s "$T/example$n.fe.h5" ] || bad "example '$cmd': no output"
+done < <({ sed -n 's/\\-/-/g; s/^mesh2fe examples/mesh2fe examples/p' "$ROOT/docs/man/mesh2fe.1"
+           "$EXE" --help | sed -n 's/^  mesh2fe /mesh2fe /p'; } | sed "s|^mesh2fe |$EXE |")
+[ $n -ge 5 ] || bad "only $n examples found in the man page and --help"
+echo "ok: $n documented examples run"
+
 # ---------------------------------------------------------------- bad inputs
 expect 1 'nosuch.geo' 'cannot open' -- nosuch.geo
 mkdir -p adir.geo
