@@ -2,6 +2,7 @@
 // Euler-Bernoulli beam; quadrature rules; HRZ lumping
 // SPDX-License-Identifier: MIT
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -55,6 +56,10 @@ int fmbd_fe_tet_rule(int degree, int *npts, const double **pts, const double **w
 
 // gmsh tet10 edges (MTetrahedron::edges_tetra): mid-side node 4+l sits on edge l
 static const int tet_edge[6][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 0}, {3, 2}, {3, 1}};
+// reference coordinates of the tet10 nodes (gmsh order)
+static const double tet_node_xi[10][3] = {{0, 0, 0},   {1, 0, 0},   {0, 1, 0},  {0, 0, 1},
+                                          {.5, 0, 0},  {.5, .5, 0}, {0, .5, 0}, {0, 0, .5},
+                                          {0, .5, .5}, {.5, 0, .5}};
 
 void fmbd_fe_tet_shape(int nn, const double xi[3], double *N, double *dN) {
   const double L[4] = {1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]};
@@ -132,77 +137,186 @@ static int check_det(double det, double h3, int64_t elem, int nn, const char *wh
   return FMBD_OK;
 }
 
-int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double rho, int64_t elem,
-                         double *Ke, double *Me, double *volume) {
-  FMBD_CHECK(nn == 4 || nn == 10, FMBD_ERR_VALUE, "tetrahedron with %d nodes (4 or 10)", nn);
-  const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), mu = E / (2.0 * (1.0 + nu));
-  const double h3 = edge_scale3(xyz);
-  double N[10], dN[30], g[30], J[9], Jinv[9];
-  int np;
-  const double *pts, *w;
-  // --- det J > 0 at the nodes (a curved tet10 may fold near a corner between quadrature points)
-  if (nn == 10) {
-    static const double node_xi[10][3] = {{0, 0, 0},     {1, 0, 0},     {0, 1, 0},   {0, 0, 1},
-                                          {.5, 0, 0},    {.5, .5, 0},   {0, .5, 0},  {0, 0, .5},
-                                          {0, .5, .5},   {.5, 0, .5}};
-    for (int a = 0; a < 10; a++) {
-      fmbd_fe_tet_shape(nn, node_xi[a], N, dN);
-      double det = jacobian(nn, xyz, dN, J, NULL);
-      char where[32];
-      snprintf(where, sizeof where, "node %d", a);
-      FMBD_CALL(check_det(det, h3, elem, nn, where, node_xi[a]));
-    }
-  }
-  // --- stiffness: degree 0 (tet4, 1 point) or 2 (tet10, 4 points) integrand on straight elements
-  if (Ke) {
-    const int n3 = 3 * nn;
-    memset(Ke, 0, (size_t)n3 * n3 * sizeof(double));
-    FMBD_CALL(fmbd_fe_tet_rule(nn == 4 ? 1 : 2, &np, &pts, &w));
-    for (int q = 0; q < np; q++) {
-      fmbd_fe_tet_shape(nn, pts + 3 * q, N, dN);
-      double det = jacobian(nn, xyz, dN, J, Jinv);
-      FMBD_CALL(check_det(det, h3, elem, nn, "quadrature point", pts + 3 * q));
-      // global gradients g_a = J^-1 dN_a (J[k][j] = dx_j/dxi_k, so dN/dx_j = sum_k Jinv[j][k] dN/dxi_k)
-      for (int a = 0; a < nn; a++) {
-        for (int j = 0; j < 3; j++) {
-          g[a * 3 + j] = Jinv[j * 3 + 0] * dN[a * 3 + 0] + Jinv[j * 3 + 1] * dN[a * 3 + 1] +
-                         Jinv[j * 3 + 2] * dN[a * 3 + 2];
-        }
-      }
-      const double wd = w[q] * det;
-      // K_ab[i][j] = int lambda g_a,i g_b,j + mu g_a,j g_b,i + mu (g_a . g_b) delta_ij
-      for (int a = 0; a < nn; a++) {
-        const double *ga = g + 3 * a;
-        for (int b = 0; b < nn; b++) {
-          const double *gb = g + 3 * b;
-          const double dot = mu * (ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2]);
-          for (int i = 0; i < 3; i++) {
-            double *row = Ke + (size_t)(3 * a + i) * n3 + 3 * b;
-            for (int j = 0; j < 3; j++) {
-              row[j] += wd * (lambda * ga[i] * gb[j] + mu * ga[j] * gb[i] + (i == j ? dot : 0.0));
-            }
+// Shape functions at the quadrature points and nodes, computed once (the programs are single
+// threaded; the tables are filled on the first call)
+typedef struct tet_tables {
+  bool ready;
+  double N[2][3][14][10];   // [tet4, tet10][rule deg 1, 2, 5][point][node]
+  double dN[2][3][14][30];
+  double Nnode[10][30];     // tet10 derivatives at its nodes
+  double Mref[2][100];      // int N_a N_b over the unit tetrahedron (degree-5 rule: exact)
+} tet_tables;
+static tet_tables tt;
+
+static void tables_init(void) {
+  if (tt.ready) return;
+  const int degs[3] = {1, 2, 5};
+  for (int o = 0; o < 2; o++) {
+    int nn = o ? 10 : 4;
+    for (int r = 0; r < 3; r++) {
+      int np;
+      const double *pts, *w;
+      fmbd_fe_tet_rule(degs[r], &np, &pts, &w);
+      for (int q = 0; q < np; q++) fmbd_fe_tet_shape(nn, pts + 3 * q, tt.N[o][r][q], tt.dN[o][r][q]);
+      if (r == 2) {
+        for (int a = 0; a < nn; a++) {
+          for (int b = 0; b < nn; b++) {
+            double sum = 0.0;
+            for (int q = 0; q < np; q++) sum += w[q] * tt.N[o][r][q][a] * tt.N[o][r][q][b];
+            tt.Mref[o][a * nn + b] = sum;
           }
         }
       }
     }
   }
-  // --- mass: N_a N_b of degree 2 (tet4: 4 points) or 4 (tet10: 14-point degree-5 rule); volume
-  FMBD_CALL(fmbd_fe_tet_rule(nn == 4 ? 2 : 5, &np, &pts, &w));
-  if (Me) memset(Me, 0, (size_t)nn * nn * sizeof(double));
-  double vol = 0.0;
-  for (int q = 0; q < np; q++) {
-    fmbd_fe_tet_shape(nn, pts + 3 * q, N, dN);
-    double det = jacobian(nn, xyz, dN, J, NULL);
-    FMBD_CALL(check_det(det, h3, elem, nn, "quadrature point", pts + 3 * q));
-    vol += w[q] * det;
-    if (Me) {
-      const double wr = w[q] * det * rho;
-      for (int a = 0; a < nn; a++) {
-        for (int b = 0; b < nn; b++) Me[a * nn + b] += wr * N[a] * N[b];
+  double Nn[10];
+  for (int a = 0; a < 10; a++) fmbd_fe_tet_shape(10, tet_node_xi[a], Nn, tt.Nnode[a]);
+  tt.ready = true;
+}
+
+// K += (stiffness integrand at one point) for gradients g (nn x 3) and weight wd, b >= a only
+static void stiffness_point(int nn, const double *g, double wd, double lambda, double mu, double *Ke) {
+  const int n3 = 3 * nn;
+  for (int a = 0; a < nn; a++) {
+    const double *ga = g + 3 * a;
+    const double la[3] = {wd * lambda * ga[0], wd * lambda * ga[1], wd * lambda * ga[2]};
+    const double ma[3] = {wd * mu * ga[0], wd * mu * ga[1], wd * mu * ga[2]};
+    for (int b = a; b < nn; b++) {
+      const double *gb = g + 3 * b;
+      const double dot = ma[0] * gb[0] + ma[1] * gb[1] + ma[2] * gb[2];
+      double *blk = Ke + (size_t)(3 * a) * n3 + 3 * b;
+      for (int i = 0; i < 3; i++) {
+        double *row = blk + (size_t)i * n3;
+        row[0] += la[i] * gb[0] + ma[0] * gb[i];
+        row[1] += la[i] * gb[1] + ma[1] * gb[i];
+        row[2] += la[i] * gb[2] + ma[2] * gb[i];
+        row[i] += dot;
       }
     }
   }
-  if (volume) *volume = vol;
+}
+
+// global gradients g_a = J^-1 dN_a (J[k][j] = dx_j/dxi_k, so dN/dx_j = sum_k Jinv[j][k] dN/dxi_k)
+static void gradients(int nn, const double *Jinv, const double *dN, double *g) {
+  for (int a = 0; a < nn; a++) {
+    for (int j = 0; j < 3; j++) {
+      g[a * 3 + j] = Jinv[j * 3 + 0] * dN[a * 3 + 0] + Jinv[j * 3 + 1] * dN[a * 3 + 1] + Jinv[j * 3 + 2] * dN[a * 3 + 2];
+    }
+  }
+}
+
+int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double rho, int64_t elem,
+                         double *Ke, double *Me, double *volume) {
+  FMBD_CHECK(nn == 4 || nn == 10, FMBD_ERR_VALUE, "tetrahedron with %d nodes (4 or 10)", nn);
+  tables_init();
+  const int o = nn == 10, n3 = 3 * nn;
+  const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), mu = E / (2.0 * (1.0 + nu));
+  const double h3 = edge_scale3(xyz);
+  double g[30], J[9], Jinv[9];
+  int np;
+  const double *pts, *w;
+  // --- affine element: tet4, or a tet10 whose mid-side nodes sit at the edge midpoints (to
+  // 1e-10 of the element size, i.e. the rounding of a mesh file): one constant Jacobian
+  bool affine = true;
+  if (nn == 10) {
+    const double tol2 = 1e-20 * cbrt(h3 * h3);
+    for (int l = 0; l < 6 && affine; l++) {
+      const double *xa = xyz + 3 * tet_edge[l][0], *xb = xyz + 3 * tet_edge[l][1], *xm = xyz + 3 * (4 + l);
+      double d2 = 0.0;
+      for (int k = 0; k < 3; k++) d2 += (xm[k] - 0.5 * (xa[k] + xb[k])) * (xm[k] - 0.5 * (xa[k] + xb[k]));
+      affine = d2 <= tol2;
+    }
+  }
+  if (Ke) memset(Ke, 0, (size_t)n3 * n3 * sizeof(double));
+  if (affine) {
+    // J rows: x1 - x0, x2 - x0, x3 - x0
+    for (int k = 0; k < 3; k++) {
+      for (int j = 0; j < 3; j++) J[k * 3 + j] = xyz[3 * (k + 1) + j] - xyz[j];
+    }
+    double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
+                 J[2] * (J[3] * J[7] - J[4] * J[6]);
+    const double centroid[3] = {0.25, 0.25, 0.25};
+    FMBD_CALL(check_det(det, h3, elem, nn, "every point (straight element)", centroid));
+    Jinv[0] = (J[4] * J[8] - J[5] * J[7]) / det;
+    Jinv[1] = (J[2] * J[7] - J[1] * J[8]) / det;
+    Jinv[2] = (J[1] * J[5] - J[2] * J[4]) / det;
+    Jinv[3] = (J[5] * J[6] - J[3] * J[8]) / det;
+    Jinv[4] = (J[0] * J[8] - J[2] * J[6]) / det;
+    Jinv[5] = (J[2] * J[3] - J[0] * J[5]) / det;
+    Jinv[6] = (J[3] * J[7] - J[4] * J[6]) / det;
+    Jinv[7] = (J[1] * J[6] - J[0] * J[7]) / det;
+    Jinv[8] = (J[0] * J[4] - J[1] * J[3]) / det;
+    if (Ke) { // degree 0 (tet4, 1 point) or 2 (tet10, 4 points): exact
+      const int r = nn == 4 ? 0 : 1;
+      FMBD_CALL(fmbd_fe_tet_rule(nn == 4 ? 1 : 2, &np, &pts, &w));
+      for (int q = 0; q < np; q++) {
+        gradients(nn, Jinv, tt.dN[o][r][q], g);
+        stiffness_point(nn, g, w[q] * det, lambda, mu, Ke);
+      }
+    }
+    if (Me) { // rho det int N_a N_b (exact reference table)
+      for (int i = 0; i < nn * nn; i++) Me[i] = rho * det * tt.Mref[o][i];
+    }
+    if (volume) *volume = det / 6.0;
+  } else {
+    // --- curved tet10: isoparametric Jacobian at every point; det J > 0 also at the nodes (a
+    // curved element may fold near a corner between quadrature points)
+    for (int a = 0; a < 10; a++) {
+      double det = jacobian(nn, xyz, tt.Nnode[a], J, NULL);
+      if (!(det > DEGENERATE_REL * h3)) {
+        char where[32];
+        snprintf(where, sizeof where, "node %d", a);
+        FMBD_CALL(check_det(det, h3, elem, nn, where, tet_node_xi[a]));
+      }
+    }
+    if (Ke) { // 4-point degree-2 rule (exact on straight elements; CalculiX C3D10 uses the same)
+      FMBD_CALL(fmbd_fe_tet_rule(2, &np, &pts, &w));
+      for (int q = 0; q < np; q++) {
+        double det = jacobian(nn, xyz, tt.dN[o][1][q], J, Jinv);
+        FMBD_CALL(check_det(det, h3, elem, nn, "quadrature point", pts + 3 * q));
+        gradients(nn, Jinv, tt.dN[o][1][q], g);
+        stiffness_point(nn, g, w[q] * det, lambda, mu, Ke);
+      }
+    }
+    // mass and volume with the degree-5 rule
+    FMBD_CALL(fmbd_fe_tet_rule(5, &np, &pts, &w));
+    if (Me) memset(Me, 0, (size_t)nn * nn * sizeof(double));
+    double vol = 0.0;
+    for (int q = 0; q < np; q++) {
+      const double *N = tt.N[o][2][q];
+      double det = jacobian(nn, xyz, tt.dN[o][2][q], J, NULL);
+      FMBD_CALL(check_det(det, h3, elem, nn, "quadrature point", pts + 3 * q));
+      vol += w[q] * det;
+      if (Me) {
+        const double wr = w[q] * det * rho;
+        for (int a = 0; a < nn; a++) {
+          const double wa = wr * N[a];
+          for (int b = a; b < nn; b++) Me[a * nn + b] += wa * N[b];
+        }
+      }
+    }
+    if (Me) {
+      for (int a = 0; a < nn; a++) {
+        for (int b = 0; b < a; b++) Me[a * nn + b] = Me[b * nn + a];
+      }
+    }
+    if (volume) *volume = vol;
+  }
+  if (Ke) { // mirror the upper block triangle; diagonal blocks made exactly symmetric
+    for (int a = 0; a < nn; a++) {
+      for (int i = 0; i < 3; i++) {
+        for (int j = i + 1; j < 3; j++) {
+          double *x = Ke + (size_t)(3 * a + i) * n3 + 3 * a + j, *y = Ke + (size_t)(3 * a + j) * n3 + 3 * a + i;
+          *x = *y = 0.5 * (*x + *y);
+        }
+      }
+      for (int b = a + 1; b < nn; b++) {
+        for (int i = 0; i < 3; i++) {
+          for (int j = 0; j < 3; j++) Ke[(size_t)(3 * b + j) * n3 + 3 * a + i] = Ke[(size_t)(3 * a + i) * n3 + 3 * b + j];
+        }
+      }
+    }
+  }
   return FMBD_OK;
 }
 

@@ -11,15 +11,13 @@
 
 /// Build the map from the full dofs (fdof[p] .. fdof[p+1]-1 of node p, 3 or 6 of them) to the
 /// active dofs, from the body's interfaces and clamps: fills b->ndof, b->dofs, b->node_dof and
-/// b->expand, and returns T (nfull x ndof) with u_full = T q. *selection is true when T only
-/// selects dofs (no tie), so that K' = K(active, active).
+/// b->expand, and returns T (nfull x ndof) with u_full = T q. node_tied[p] (caller allocates
+/// nnodes) is set to 1 for nodes with a tied (RBE2 slave or RBE3 dependent) dof, else 0; the
+/// dofs of an untied node are either all active (identity rows) or all clamped (empty rows).
 /// @param[out] T caller destroys
-int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, bool *selection);
+int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, int8_t *node_tied);
 
 /// Derive b->node_dof from b->dofs (checks that /dofs is node-major and in range).
 int fmbd_fe_index_dofs(fmbd_fe_body *b);
-
-/// Make A exactly symmetric, A := (A + A')/2, assuming a symmetric pattern.
-int fmbd_fe_symmetrize(fmbd_csr *A);
 
 #endif

@@ -289,7 +289,7 @@ done:
   return rc;
 }
 
-int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, bool *selection) {
+int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, int8_t *node_tied) {
   int rc = FMBD_OK;
   const int64_t nn = b->nnodes, nfull = fdof[nn];
   tie_ctx c = {.b = b, .fdof = fdof};
@@ -314,7 +314,6 @@ int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, bool *
     }
   }
   // --- tie membership: one interface per node ---
-  bool any_tie = false;
   for (int ii = 0; ii < b->ninterfaces; ii++) {
     const fmbd_fe_interface *it = &b->interfaces[ii];
     for (int64_t i = 0; i < it->nnodes; i++) {
@@ -324,7 +323,6 @@ int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, bool *
                   "interface only",
                   (long long)p, b->interfaces[tie_of[p] < 0 ? ii : tie_of[p]].name, it->name);
       tie_of[p] = ii;
-      any_tie = true;
       if (it->kind == FMBD_FE_RBE2) {
         for (int64_t fd = fdof[p]; fd < fdof[p + 1]; fd++) {
           FMBD_GCHECK(c.status[fd] != ST_CLAMPED, FMBD_ERR_VALUE,
@@ -364,7 +362,10 @@ int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, bool *
     for (int d = 0; d < 6; d++) rowfd[6 * p + d] = fdof[p] + d < fdof[p + 1] ? fdof[p] + d : -1;
   }
   FMBD_GCALL(rows_to_csr(&c, 6 * nn, rowfd, nact, maxrow, &b->expand));
-  *selection = !any_tie;
+  for (int64_t p = 0; p < nn; p++) {
+    node_tied[p] = 0;
+    for (int64_t fd = fdof[p]; fd < fdof[p + 1]; fd++) node_tied[p] |= c.status[fd] >= ST_RBE2;
+  }
 done:
   fmbd_free(c.status);
   fmbd_free(c.owner);
@@ -400,21 +401,5 @@ int fmbd_fe_index_dofs(fmbd_fe_body *b) {
     prev_dir = d;
   }
   while (k <= b->nnodes) b->node_dof[k++] = b->ndof;
-  return FMBD_OK;
-}
-
-int fmbd_fe_symmetrize(fmbd_csr *A) {
-  for (int64_t i = 0; i < A->nrows; i++) {
-    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
-      int64_t j = A->indices[p];
-      if (j <= i) continue;
-      int64_t q = fmbd_csr_find(A, j, i);
-      FMBD_CHECK(q >= 0, FMBD_ERR_INTERNAL, "pattern not symmetric at (%lld, %lld)", (long long)i,
-                 (long long)j);
-      double v = 0.5 * (A->data[p] + A->data[q]);
-      A->data[p] = v;
-      A->data[q] = v;
-    }
-  }
   return FMBD_OK;
 }
