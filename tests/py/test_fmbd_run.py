@@ -5,6 +5,7 @@
 # --plot, and every complete scene of docs/SCENE.md.
 import os
 import re
+import shutil
 import subprocess
 import sys
 
@@ -15,7 +16,8 @@ from scipy.special import ellipk
 ROOT = os.environ.get("ROOT", os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 BUILD = os.environ.get("BUILD", "build")
 TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_fmbd_run")
-os.makedirs(TMP, exist_ok=True)
+shutil.rmtree(TMP, ignore_errors=True)  # fresh: make must not trust files of an older build
+os.makedirs(TMP)
 EXE = os.path.join(ROOT, BUILD, "bin", "fmbd-run")
 failures = []
 
