@@ -13,7 +13,8 @@
 // A file name "-" reads the whole file from standard input (an HDF5 file image) or writes it
 // to standard output when committed. Writing goes to "<target>.part", renamed to the target
 // by fmbd_h5_commit only when complete.
-// Every failure names the file and the HDF5 path in the error record (fmbd_err_context).
+// Every failure names the file and the HDF5 path in the error record (fmbd_err_context);
+// standard input / output are named "<stdin>" / "<stdout>" there.
 // HDF5's own error printing is off unless fmbd_h5_debug(true).
 #ifndef FMBD_H5_H
 #define FMBD_H5_H
@@ -60,7 +61,8 @@ int fmbd_h5_flush(fmbd_h5 *f);
 /// @brief Write wall_time_s / cpu_time_s, close, and rename "<name>.part" to name (or write
 /// the image to standard output). *f is NULL afterwards, also on failure (then no target).
 int fmbd_h5_commit(fmbd_h5 **f, double wall_s, double cpu_s);
-/// @brief Close a write handle but keep "<name>.part" (an interrupted run's valid prefix).
+/// @brief Close a write handle but keep "<name>.part" (an interrupted run's valid prefix; what
+/// was flushed is readable). For "-" nothing is written to standard output.
 void fmbd_h5_abandon(fmbd_h5 **f);
 
 // --- datasets ---------------------------------------------------------------------------
@@ -91,6 +93,7 @@ int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *co
 /// @brief Copy the group or dataset at `path` of src (any handle) to the same path in dst (a
 /// write handle), with everything below it (H5Ocopy); an existing object there is replaced,
 /// missing parent groups are created. Missing in src: FMBD_ERR_FORMAT "missing object".
+/// path must not be "/" (copy the root's members one by one, e.g. via fmbd_h5_list).
 int fmbd_h5_copy(fmbd_h5 *src, const char *path, fmbd_h5 *dst);
 /// @brief Remove the object at path (write handles); a missing path is fine.
 int fmbd_h5_delete(fmbd_h5 *f, const char *path);
