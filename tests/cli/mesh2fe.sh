@@ -133,6 +133,17 @@ done < <({ sed -n 's/\\-/-/g; s/^mesh2fe examples/mesh2fe examples/p' "$ROOT/doc
 [ $n -ge 5 ] || bad "only $n examples found in the man page and --help"
 echo "ok: $n documented examples run"
 
+# the h5dump -H sample of docs/FORMAT.md: same command, same shapes
+(cd "$ROOT" && "$EXE" examples/geometry/rodbeam.geo --circle 0.015 --size 0.1 --interface end1 \
+  --clamp end0 -o "$T/rodbeam.fe.h5" -q) || bad "FORMAT.md sample command: exit $?"
+h5ls -r rodbeam.fe.h5 >ls.txt 2>&1
+for want in '^/dofs +Dataset \{18, 2\}' '^/K/data +Dataset \{252\}' '^/mesh/nodes +Dataset \{5, 3\}' \
+  '^/mesh/elements/beam2 +Dataset \{3, 2\}' '^/mesh/beam2_orientation +Dataset \{3, 3\}' \
+  '^/clamped/end0 +Dataset \{1\}' '^/interfaces/end1/nodes +Dataset \{1\}' '^/expand/data +Dataset \{24\}'; do
+  grep -Eq "$want" ls.txt || bad "FORMAT.md sample: no '$want' in h5ls -r"
+done
+echo "ok: docs/FORMAT.md h5dump sample reproduced"
+
 # ---------------------------------------------------------------- bad inputs
 expect 1 'nosuch.geo' 'cannot open' -- nosuch.geo
 mkdir -p adir.geo
