@@ -34,24 +34,40 @@ int fmbd_err_set(int code, const char *src, int line, const char *func, const ch
   g_err.src = src;
   g_err.line = line;
   g_err.func = func;
+  // format into a copy first: the arguments may point into the record itself (a caller
+  // wrapping the previous message), and vsnprintf onto its own source is undefined
+  char msg[sizeof g_err.msg];
   va_list ap;
   va_start(ap, fmt);
-  vsnprintf(g_err.msg, sizeof g_err.msg, fmt, ap);
+  vsnprintf(msg, sizeof msg, fmt, ap);
   va_end(ap);
+  memcpy(g_err.msg, msg, sizeof msg);
   return code;
 }
 
 void fmbd_err_context(const char *file, const char *where) {
-  if (file) snprintf(g_err.file, sizeof g_err.file, "%s", file);
-  if (where) snprintf(g_err.where, sizeof g_err.where, "%s", where);
+  char buf[sizeof g_err.file];  // same size as where; the source may be the record itself
+  if (file) {
+    snprintf(buf, sizeof buf, "%s", file);
+    memcpy(g_err.file, buf, sizeof buf);
+  }
+  if (where) {
+    snprintf(buf, sizeof buf, "%s", where);
+    memcpy(g_err.where, buf, sizeof buf);
+  }
 }
 
 void fmbd_err_contextf(const char *file, const char *fmt, ...) {
-  if (file) snprintf(g_err.file, sizeof g_err.file, "%s", file);
+  char buf[sizeof g_err.where];
+  if (file) {
+    snprintf(buf, sizeof buf, "%s", file);
+    memcpy(g_err.file, buf, sizeof buf);
+  }
   va_list ap;
   va_start(ap, fmt);
-  vsnprintf(g_err.where, sizeof g_err.where, fmt, ap);
+  vsnprintf(buf, sizeof buf, fmt, ap);
   va_end(ap);
+  memcpy(g_err.where, buf, sizeof buf);
 }
 
 void fmbd_err_clear(void) { memset(&g_err, 0, sizeof g_err); }

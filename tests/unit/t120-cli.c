@@ -213,6 +213,15 @@ static void test_reports(void) {
   const char *h = fmbd_cli_exit_help();
   EXPECT(strstr(h, "Exit status") && strstr(h, "  0 ") && strstr(h, "  1 ") && strstr(h, "  2 "),
          "exit help: %s", h);
+  // wrapping the previous message and context in a new one (arguments inside the record)
+  fmbd_err_clear();
+  fmbd_err_context("a.h5", "/x");
+  fmbd_err_set(FMBD_ERR_VALUE, "s.c", 1, "f", "inner");
+  fmbd_err_set(FMBD_ERR_VALUE, "s.c", 2, "f", "outer: %s", fmbd_err_get()->msg);
+  fmbd_err_contextf(fmbd_err_get()->file, "%s/y", fmbd_err_get()->where);
+  EXPECT(!strcmp(fmbd_err_get()->msg, "outer: inner") && !strcmp(fmbd_err_get()->where, "/x/y") &&
+             !strcmp(fmbd_err_get()->file, "a.h5"),
+         "wrapped: '%s' at '%s:%s'", fmbd_err_get()->msg, fmbd_err_get()->file, fmbd_err_get()->where);
   EXPECT(fmbd_err_exit_status(FMBD_ERR_USAGE) == 2 && fmbd_err_exit_status(FMBD_ERR_IO) == 1 &&
              fmbd_err_exit_status(FMBD_OK) == 0,
          "exit statuses");
