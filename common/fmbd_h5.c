@@ -306,7 +306,7 @@ int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major) {
 done:
   fmbd_free(fmt);
   fmbd_free(ver);
-  if (rc) ctx(f, "/");
+  if (rc) ctx(f, "");  // "rod.cb.h5: is a fmbd-cb file, expected fmbd-fe"
   return rc;
 }
 
