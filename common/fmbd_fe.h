@@ -147,9 +147,12 @@ typedef struct fmbd_fe_body {
 /// determinant > 0 at every quadrature point: FMBD_ERR_VALUE naming the element or group).
 /// Element matrices: tet4 exact; tet10 stiffness with the 4-point degree-2 rule (exact on
 /// straight-sided elements), mass with a 14-point degree-5 rule (exact for the degree-4
-/// integrand N_a N_b on straight elements); beams in closed form (Przemieniecki).
-/// Global matrices are assembled into CSR, then the ties and clamps applied as K' = T' K T,
-/// M' = T' M T with a sparse T (full dofs -> active dofs): RBE2 eliminates the tied nodes'
+/// integrand N_a N_b on straight elements); a tet10 whose mid-side nodes are at the edge
+/// midpoints (to 1e-10 of its size) is treated as affine (one Jacobian); beams in closed form
+/// (Przemieniecki).
+/// The ties and clamps are a sparse T (full dofs -> active dofs, u_full = T q), applied element
+/// by element while assembling straight into the CSR of the active dofs: K' = T' K T and
+/// M' = T' M T exactly, without forming K. RBE2 eliminates the tied nodes'
 /// dofs exactly, u_s = u_m + theta_m x (x_s - x_m) (theta_s = theta_m for 6-dof nodes);
 /// RBE3 keeps the interface node's 6 dofs and eliminates 6 translations of the group instead
 /// (the MSC Nastran RBE3 "UM" form): see fmbd_fe_tie.c for the equations. Overlapping ties

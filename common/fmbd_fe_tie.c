@@ -34,6 +34,7 @@
 #include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_fe_impl.h"
+#include "fmbd_log.h"
 
 enum { ST_ACTIVE = 0, ST_CLAMPED = 1, ST_RBE2 = 2, ST_RBE3 = 3 };
 
@@ -151,6 +152,12 @@ static int rbe3_setup(tie_ctx *c, int ii) {
                 "rotation; group %s has %lld node%s%s",
                 it->name, it->name, (long long)n, n == 1 ? "" : "s",
                 n >= 2 ? ", all on one line" : "");
+  }
+  if (n > 1000) {
+    fmbd_log(FMBD_LOG_WARN,
+             "interface %s: the RBE3 tie over %lld nodes couples all of them: K and M gain a dense "
+             "block of %lld x %lld entries (an RBE2 tie, or a coarser group, keeps them sparse)",
+             it->name, (long long)n, (long long)(3 * n + 6), (long long)(3 * n + 6));
   }
   // --- H = sum A_i' A_i, C = H^-1 [A_1' .. A_n'] (column-major 6 x 3n) ---
   double H[36] = {0};

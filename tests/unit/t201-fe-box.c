@@ -234,5 +234,51 @@ int main(void) {
     }
     fmbd_mesh_destroy(&mesh);
   }
+  // --- mixed solid + beam: a beam of 4 elements sticking out of a box corner, sharing the corner
+  // node (6 dofs there: the tets' 3 translations plus the beam's rotations). The shared node
+  // passes no moment into the solid, so the beam can also swing rigidly about it: 6 rigid-body
+  // modes + 3 mechanism modes
+  {
+    fmbd_mesh mesh;
+    box_mesh(&mesh, a, bb, c, 2, 1, 2, 2);
+    int64_t corner = -1, n0 = mesh.nnodes;
+    for (int64_t p = 0; p < mesh.nnodes; p++) {
+      const double *x = mesh.xyz + 3 * p;
+      if (fabs(x[0] - a) + fabs(x[1] - bb) + fabs(x[2] - c) < 1e-12) corner = p;
+    }
+    mesh.xyz = fmbd_realloc(mesh.xyz, 3 * (n0 + 4) * sizeof(double));
+    for (int i = 0; i < 4; i++) {
+      mesh.xyz[3 * (n0 + i)] = a + 0.1 * (i + 1);
+      mesh.xyz[3 * (n0 + i) + 1] = bb;
+      mesh.xyz[3 * (n0 + i) + 2] = c;
+    }
+    mesh.nnodes = n0 + 4;
+    mesh.nbeam = 4;
+    mesh.beam = fmbd_malloc(8 * sizeof(int64_t));
+    for (int i = 0; i < 4; i++) {
+      mesh.beam[2 * i] = i == 0 ? corner : n0 + i - 1;
+      mesh.beam[2 * i + 1] = n0 + i;
+    }
+    o.mass = FMBD_FE_MASS_CONSISTENT;
+    o.area = 1e-3;
+    o.Iy = 1e-7;
+    o.Iz = 2e-7;
+    o.J = 3e-7;
+    fmbd_fe_body *b = NULL;
+    int rc = fmbd_fe_assemble(&mesh, &o, &b);
+    EXPECT(rc == FMBD_OK && corner >= 0, "mixed: assemble: %s", fmbd_err_get()->msg);
+    if (!rc) {
+      EXPECT(b->ndof == 3 * n0 + 3 + 6 * 4, "mixed: %lld dofs", (long long)b->ndof);
+      EXPECT(fmbd_fe_dof(b, corner, 5) >= 0, "mixed: the shared node has rotations");
+      double mexp = RHO * (a * bb * c + 0.4 * 1e-3);
+      EXPECT(fabs(b->mass - mexp) < 1e-13 * mexp, "mixed: mass %.17g vs %.17g", b->mass, mexp);
+      int64_t bad = -1;
+      EXPECT(fmbd_csr_is_symmetric(b->K, 1e-14, &bad), "mixed: K symmetric (row %lld)", (long long)bad);
+      int nr = count_rigid(b, NULL);
+      EXPECT(nr == 9, "mixed: %d zero-energy modes, expected 6 rigid + 3 pin rotations", nr);
+      fmbd_fe_body_destroy(&b);
+    }
+    fmbd_mesh_destroy(&mesh);
+  }
   TEST_EXIT();
 }
