@@ -41,7 +41,7 @@ def make_bodies(scene, target):
     """Make the scene's body files in TMP with the rules fmbd-run -M prints."""
     p = run(["-M", scene, "--body-dir", TMP, "-o", os.path.join(TMP, "x.run.h5")])
     check(p.returncode == 0, f"-M {os.path.basename(scene)}")
-    mk = os.path.join(TMP, os.path.basename(scene) + ".d")
+    mk = os.path.join(TMP, os.path.basename(scene) + ".rules.mk")
     with open(mk, "w") as f:
         f.write(".DELETE_ON_ERROR:\n" + p.stdout)
     d = subprocess.run(["make", "-s", "-f", mk, target], capture_output=True, text=True, cwd=ROOT, env=env)
