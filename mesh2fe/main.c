@@ -462,16 +462,16 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_cli_output_name(a.input, a.output, strip, ".fe.h5", &outname));
 
   // --- mesh ---
-  double t0 = fmbd_wall_s();
+  double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s();
   FMBD_GCALL(fmbd_mesh_read(a.input, &a.mesh, &mesh));
   for (int i = 0; i < a.nbox; i++) {
     fmbd_err_contextf(a.input, "--group %s", a.boxes[i].name);
     FMBD_GCALL(fmbd_mesh_add_box_group(&mesh, a.boxes[i].name, a.boxes[i].lo, a.boxes[i].hi));
   }
-  double t_mesh = fmbd_wall_s() - t0;
-  fmbd_log(FMBD_LOG_INFO, "%s: %lld nodes, %lld %s, %lld beam2, %d groups, meshing %.3f s",
+  fmbd_log(FMBD_LOG_INFO, "%s: %lld nodes, %lld %s, %lld beam2, %d groups, meshing %.3f s wall, %.3f s cpu",
            a.input, (long long)mesh.nnodes, (long long)mesh.ntet,
-           mesh.tet_nodes == 4 ? "tet4" : "tet10", (long long)mesh.nbeam, mesh.ngroups, t_mesh);
+           mesh.tet_nodes == 4 ? "tet4" : mesh.tet_nodes == 10 ? "tet10" : "tet", (long long)mesh.nbeam, mesh.ngroups,
+           fmbd_wall_s() - t0, fmbd_cpu_s() - c0);
   FMBD_GCALL(check_groups(&a, &mesh));
   if (mesh.nbeam > 0 && !(a.fe.area > 0)) {
     fmbd_err_context(a.input, "");
@@ -483,6 +483,7 @@ int main(int argc, char **argv) {
 
   // --- assemble ---
   t0 = fmbd_wall_s();
+  c0 = fmbd_cpu_s();
   fmbd_progress("assembling %lld nodes", (long long)mesh.nnodes);
   fmbd_err_context(a.input, "");
   rc = fmbd_fe_assemble(&mesh, &a.fe, &body);
@@ -490,17 +491,18 @@ int main(int argc, char **argv) {
   if (rc) {
     goto done;
   }
-  double t_asm = fmbd_wall_s() - t0;
-  fmbd_log(FMBD_LOG_INFO, "assembly %.3f s: %lld dofs, nnz(K) %lld, nnz(M) %lld", t_asm,
-           (long long)body->ndof, (long long)fmbd_csr_nnz(body->K), (long long)fmbd_csr_nnz(body->M));
+  fmbd_log(FMBD_LOG_INFO, "assembly %.3f s wall, %.3f s cpu: %lld dofs, nnz(K) %lld, nnz(M) %lld",
+           fmbd_wall_s() - t0, fmbd_cpu_s() - c0, (long long)body->ndof, (long long)fmbd_csr_nnz(body->K), (long long)fmbd_csr_nnz(body->M));
 
   // --- write ---
   t0 = fmbd_wall_s();
+  c0 = fmbd_cpu_s();
   FMBD_GCALL(fmbd_h5_create(outname, "fmbd-fe", "1.0", &out));
   FMBD_GCALL(fmbd_h5_add_input(out, a.input, NULL));
   FMBD_GCALL(fmbd_fe_write(out, body));
   FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
-  fmbd_log(FMBD_LOG_INFO, "writing %.3f s", fmbd_wall_s() - t0);
+  fmbd_log(FMBD_LOG_INFO, "writing %.3f s wall, %.3f s cpu", fmbd_wall_s() - t0,
+           fmbd_cpu_s() - c0);
   {
     char elems[96] = "";
     if (body->ntet > 0) {
