@@ -364,8 +364,23 @@ done:
   return rc;
 }
 
+static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd_csr **Mt,
+                       const int64_t *dofs, int64_t nb, const int64_t *boundary,
+                       const fmbd_cb_opts *oin, fmbd_cb **out);
+
 int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, int64_t nb,
-                   const int64_t *boundary, const fmbd_cb_opts *oin, fmbd_cb **out) {
+                   const int64_t *boundary, const fmbd_cb_opts *o, fmbd_cb **out) {
+  return reduce_impl(K, M, NULL, NULL, dofs, nb, boundary, o, out);
+}
+
+int fmbd_cb_reduce_take(fmbd_csr **K, fmbd_csr **M, const int64_t *dofs, int64_t nb,
+                        const int64_t *boundary, const fmbd_cb_opts *o, fmbd_cb **out) {
+  return reduce_impl(*K, *M, K, M, dofs, nb, boundary, o, out);
+}
+
+static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd_csr **Mt,
+                       const int64_t *dofs, int64_t nb, const int64_t *boundary,
+                       const fmbd_cb_opts *oin, fmbd_cb **out) {
   int rc = FMBD_OK;
   fmbd_cb_opts o;
   if (oin) {
@@ -428,6 +443,12 @@ int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, in
   FMBD_GCALL(sub(M, ns, cb->interior, nb, cb->boundary, &Mc));
   FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
   FMBD_GCALL(sub(M, nb, cb->boundary, nb, cb->boundary, &Mb));
+  if (Kt && Mt) {
+    // the caller's full matrices are not needed any more: free them (peak memory)
+    fmbd_csr_destroy(Kt);
+    fmbd_csr_destroy(Mt);
+    K = M = NULL;
+  }
   cb->time.partition = fmbd_wall_s() - t0;
   if (o.fmax_hz <= 0.0) {
     FMBD_GCHECK(o.nmodes <= ns, FMBD_ERR_VALUE,
@@ -448,14 +469,121 @@ int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, in
     cb->time.nnz_l = st.nnz_l;
   }
 
-  // --- fixed-interface modes ---
+  double t1 = fmbd_wall_s();
+  if (o.nm) {
+    // held normal modes: the boundary dofs are held, not reduced coordinates
+    cb->held = cb->boundary;
+    cb->nheld = nb;
+    cb->nb = nb = 0;
+    cb->boundary = NULL;
+    FMBD_GALLOC(cb->boundary = fmbd_malloc(sizeof(int64_t)));
+    cb->nr = 0;
+  } else {
+    // --- constraint modes Psi = -Ks^-1 Kc: one multi-rhs solve ---
+    int64_t s0 = 0;
+    {
+      fmbd_chol_stats st;
+      fmbd_chol_get_stats(F, &st);
+      s0 = st.n_solves;
+    }
+    FMBD_GALLOC(cb->Psi = alloc_f64(ns * nb));
+    memset(cb->Psi, 0, (size_t)(ns * nb) * sizeof(double));
+    for (int64_t i = 0; i < ns; i++) {
+      for (int64_t p = Kc->indptr[i]; p < Kc->indptr[i + 1]; p++) {
+        cb->Psi[i + Kc->indices[p] * ns] = -Kc->data[p];
+      }
+    }
+    if (nb > 0) {
+      if (fmbd_progress_enabled()) fmbd_progress("constraint modes: %lld solves", (long long)nb);
+      FMBD_GCALL(fmbd_chol_solve(F, nb, cb->Psi, ns));
+    }
+    cb->time.constraint = fmbd_wall_s() - t1;
+
+    // --- projections: A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, Phi' A, boundary blocks ---
+    t1 = fmbd_wall_s();
+    FMBD_GALLOC(cb->A = alloc_f64(ns * nb));
+    FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
+    FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
+    if (nb > 0) {
+      fmbd_csr_matmat(Ms, nb, cb->Psi, ns, cb->A, ns);
+      for (int64_t i = 0; i < ns; i++) {
+        for (int64_t p = Mc->indptr[i]; p < Mc->indptr[i + 1]; p++) {
+          cb->A[i + Mc->indices[p] * ns] += Mc->data[p];
+        }
+      }
+      memcpy(cb->KsinvA, cb->A, (size_t)(ns * nb) * sizeof(double));
+      if (fmbd_progress_enabled()) fmbd_progress("projections: %lld solves", (long long)(2 * nb));
+      FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvA, ns));
+      fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
+      FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
+    }
+    // boundary blocks Kb + Kc' Psi and Psi' A + Mc' Psi + Mb, symmetrised (exactly symmetric in
+    // exact arithmetic: Kc' Psi = -Kc' Ks^-1 Kc)
+    int64_t nr0 = nb;
+    FMBD_GALLOC(cb->Kr = alloc_f64(nr0 * nr0));
+    FMBD_GALLOC(cb->Mr = alloc_f64(nr0 * nr0));
+    FMBD_GALLOC(tmp = alloc_f64(nb * nb));
+    memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
+    memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
+    for (int64_t i = 0; i < nb; i++) {
+      for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++) cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
+      for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++) cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
+    }
+    csr_tmult(Kc, nb, cb->Psi, ns, cb->Kr, nb);
+    csr_tmult(Mc, nb, cb->Psi, ns, cb->Mr, nb);
+    if (nb > 0) fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, cb->Psi, ns, cb->A, ns, 1.0, cb->Mr, nb);
+    for (int64_t j = 0; j < nb; j++) {
+      for (int64_t i = 0; i < j; i++) {
+        double k = 0.5 * (cb->Kr[i + j * nb] + cb->Kr[j + i * nb]);
+        double m = 0.5 * (cb->Mr[i + j * nb] + cb->Mr[j + i * nb]);
+        cb->Kr[i + j * nb] = cb->Kr[j + i * nb] = k;
+        cb->Mr[i + j * nb] = cb->Mr[j + i * nb] = m;
+      }
+    }
+    cb->nr = nb;  // the boundary block alone; fmbd_cb_update_reduced adds the modal part
+    {
+      fmbd_chol_stats st;
+      fmbd_chol_get_stats(F, &st);
+      cb->time.solves += st.n_solves - s0;
+    }
+    cb->time.projection = fmbd_wall_s() - t1;
+  }  // !o.nm
+
+  // --- fixed-interface modes (Lanczos with the same factor; the Sturm check after the factor
+  // is freed, since its LDL' factor is as large) ---
+  fmbd_csr_destroy(&Kc);
+  fmbd_csr_destroy(&Mc);
+  fmbd_csr_destroy(&Kb);
+  fmbd_csr_destroy(&Mb);
   if (o.fmax_hz > 0.0 || o.nmodes > 0) {
     double lmax = o.fmax_hz > 0.0 ? pow(2.0 * M_PI * o.fmax_hz, 2) : 0.0;
-    FMBD_GCALL(modes(Ks, Ms, F, &o, o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes,
-                     lmax, false, &er));
+    int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
+    fmbd_cb_opts o2 = o;
+    o2.eig.sturm = false;
+    FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
+    }
+    if (o.eig.sturm && !er.dense) {
+      fmbd_chol_stats st;
+      fmbd_chol_get_stats(F, &st);
+      cb->time.solves += st.n_solves - er.n_solves;  // the constraint and projection solves
+      fmbd_chol_destroy(&F);
+      bool ok = false;
+      FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, &er, &ok));
+      if (!ok) {
+        // a skipped mode, or no gap to place the shift: again with the full checked solver
+        fmbd_log(FMBD_LOG_INFO, "Sturm count %lld below %.6g Hz, Lanczos found %lld: solving again "
+                 "with the in-loop checks", (long long)er.sturm_count,
+                 isnan(er.sturm_shift) ? NAN : hz(er.sturm_shift), (long long)er.nev);
+        take_eig_time(cb, &er);
+        fmbd_eig_result_free(&er);
+        FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
+        FMBD_GCALL(fmbd_chol_factor(F, 0.0));
+        FMBD_GCALL(modes(Ks, Ms, F, &o, nev + 5, lmax, false, &er));
+        if (o.fmax_hz <= 0.0) er.nev = o.nmodes < er.nev ? o.nmodes : er.nev;
+      }
     }
     take_eig_time(cb, &er);
     cb->nd = er.nev;
@@ -468,90 +596,10 @@ int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, in
     FMBD_GALLOC(cb->Phi = alloc_f64(0));
   }
   int64_t nd = cb->nd;
-
-  if (o.nm) {
-    // held normal modes: the boundary dofs are held, not reduced coordinates
-    cb->held = cb->boundary;
-    cb->nheld = nb;
-    cb->nb = 0;
-    FMBD_GALLOC(cb->boundary = fmbd_malloc(sizeof(int64_t)));
-    FMBD_GCALL(fmbd_cb_update_reduced(cb, o.rigid_rtol));
-    *out = cb;
-    cb = NULL;
-    goto done;
-  }
-
-  // --- constraint modes Psi = -Ks^-1 Kc: one multi-rhs solve ---
-  double t1 = fmbd_wall_s();
-  int64_t s0 = 0;
-  {
-    fmbd_chol_stats st;
-    fmbd_chol_get_stats(F, &st);
-    s0 = st.n_solves;
-  }
-  FMBD_GALLOC(cb->Psi = alloc_f64(ns * nb));
-  memset(cb->Psi, 0, (size_t)(ns * nb) * sizeof(double));
-  for (int64_t i = 0; i < ns; i++) {
-    for (int64_t p = Kc->indptr[i]; p < Kc->indptr[i + 1]; p++) {
-      cb->Psi[i + Kc->indices[p] * ns] = -Kc->data[p];
-    }
-  }
-  if (nb > 0) {
-    if (fmbd_progress_enabled()) fmbd_progress("constraint modes: %lld solves", (long long)nb);
-    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->Psi, ns));
-  }
-  cb->time.constraint = fmbd_wall_s() - t1;
-
-  // --- projections: A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, Phi' A, boundary blocks ---
-  t1 = fmbd_wall_s();
-  FMBD_GALLOC(cb->A = alloc_f64(ns * nb));
-  FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
-  FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
   FMBD_GALLOC(cb->PhitA = alloc_f64(nd * nb));
-  if (nb > 0) {
-    fmbd_csr_matmat(Ms, nb, cb->Psi, ns, cb->A, ns);
-    for (int64_t i = 0; i < ns; i++) {
-      for (int64_t p = Mc->indptr[i]; p < Mc->indptr[i + 1]; p++) {
-        cb->A[i + Mc->indices[p] * ns] += Mc->data[p];
-      }
-    }
-    memcpy(cb->KsinvA, cb->A, (size_t)(ns * nb) * sizeof(double));
-    if (fmbd_progress_enabled()) fmbd_progress("projections: %lld solves", (long long)(2 * nb));
-    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvA, ns));
-    fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
-    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
-    fmbd_dense_gemm('T', 'N', nd, nb, ns, 1.0, cb->Phi, ns, cb->A, ns, 0.0, cb->PhitA, nd > 0 ? nd : 1);
+  if (nb > 0 && nd > 0) {
+    fmbd_dense_gemm('T', 'N', nd, nb, ns, 1.0, cb->Phi, ns, cb->A, ns, 0.0, cb->PhitA, nd);
   }
-  // boundary blocks Kb + Kc' Psi and Psi' A + Mc' Psi + Mb, symmetrised (exactly symmetric in
-  // exact arithmetic: Kc' Psi = -Kc' Ks^-1 Kc)
-  int64_t nr0 = nb;
-  FMBD_GALLOC(cb->Kr = alloc_f64(nr0 * nr0));
-  FMBD_GALLOC(cb->Mr = alloc_f64(nr0 * nr0));
-  FMBD_GALLOC(tmp = alloc_f64(nb * nb));
-  memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
-  memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
-  for (int64_t i = 0; i < nb; i++) {
-    for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++) cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
-    for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++) cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
-  }
-  csr_tmult(Kc, nb, cb->Psi, ns, cb->Kr, nb);
-  csr_tmult(Mc, nb, cb->Psi, ns, cb->Mr, nb);
-  if (nb > 0) fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, cb->Psi, ns, cb->A, ns, 1.0, cb->Mr, nb);
-  for (int64_t j = 0; j < nb; j++) {
-    for (int64_t i = 0; i < j; i++) {
-      double k = 0.5 * (cb->Kr[i + j * nb] + cb->Kr[j + i * nb]);
-      double m = 0.5 * (cb->Mr[i + j * nb] + cb->Mr[j + i * nb]);
-      cb->Kr[i + j * nb] = cb->Kr[j + i * nb] = k;
-      cb->Mr[i + j * nb] = cb->Mr[j + i * nb] = m;
-    }
-  }
-  cb->nr = nb;  // the boundary block alone; fmbd_cb_update_reduced adds the modal part
-  {
-    fmbd_chol_stats st;
-    fmbd_chol_get_stats(F, &st);
-    cb->time.solves += st.n_solves - s0;
-  }
-  cb->time.projection = fmbd_wall_s() - t1;
 
   // --- reduced eigensolution ---
   t1 = fmbd_wall_s();

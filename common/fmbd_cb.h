@@ -120,6 +120,14 @@ int fmbd_cb_check_body(const fmbd_fe_body *b, double sym_rtol);
 int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, int64_t nb,
                    const int64_t *boundary, const fmbd_cb_opts *o, fmbd_cb **out);
 
+/// @brief fmbd_cb_reduce that takes the FE matrices (FMBD_TAKE): *K and *M are destroyed (set
+/// NULL) as soon as the interior/boundary blocks are extracted, which lowers the peak memory
+/// by their size (method cb and nm --hold; nm free-free keeps them, the caller frees them). The
+/// caller destroys whatever is left in *K, *M (NULL after the extraction, always on success
+/// of cb / nm --hold).
+int fmbd_cb_reduce_take(fmbd_csr **K, fmbd_csr **M, const int64_t *dofs, int64_t nb,
+                        const int64_t *boundary, const fmbd_cb_opts *o, fmbd_cb **out);
+
 /// @brief Recompute PhitA, the reduced matrices and the reduced eigensolution from kappa, Phi
 /// and the stored boundary blocks (after the modes changed). Needs no FE matrix.
 int fmbd_cb_update_reduced(fmbd_cb *cb, double rigid_rtol);

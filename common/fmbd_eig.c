@@ -540,3 +540,26 @@ done:
   fmbd_free(work);
   return rc;
 }
+
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_eig_result *res, bool *ok) {
+  int rc = FMBD_OK;
+  fmbd_chol *ldl = NULL;
+  *ok = false;
+  if (res->nev < 1 || !isfinite(res->next_lambda)) return FMBD_OK;
+  double lo = res->lambda[res->nev - 1], hi = res->next_lambda;
+  double ref = fmax(fmax(fabs(hi), fabs(lo)), fabs(res->sigma));
+  if (!(hi - lo > 1e-6 * ref)) return FMBD_OK;  // inside a cluster: inconclusive
+  double s = 0.5 * (lo + hi);
+  double t0 = fmbd_wall_s();
+  FMBD_GCALL(fmbd_chol_analyze(K, M, FMBD_CHOL_LDLT, &ldl));
+  FMBD_GCALL(fmbd_chol_factor(ldl, s));
+  res->sturm_shift = s;
+  res->sturm_count = fmbd_chol_negative_pivots(ldl);
+  res->t_sturm_s += fmbd_wall_s() - t0;
+  *ok = res->sturm_count == res->nev;
+  fmbd_log(FMBD_LOG_DEBUG, "eig: Sturm count below %.9g: %lld, returned %lld", s,
+           (long long)res->sturm_count, (long long)res->nev);
+done:
+  fmbd_chol_destroy(&ldl);
+  return rc;
+}

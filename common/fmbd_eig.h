@@ -96,6 +96,15 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
 /// @brief Release the arrays and zero the struct. NULL is fine.
 void fmbd_eig_result_free(fmbd_eig_result *res);
 
+/// @brief The Sturm check of a result computed with o->sturm = false, done afterwards (so that
+/// the caller can free its Cholesky factor first: the LDL' factor is as large). The shift goes
+/// midway between the last returned eigenvalue and res->next_lambda; it needs a relative gap
+/// of 1e-6 between them.
+/// @param[in,out] res  sturm_shift, sturm_count and t_sturm_s are set
+/// @param[out] ok  true: the count equals res->nev; false: a mode was skipped, or no gap above
+///                 the last pair to place the shift (then solve again with o->sturm = true)
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_eig_result *res, bool *ok);
+
 /// @brief Relative residual ||K x - lambda M x|| / max(||K x||, |scale| ||M x||) of one pair.
 /// @param[in] work  2n doubles of scratch
 double fmbd_eig_residual(const fmbd_csr *K, const fmbd_csr *M, double lambda, const double *x,

@@ -203,7 +203,8 @@ int main(int argc, char **argv) {
 
   // --- reduce ---
   fmbd_err_context(a.input, "");
-  FMBD_GCALL(fmbd_cb_reduce(body->K, body->M, body->dofs, nb, boundary, &a.cb, &cb));
+  // the body's K and M are handed over: freed once the blocks are extracted (peak memory)
+  FMBD_GCALL(fmbd_cb_reduce_take(&body->K, &body->M, body->dofs, nb, boundary, &a.cb, &cb));
   fmbd_progress(NULL);
   cb->fe_file = fmbd_strdup(strcmp(a.input, "-") ? a.input : "(stdin)");
   snprintf(cb->fe_sha256, sizeof cb->fe_sha256, "%s", fmbd_h5_sha256(in));
