@@ -1,0 +1,133 @@
+#!/bin/bash
+# bench/fmbd-run.sh: cost of fmbd-run (make bench)
+#  1. the quadruple pendulum of Han et al. (2020) over its 7 s with 10, 30 and 100 modes of the
+#     flexible rod (the flexible modes of its CB-reduced eigenproblem, .cb.h5 with `modes: N`),
+#     variable steps (the example's settings) and fixed 1e-3 s steps: steps, Newton
+#     iterations, steps per second and the real-time factor (simulated time / CPU time of the
+#     integration, one core); beside it the rigid-only quadruple pendulum;
+#  2. the peer side by side: the rigid quadruple pendulum in minimal coordinates (the planar
+#     chain's four angles, Lagrange's equations) integrated by scipy's solve_ivp (DOP853,
+#     rtol 1e-10), its CPU time, and the RMS difference of link 3's tip over the first 2 s
+#     (before the chaos separates any two solutions);
+#  3. the cost per step against the number of bodies: an N-link rigid pendulum (revolute
+#     joints, N = 2..20), fixed 1e-3 s steps over 2 s.
+# No multibody program is packaged in Debian 12 (no MBDyn, Chrono, Simbody, MuJoCo): the peer
+# is scipy on the minimal-coordinate equations. Results on stdout and in $BENCH_OUT.
+set -u
+ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}
+BUILD=${BUILD:-build}
+PYTHON=${PYTHON:-/usr/bin/python3}
+OUT=${BENCH_OUT:-$ROOT/$BUILD/bench}/fmbd-run
+mkdir -p "$OUT"
+export PATH="$ROOT/$BUILD/bin:$PATH" OPENBLAS_NUM_THREADS=1
+cd "$OUT" || exit 1
+
+# --- the flexible rod: tet10 mesh of the paper's size, 110 fixed-interface modes ------------
+if [ ! -f rod.cb.h5 ]; then
+  mesh2fe "$ROOT/examples/geometry/rod.geo" --size 0.0075 --E 100e9 --nu 0.285 --rho 7850 \
+    --interface 'end0@-0.05,0,0' -o rod.fe.h5 -q || exit 1
+  fe2cb rod.fe.h5 --modes 110 -o rod.cb.h5 -q || exit 1
+fi
+
+"$PYTHON" - "$ROOT" <<'EOF'
+import os, re, subprocess, sys, time
+import h5py
+import numpy as np
+from scipy.integrate import solve_ivp
+
+ROOT = sys.argv[1]
+scene = open(os.path.join(ROOT, "examples/quadpend/quadpend.yaml")).read()
+rigid = open(os.path.join(ROOT, "examples/quadpend/quadpend_rigid.yaml")).read()
+
+
+def run(name, text, extra=()):
+    with open(name + ".yaml", "w") as f:
+        f.write(text)
+    p = subprocess.run(["fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q"] + list(extra),
+                       capture_output=True, text=True)
+    if p.returncode:
+        print(p.stderr)
+        return None
+    with h5py.File(name + ".run.h5", "r") as f:
+        st = dict(f["stats"].attrs)
+        return st
+
+
+def row(label, st, t_end):
+    cpu = st["run_cpu_time_s"]
+    print(f"{label:34s} {st['steps']:8d} {st['rejected_steps']:7d} {st['newton_iterations']:8d} "
+          f"{st['coordinates']:5d} {cpu:9.3f} {st['steps'] / cpu:10.0f} {t_end / cpu:9.2f}")
+
+
+print("quadruple pendulum, 7 s (CPU time of the integration alone; real-time factor = 7 s / CPU)")
+print(f"{'case':34s} {'steps':>8s} {'reject':>7s} {'newton':>8s} {'coord':>5s} {'cpu_s':>9s} {'steps/s':>10s} {'x_real':>9s}")
+body = "    file: rod.cb.h5\n    modes: %d\n"
+flex = re.sub(r"    file: rod.rflex.h5\n", "%BODY%", scene).replace(", von_mises]", "]")
+fixed = re.sub(r"  first_step: .*\n  max_step: .*\n  tolerance: .*\n(  .*#.*\n)*", "  step: 1e-3\n", flex)
+for nm in (10, 30, 100):
+    st = run(f"quad{nm}", flex.replace("%BODY%", body % nm))
+    if st: row(f"flexible, {nm} modes, variable", st, 7)
+    st = run(f"quad{nm}f", fixed.replace("%BODY%", body % nm))
+    if st: row(f"flexible, {nm} modes, fixed 1e-3", st, 7)
+st = run("quadrigid", rigid)
+if st: row("rigid only, variable", st, 7)
+rigid_fixed = re.sub(r"  first_step: .*\n  max_step: .*\n  tolerance: .*\n(  .*#.*\n)*", "  step: 1e-3\n", rigid)
+st = run("quadrigidf", rigid_fixed)
+if st: row("rigid only, fixed 1e-3", st, 7)
+
+# --- the peer: planar rigid chain in minimal coordinates (angles from the downward vertical)
+# link i: joint-to-joint length l = 0.4, centre of mass c = 0.2 from its joint, mass m,
+# inertia about the centre I = m (3 r^2 + L^2)/12 (solid cylinder, L = 0.3, r = 0.015)
+n, l, c, g = 4, 0.4, 0.2, 9.806
+m = 7850 * np.pi * 0.015 ** 2 * 0.3
+I = m * (3 * 0.015 ** 2 + 0.3 ** 2) / 12
+# a[k][j]: lever of angle j in the centre of body k (l for j < k, c for j = k)
+a = np.array([[l if j < k else (c if j == k else 0) for j in range(n)] for k in range(n)])
+A = (m * a.T @ a)  # M_ij = sum_k m a_ki a_kj cos(th_i - th_j) + I delta_ij
+Gv = m * a.sum(axis=0)  # potential m g sum_k y_k: dV/dth_j = g Gv_j sin th_j
+
+
+def rhs(t, y):
+    th, w = y[:n], y[n:]
+    d = th[:, None] - th[None, :]
+    M = A * np.cos(d) + I * np.eye(n)
+    f = -(A * np.sin(d)) @ (w ** 2) - g * Gv * np.sin(th)
+    return np.concatenate([w, np.linalg.solve(M, f)])
+
+
+y0 = np.concatenate([np.full(n, np.pi / 2), np.zeros(n)])  # horizontal along +x, at rest
+tt = np.arange(0, 7 + 1e-12, 0.014)
+c0 = time.process_time()
+sol = solve_ivp(rhs, (0, 7), y0, method="DOP853", rtol=1e-10, atol=1e-12, t_eval=tt)
+cpu = time.process_time() - c0
+print(f"{'peer: scipy DOP853, 4 angles':34s} {sol.t.size:8d} {'':7s} {'':8s} {8:5d} {cpu:9.3f} {'':10s} {7 / cpu:9.2f}"
+      f"   ({sol.nfev} right-hand sides)")
+# tip of link 3 (the joint to the rod): sum of the first three link vectors
+tip = np.stack([l * np.sin(sol.y[:3]).sum(axis=0), -l * np.cos(sol.y[:3]).sum(axis=0)], axis=1)
+for name in ("quadrigid", "quadrigidf", "quad30", "quad30f"):
+    if not os.path.exists(name + ".run.h5"):
+        continue
+    with h5py.File(name + ".run.h5", "r") as f:
+        t = f["time"][()]
+        x = f["outputs/tip3/position"][()]
+    k = t <= 2 + 1e-9
+    ref = np.stack([np.interp(t[k], sol.t, tip[:, 0]), np.interp(t[k], sol.t, tip[:, 1])], axis=1)
+    rms = np.sqrt(np.mean(np.sum((x[k, :2] - ref) ** 2, axis=1)))
+    print(f"  {name}: link 3 tip vs the peer over 0..2 s: RMS {rms:.3e} m")
+
+# --- cost per step against the number of bodies ------------------------------------------------
+print("\nN-link rigid pendulum (revolute joints about z, gravity -y), fixed 1e-3 s steps, 2 s")
+print(f"{'N':>3s} {'coord':>6s} {'equations':>9s} {'newton/step':>11s} {'us/step':>9s}")
+for N in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20):
+    s = ["title: %d-link pendulum" % N, "gravity: [0, -9.81, 0]", "solver: {t_end: 2, step: 1e-3}", "bodies:"]
+    for i in range(N):
+        s.append("  - {name: b%d, geometry: {shape: cylinder, length: 0.3, radius: 0.015, density: 7850, axis: x}, position: [%g, 0, 0]}" % (i, 0.2 + 0.4 * i))
+    s.append("joints:")
+    for i in range(N):
+        s.append("  - {name: j%d, type: revolute, body1: %s, body2: b%d, point: [%g, 0, 0], axis: z}" % (i, "ground" if i == 0 else "b%d" % (i - 1), i, 0.4 * i))
+    s.append("outputs:\n  every: 0.01\n  points: [{name: tip, body: b%d, point: [0.2, 0, 0]}]" % (N - 1))
+    st = run(f"nlink{N}", "\n".join(s) + "\n")
+    if st:
+        print(f"{N:3d} {st['coordinates']:6d} {st['equations']:9d} {st['newton_iterations'] / st['steps']:11.2f} "
+              f"{1e6 * st['run_cpu_time_s'] / st['steps']:9.1f}")
+EOF
