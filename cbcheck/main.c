@@ -416,7 +416,7 @@ static int table_fill(table *t, const fmbd_est_modes *m, int64_t nflex, const do
     t->upper[j] = m->upper[k];
     t->unext[j] = m->upper_next[k];
     t->cluster[j] = flexidx[m->cluster[k]];
-    t->exact[j] = (chi && k < nchi) ? c / chi[k] - 1 : NAN;
+    t->exact[j] = (chi && j < nchi) ? c / chi[j] - 1 : NAN;
     j++;
   }
   fmbd_free(flexidx);
@@ -517,12 +517,27 @@ static int write_csv(const char *name, const table *t) {
 }
 
 // --- exact errors ------------------------------------------------------------------------------
-static int exact_eigenvalues(run *r, int64_t nev, double **chi) {
+// Eigenvalues of the first nflex FLEXIBLE modes of the full body (its rigid-body modes, as many
+// as the reduced body has, skipped), into *chi (nflex). Method nm: the modes are exact
+// eigenpairs of the (free or held) body, so chi = chibar and the exact error is 0 by construction.
+static int exact_eigenvalues(run *r, const fmbd_est_modes *m, int64_t nflex, double **chi) {
+  *chi = fmbd_calloc((size_t)nflex + 1, sizeof(double));
+  FMBD_CHECK(*chi, FMBD_ERR_NOMEM, "out of memory");
+  if (!strcmp(r->cb->method, "nm")) {
+    int64_t j = 0;
+    for (int64_t k = 0; k < m->nmodes && j < nflex; k++) {
+      if (!m->rigid[k]) {
+        (*chi)[j++] = m->chibar[k];
+      }
+    }
+    return FMBD_OK;
+  }
   FMBD_CALL(load_fe(r, true, "--exact needs the full body"));
+  int64_t nrig = r->cb->n_rigid;
   fmbd_eig_opts eo;
   fmbd_eig_defaults(&eo);
-  eo.nev = nev;
-  eo.free_body = r->cb->n_rigid > 0;
+  eo.nev = nrig + nflex;
+  eo.free_body = nrig > 0;
   eo.progress = eig_progress;
   fmbd_eig_result res = {0};
   double t0 = fmbd_wall_s();
@@ -531,12 +546,7 @@ static int exact_eigenvalues(run *r, int64_t nev, double **chi) {
   fmbd_progress(NULL);
   r->t_exact_s += fmbd_wall_s() - t0;
   if (rc == FMBD_OK) {
-    *chi = res.lambda;
-    res.lambda = NULL;
-    // the full body's rigid-body eigenvalues are round-off: exactly zero error for them
-    for (int64_t k = 0; k < r->cb->n_rigid && k < nev; k++) {
-      (*chi)[k] = 0;
-    }
+    memcpy(*chi, res.lambda + nrig, sizeof(double) * (size_t)nflex);
   }
   fmbd_eig_result_free(&res);
   return rc;
@@ -607,8 +617,8 @@ static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t n
       for (int64_t k = 0; k < m.nmodes; k++) {
         if (!m.rigid[k] && ++seen == pick[q]) {
           ys[i + nx * q] = fmbd_est_pick(&m, which, k);
-          if (chi && k < nchi) {
-            ye[i + nx * q] = m.chibar[k] / chi[k] - 1;
+          if (chi && seen <= nchi) {
+            ye[i + nx * q] = m.chibar[k] / chi[seen - 1] - 1;
           }
           break;
         }
@@ -678,7 +688,7 @@ int main(int argc, char **argv) {
   fmbd_cb *cb = r.cb;
   r.nd_file = cb->nd;
   const char *cbname = fmbd_h5_name(r.cbf);
-  int64_t nflex_body = cb->ndof - cb->n_rigid - cb->nheld;
+  int64_t nflex_body = cb->ndof - cb->n_rigid - cb->n_rigid_removed - cb->nheld;
   int64_t nflex_red = cb->nr - cb->n_rigid;
   r.nd_max = cb->ns - 1;
   if (a.max_modes > 0 && a.max_modes < r.nd_max) {
@@ -784,8 +794,8 @@ int main(int argc, char **argv) {
   }
   int64_t nlist = nm < m.nmodes - nrig ? nm : m.nmodes - nrig;
   if (a.exact) {
-    nchi = nrig + nlist;
-    FMBD_GCALL(exact_eigenvalues(&r, nchi, &chi));
+    nchi = nlist;
+    FMBD_GCALL(exact_eigenvalues(&r, &m, nlist, &chi));
   }
   FMBD_GCALL(table_fill(&t, &m, nlist, chi, nchi));
   if (rep) {

@@ -151,8 +151,10 @@ int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd
   FMBD_GALLOC(e->Gb = fmbd_calloc(nn, sizeof(double)));
   FMBD_GALLOC(e->kappa = fmbd_malloc(sizeof(double)));
   FMBD_GALLOC(e->PhitA = fmbd_malloc(sizeof(double)));
-  memcpy(e->Mbb, Mbb, sizeof(double) * (nn - 1));
-  memcpy(e->Kbb, Kbb, sizeof(double) * (nn - 1));
+  if (nb > 0) {
+    memcpy(e->Mbb, Mbb, sizeof(double) * (nn - 1));
+    memcpy(e->Kbb, Kbb, sizeof(double) * (nn - 1));
+  }
   *out = e;
   e = NULL;
 done:
@@ -191,8 +193,12 @@ int fmbd_est_set_pool(fmbd_est *e, int64_t npool, const double *kappa, const dou
     fmbd_free(pa);
     FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
   }
-  memcpy(kp, kappa, sizeof(double) * (size_t)npool);
-  memcpy(pa, PhitA, sizeof(double) * (size_t)(npool * e->nb));
+  if (npool > 0) {
+    memcpy(kp, kappa, sizeof(double) * (size_t)npool);
+  }
+  if (npool > 0 && e->nb > 0) {
+    memcpy(pa, PhitA, sizeof(double) * (size_t)(npool * e->nb));
+  }
   fmbd_free(e->kappa);
   fmbd_free(e->PhitA);
   e->kappa = kp;
@@ -200,8 +206,10 @@ int fmbd_est_set_pool(fmbd_est *e, int64_t npool, const double *kappa, const dou
   e->npool = npool;
   e->nd = npool;
   e->kappa_next = NAN;
-  memcpy(e->Xb, Xb, sizeof(double) * (size_t)(e->nb * e->nb));
-  memcpy(e->Gb, Gb, sizeof(double) * (size_t)(e->nb * e->nb));
+  if (e->nb > 0) {
+    memcpy(e->Xb, Xb, sizeof(double) * (size_t)(e->nb * e->nb));
+    memcpy(e->Gb, Gb, sizeof(double) * (size_t)(e->nb * e->nb));
+  }
   return FMBD_OK;
 }
 

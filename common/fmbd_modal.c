@@ -124,7 +124,8 @@ int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
   *out = NULL;
   // --- check inputs ---
   FMBD_CHECK(b && b->expand, FMBD_ERR_VALUE, "the body description has no /expand");
-  FMBD_CHECK(ns + nb == b->ndof, FMBD_ERR_VALUE,
+  // ns + nb < ndof: the rest are held dofs (fe2cb --method nm --hold), zero in every mode
+  FMBD_CHECK(ns + nb <= b->ndof, FMBD_ERR_VALUE,
              "%lld interior + %lld boundary dofs, but the body has %lld dofs", (long long)ns,
              (long long)nb, (long long)b->ndof);
   FMBD_CHECK(nm >= 0 && in->ldxi >= nd + nb && (nd == 0 || in->ldphi >= ns), FMBD_ERR_VALUE,

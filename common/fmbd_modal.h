@@ -103,7 +103,8 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r);
 typedef struct fmbd_modal_input {
   const fmbd_fe_body *body;      ///< description: nodes, node_mass, dofs, expand, interfaces,
                                  ///< /body, elements and material (for stress); K, M unused
-  int64_t ns, nb;                ///< interior and boundary dofs (ns + nb = body->ndof)
+  int64_t ns, nb;                ///< interior and boundary dofs (ns + nb <= body->ndof; the
+                                 ///< other dofs are held: zero in every mode)
   const int64_t *interior_dofs;  ///< (ns) rows of /dofs
   const int64_t *boundary_dofs;  ///< (nb) rows of /dofs
   int64_t nd;                    ///< fixed-interface modes of the reduced body
