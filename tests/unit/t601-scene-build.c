@@ -1,0 +1,101 @@
+// tests/unit/t601-scene-build.c: a scene turned into an mbs system: bodies, points, joints,
+// drivers; scene time functions equal to the mbs ones; Hooke's strain of a stress
+// SPDX-License-Identifier: MIT
+#include <math.h>
+#include <string.h>
+
+#include "check.h"
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_scene.h"
+
+static const char *scene_text =
+    "gravity: [0, -9.81, 0]\n"
+    "solver: {t_end: 0.1, step: 1e-3}\n"
+    "bodies:\n"
+    "  - {name: bob, mass: 2, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\n"
+    "  - {name: slider, geometry: {shape: box, size: [0.1, 0.1, 0.1], mass: 1}, position: [0, -2, 0]}\n"
+    "joints:\n"
+    "  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}\n"
+    "  - {name: rail, type: prismatic, body1: ground, body2: slider, point: [0, -2, 0], axis: x}\n"
+    "drivers:\n"
+    "  - {name: push, joint: rail, function: {type: sine, amplitude: 0.1, frequency_hz: 2}}\n"
+    "outputs:\n"
+    "  points:\n"
+    "    - {name: tip, body: bob, point: [0.5, 0, 0], quantities: [position, velocity]}\n"
+    "    - {name: s, body: slider}\n"
+    "  reactions: [pivot]\n";
+
+int main(void) {
+  fmbd_scene *s = NULL;
+  fmbd_scene_model *m = NULL;
+  int rc = fmbd_scene_parse("t.yaml", scene_text, (int64_t)strlen(scene_text), &s);
+  EXPECT(rc == 0, "parse: %s", fmbd_err_get()->msg);
+  if (s) {
+    rc = fmbd_scene_build(s, &m);
+    EXPECT(rc == 0, "build: %s:%s: %s", fmbd_err_get()->file, fmbd_err_get()->where, fmbd_err_get()->msg);
+  }
+  if (m) {
+    EXPECT(fmbd_mbs_nbodies(m->mbs) == 2 && m->body_id[0] == 0 && m->body_id[1] == 1, "bodies");
+    EXPECT(m->out_node[0] == -1 && m->out_sigma[0] == NULL, "rigid output has no node, no stress");
+    fmbd_mbs_settings set;
+    fmbd_scene_settings(s, &set);
+    EXPECT(set.fixed && set.step == 1e-3 && set.t_end == 0.1 && set.reactions, "settings");
+    rc = fmbd_mbs_init(m->mbs, &set);
+    EXPECT(rc == 0, "init: %s", fmbd_err_get()->msg);
+    double x[3];
+    fmbd_mbs_point_position(m->mbs, m->out_point[0], x);
+    // the output point is 0.5 m beyond the bob's centre on the body x axis: (1.5, 0, 0)
+    EXPECT(fabs(x[0] - 1.5) < 1e-12 && fabs(x[1]) < 1e-12, "tip at (%g, %g, %g)", x[0], x[1], x[2]);
+    rc = fmbd_mbs_run(m->mbs, NULL, NULL);
+    EXPECT(rc == 0, "run: %s", fmbd_err_get()->msg);
+    // the slider follows its driver: slide = 0.1 sin(2 pi 2 t) at t = 0.1 (Newton tolerance)
+    fmbd_mbs_point_position(m->mbs, m->out_point[1], x);
+    double want = 0.1 * sin(2 * M_PI * 2 * 0.1);
+    EXPECT(fabs(x[0] - want) < 1e-7 && fabs(x[1] + 2) < 1e-9, "slider at %.9f, want %.9f", x[0], want);
+    // the bob fell: its tip moved down
+    fmbd_mbs_point_position(m->mbs, m->out_point[0], x);
+    EXPECT(x[1] < -1e-3 && fabs(hypot(x[0], x[1]) - 1.5) < 1e-7, "tip after the fall (%g, %g)", x[0], x[1]);
+  }
+  // scene functions and their mbs counterparts agree with their derivatives (round-off)
+  const char *fns =
+      "solver: {t_end: 1}\nbodies: [{name: p, mass: 1, inertia: [1, 1, 1]}]\n"
+      "drivers:\n"
+      "  - {body: p, coordinate: x, function: {type: ramp, t0: 0.1, t1: 0.5, v0: 1, v1: 3, smooth: true}}\n"
+      "  - {body: p, coordinate: y, function: {type: sine, amplitude: 2, frequency_hz: 3, phase_deg: 30, offset: 1}}\n"
+      "  - {body: p, coordinate: z, function: {type: table, t: [0, 0.2, 0.7], v: [0, 1, -1]}}\n";
+  fmbd_scene *f = NULL;
+  rc = fmbd_scene_parse("f.yaml", fns, (int64_t)strlen(fns), &f);
+  EXPECT(rc == 0, "parse functions: %s", fmbd_err_get()->msg);
+  if (f) {
+    fmbd_scene_model *fm = NULL;
+    EXPECT(fmbd_scene_build(f, &fm) == 0, "build functions");
+    for (int d = 0; d < 3; d++) {
+      const fmbd_scene_fn *sf = &f->drivers[d].fn;
+      fmbd_mbs_fn mf = {0};
+      if (sf->kind == FMBD_FN_RAMP) mf = fmbd_mbs_fn_ramp(sf->t0, sf->v0, sf->t1, sf->v1, sf->smooth);
+      if (sf->kind == FMBD_FN_SINE) mf = fmbd_mbs_fn_sine(sf->offset, sf->amplitude, sf->frequency_hz, sf->phase);
+      if (sf->kind == FMBD_FN_TABLE) mf = fmbd_mbs_fn_table(sf->n, sf->t, sf->v);
+      for (double t = -0.1; t < 1; t += 0.0371) {
+        double a1, a2, b1, b2;
+        double va = fmbd_scene_fn_eval(sf, t, &a1, &a2), vb = fmbd_mbs_fn_eval(&mf, t, &b1, &b2);
+        EXPECT(fabs(va - vb) < 1e-12 && fabs(a1 - b1) < 1e-9 && fabs(a2 - b2) < 1e-7, "driver %d at t = %g: %g %g %g vs %g %g %g",
+               d, t, va, a1, a2, vb, b1, b2);
+      }
+    }
+    fmbd_scene_model_destroy(&fm);
+    fmbd_scene_destroy(&f);
+  }
+  // Hooke: uniaxial stress s: eps_xx = s/E, eps_yy = eps_zz = -nu s/E, equivalent 2(1+nu)s/(3E)
+  double sg[6] = {2e8, 0, 0, 0, 0, 0}, ep[6], E = 2e11, nu = 0.3;
+  double ev = fmbd_scene_strain(E, nu, sg, ep);
+  EXPECT(fabs(ep[0] - 1e-3) < 1e-15 && fabs(ep[1] + 3e-4) < 1e-15 && fabs(ep[2] + 3e-4) < 1e-15, "uniaxial strain");
+  EXPECT(fabs(ev - 2 * 1.3 * 2e8 / (3 * E)) < 1e-15, "equivalent strain %g", ev);
+  // pure shear tau: eps_xy = (1+nu) tau / E (tensor), equivalent 2 (1+nu) sqrt(3) tau / (3E)
+  double sh[6] = {0, 0, 0, 1e8, 0, 0};
+  ev = fmbd_scene_strain(E, nu, sh, ep);
+  EXPECT(fabs(ep[3] - 1.3e8 / E) < 1e-15 && fabs(ev - 2 * 1.3 * sqrt(3) * 1e8 / (3 * E)) < 1e-15, "shear strain");
+  fmbd_scene_model_destroy(&m);
+  fmbd_scene_destroy(&s);
+  TEST_EXIT();
+}
