@@ -803,6 +803,17 @@ int main(int argc, char **argv) {
             fmbd_est_knext_known(r.est) ? "" : " (kappa_(Nd+1) unknown: upper_next uses kappa_Nd)");
     print_table(rep, &t, a.exact);
   }
+  // an unreached tolerance: the report above shows the best Nd; no file is written
+  if (a.has_tol && !sel.reached) {
+    fmbd_err_context(cbname, "/cb/kappa");
+    FMBD_GFAIL(FMBD_ERR_CONVERGE,
+               "tolerance %g not reached for flexible modes 1..%lld with up to Nd = %lld "
+               "fixed-interface modes%s; best reached: largest estimate %.4g at Nd = %lld",
+               a.tol, (long long)nm, (long long)(sel.nd > 0 ? sel.nd : 0),
+               r.nd_max == cb->ns - 1 ? " (the body's interior dofs)" : " (--max-modes)",
+               sel.best_largest, (long long)sel.best_nd);
+  }
+
   if (a.csv) {
     FMBD_GCALL(write_csv(a.csv, &t));
   }
@@ -815,16 +826,6 @@ int main(int argc, char **argv) {
     }
     FMBD_GCALL(plot_convergence(&r, a.plot, nlist, lo, hi, chi, nchi, a.which, a.has_tol ? a.tol : 0));
   }
-  if (a.has_tol && !sel.reached) {
-    fmbd_err_context(cbname, "/cb/kappa");
-    FMBD_GFAIL(FMBD_ERR_CONVERGE,
-               "tolerance %g not reached for flexible modes 1..%lld with up to Nd = %lld "
-               "fixed-interface modes%s; best reached: largest estimate %.4g at Nd = %lld",
-               a.tol, (long long)nm, (long long)(sel.nd > 0 ? sel.nd : 0),
-               r.nd_max == cb->ns - 1 ? " (the body's interior dofs)" : " (--max-modes)",
-               sel.best_largest, (long long)sel.best_nd);
-  }
-
   // --- the reduced flexible body ---
   if (outname) {
     FMBD_GCHECK(nlist == nm, FMBD_ERR_VALUE, "the reduced body has only %lld flexible modes", (long long)nlist);

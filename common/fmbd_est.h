@@ -195,7 +195,8 @@ typedef struct fmbd_est_select_result {
 /// mode. When n_first..nm all pass, a final pass checks modes 1..nm again (estimates are
 /// not monotone in nd); a mode failing there restarts the loop from it. The pool is grown
 /// through `extend` when nd exceeds it (NULL: no growth, the pool size caps nd). Stops
-/// unreached when nd would exceed nd_max. On return the estimator is at res->nd.
+/// unreached when nd would exceed nd_max. On return the estimator is at res->nd when the
+/// tolerance was reached, else at res->best_nd.
 /// @return FMBD_OK also when the tolerance is not reached (res->reached false); errors of
 ///         the reduced solve or of extend
 int fmbd_est_select(fmbd_est *e, const fmbd_est_select_opts *o, fmbd_est_extend_fn extend,

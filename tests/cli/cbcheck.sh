@@ -36,6 +36,11 @@ expect 0 -- cbcheck beam.cb.h5
 grep -q "upper_next" out.txt || err "report table missing on stdout"
 expect 0 "cbcheck: beam.rflex.h5: Nd = " -- cbcheck beam.cb.h5 --tol 1e-3 --range 4 --csv beam.csv --plot beam -o beam.rflex.h5
 [ -f beam.rflex.h5 ] && [ -f beam.csv ] && [ -f beam-estimates.svg ] && [ -f beam-convergence.svg ] || err "outputs missing"
+"$PYTHON" -c "
+import xml.dom.minidom as x
+for f in ('beam-estimates.svg', 'beam-convergence.svg'):
+    d = x.parse(f)
+    assert len(d.getElementsByTagName('path')) >= 4, f" || err "plots are not well-formed SVG with curves"
 head -1 beam.csv | grep -q '^mode,frequency_hz,eigenvalue,lower,second_order,upper,exact' || err "CSV header: $(head -1 beam.csv)"
 [ "$(wc -l < beam.csv)" -eq 5 ] || err "CSV rows: $(wc -l < beam.csv)"
 # pipes: fe2cb | cbcheck - | file; the report goes to stderr when the rflex takes stdout
@@ -67,9 +72,10 @@ noout bad.rflex.h5
 # without --tol, --range beyond the reduced body's modes
 expect 1 "cbcheck: error" "beam.cb.h5:/reduced/eigenvalues" -- cbcheck beam.cb.h5 --range 50
 # an unreachable tolerance: the best reached is reported, exit 1, no rflex
-expect 1 "cbcheck: error" "beam.cb.h5:/cb/kappa" "not reached" "best reached" -- cbcheck beam.cb.h5 --tol 1e-300 --range 2 -o bad.rflex.h5
+expect 1 "cbcheck: error" "beam.cb.h5:/cb/kappa" "not reached" "best reached" -- cbcheck beam.cb.h5 --tol 1e-300 --range 2 -o bad.rflex.h5 --csv bad.csv --plot bad
 grep -q "first_failing" out.txt || err "unreachable tolerance: no iteration log in the report"
-noout bad.rflex.h5
+grep -q "upper_next" out.txt || err "unreachable tolerance: no table of the best Nd in the report"
+noout bad.rflex.h5 bad.csv bad-estimates.svg bad-convergence.svg
 # the same with a cap on Nd
 expect 1 "not reached" "max-modes" -- cbcheck beam.cb.h5 --tol 1e-9 --range 4 --max-modes 8 -o bad.rflex.h5
 noout bad.rflex.h5
