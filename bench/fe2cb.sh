@@ -28,34 +28,36 @@ measure() {
   local rc=$?
   read -r wall usr sys rss < <(tail -n 1 "$name.time")
   cpu=$(echo "$usr + $sys" | bc)
+  cpu=$(printf '%.1f' "$cpu")
   rss_mb=$((rss / 1024))
   return $rc
 }
 
-printf '%-8s %6s %5s | %9s %9s %7s | %9s %7s | %9s %7s | %s\n' h dofs modes "fe2cb s" "nosturm s" "MB" \
-  "scipy s" "MB" "ccx s" "MB" "ratios fe2cb/scipy, fe2cb/ccx (time; RSS)"
+echo "columns: wall s / cpu s / peak RSS MB of fe2cb, fe2cb --no-sturm, scipy (eigsh + splu), ccx;"
+echo "ratios fe2cb/scipy and fe2cb/ccx of wall, cpu and RSS (the machine may be shared: cpu is the steadier)"
+printf '%-7s %7s %5s | %-17s| %-17s| %-17s| %-17s| %s\n' h dofs modes "fe2cb" "fe2cb --no-sturm" "scipy" "ccx" \
+  "ratios wall cpu RSS: /scipy ; /ccx"
 for h in $SIZES; do
   fe=rod-$h.fe.h5
   [ -f "$fe" ] || mesh2fe "$ROOT/examples/geometry/rod.geo" --size "$h" --interface end0 --interface end1 -o "$fe" -q || exit 1
   ndof=$("$PYTHON" -c "import h5py; print(h5py.File('$fe','r')['dofs'].shape[0])")
   for n in $MODES; do
     measure fe2cb-$h-$n fe2cb "$fe" --modes "$n" -o cb-$h-$n.cb.h5 -v
-    rc=$?; fw=$wall; fr=$rss_mb
+    rc=$?; fw=$wall; fc=$cpu; fr=$rss_mb
     [ $rc -eq 0 ] || { echo "fe2cb failed: $(tail -n 3 fe2cb-$h-$n.err)"; continue; }
     measure fe2cbns-$h-$n fe2cb "$fe" --modes "$n" -o cbns-$h-$n.cb.h5 --no-sturm -q
-    fnw=$wall
+    nw=$wall; nc=$cpu; nr=$rss_mb
     measure scipy-$h-$n "$PYTHON" "$ROOT/bench/fe2cb_scipy.py" "$fe" cb-$h-$n.cb.h5 "$n"
-    sw=$wall; sr=$rss_mb
-    cw=-; cr=-
+    sw=$wall; sc=$cpu; sr=$rss_mb
+    cw=; cc=; cr=
     if [ "${BENCH_CCX:-1}" != 0 ]; then
       PYTHONPATH=$ROOT/tests/py "$PYTHON" -c "import fegen; fegen.write_ccx_deck('$fe', 'ccx-$h-$n.inp', $n, ['end0', 'end1'])"
-      measure ccx-$h-$n ccx -i ccx-$h-$n && { cw=$wall; cr=$rss_mb; }
+      measure ccx-$h-$n ccx -i ccx-$h-$n && { cw=$wall; cc=$cpu; cr=$rss_mb; }
     fi
-    rs=$(echo "scale=2; $fw / $sw" | bc); rsm=$(echo "scale=2; $fr / $sr" | bc)
-    rc_=-; rcm=-
-    [ "$cw" != - ] && { rc_=$(echo "scale=2; $fw / $cw" | bc); rcm=$(echo "scale=2; $fr / $cr" | bc); }
-    printf '%-8s %6s %5s | %9s %9s %7s | %9s %7s | %9s %7s | %s %s; %s %s\n' "$h" "$ndof" "$n" "$fw" "$fnw" "$fr" \
-      "$sw" "$sr" "$cw" "$cr" "$rs" "$rc_" "$rsm" "$rcm"
+    r() { [ -n "$2" ] && echo "scale=2; $1 / $2" | bc | sed 's/^\./0./' || echo -; }
+    printf '%-7s %7s %5s | %5s %5s %5s | %5s %5s %5s | %5s %5s %5s | %5s %5s %5s | %s %s %s ; %s %s %s\n' \
+      "$h" "$ndof" "$n" "$fw" "$fc" "$fr" "$nw" "$nc" "$nr" "$sw" "$sc" "$sr" "${cw:--}" "${cc:--}" "${cr:--}" \
+      "$(r "$fw" "$sw")" "$(r "$fc" "$sc")" "$(r "$fr" "$sr")" "$(r "$fw" "$cw")" "$(r "$fc" "$cc")" "$(r "$fr" "$cr")"
     grep -E 'time:' fe2cb-$h-$n.err | sed 's/^/    fe2cb /'
     grep -E '^scipy:' scipy-$h-$n.out | sed 's/^/    /'
   done
