@@ -119,6 +119,24 @@ check(errv < 1e-3, f"slider velocity vs closed form: max relative error {errv:.2
 errp = np.max(np.abs(pin - np.stack([0 * t, Cy, Cz], axis=1)))
 check(errp < 1e-6, f"crank pin on its circle: {errp:.2e} m")
 
+# --- 3b. four-bar linkage: a closed loop whose redundant equations are found and named -------
+fourbar = os.path.join(ROOT, "examples", "scenes", "fourbar.yaml")
+out = os.path.join(TMP, "fourbar.run.h5")
+p = run([fourbar, "-o", out])
+red = re.findall(r"warning: redundant constraint removed: joint '(\w+)' equation (\d)", p.stderr)
+check(p.returncode == 0 and len(red) == 3, f"four-bar runs, redundant equations named: {red}")
+with h5py.File(out, "r") as f:
+    t = f["time"][()]
+    B = f["outputs/B/position"][()]
+    check(f["stats"].attrs["redundant_equations"] == 3, "/stats redundant_equations = 3")
+th = 2 * np.pi * t
+A = np.stack([-0.1 * np.sin(th), 0.1 * np.cos(th)], axis=1)
+# the loop closes: |B - C| = 0.3 and |B - A| = 0.4 at the Newton tolerance (1e-8 relative);
+# 1e-6 m also covers the 9-digit initial coordinates of the scene
+eC = np.max(np.abs(np.linalg.norm(B[:, :2] - [0.4, 0], axis=1) - 0.3))
+eA = np.max(np.abs(np.linalg.norm(B[:, :2] - A, axis=1) - 0.4))
+check(max(eC, eA) < 1e-6 and np.max(np.abs(B[:, 2])) < 1e-9, f"four-bar loop closed: {eC:.1e} m, {eA:.1e} m")
+
 # --- 4. -M: a rigid-only scene depends on itself; the quadruple pendulum on its chain ----------
 p = run(["-M", os.path.join(ROOT, "examples/scenes/pendulum.yaml"), "-o", "p.run.h5"])
 check(p.returncode == 0 and p.stdout == "p.run.h5: %s\n" % os.path.join(ROOT, "examples/scenes/pendulum.yaml"),
