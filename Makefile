@@ -139,4 +139,4 @@ info:
 	@echo "LDLIBS        $(FMBD_LDLIBS) $(LDLIBS)"
 	@echo "BUILD         $(BUILD)"
 
--include $(shell find $(BUILD) -name '*.d' 2>/dev/null)
+-include $(shell find $(BUILD) -name '*.d' -not -path '*/test-tmp/*' -not -path '*/demo/*' -not -path '*/bench/*' 2>/dev/null)
