@@ -195,7 +195,7 @@ p = run([scene, "-o", out2, "--reference", ref])
 check(p.returncode == 0 and re.search(r"slider: RMS position error 0\.0000e\+00 m", p.stderr) is not None,
       "--reference against itself: zero RMS")
 with h5py.File(out2, "r") as f:
-    check(f["reference/slider"].attrs["rms_position"] == 0 and f["reference/slider"].attrs["instants"] == len(t),
+    check(f["reference/slider"].attrs["rms_position"] == 0 and f["reference/slider"].attrs["instants"] == len(f["time"]),
           "/reference/slider attributes")
 
 # --- 6. the scenes of docs/SCENE.md run ---------------------------------------------------------
