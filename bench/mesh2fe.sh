@@ -119,7 +119,7 @@ for c in "${cases[@]}"; do
   c_sp=$(sed -n 's/^scipy assembly .* s wall, \([0-9.]*\) s cpu.*/\1/p' peer_$label.log)
   sp_mb=$(echo "scale=1; $(sed -n 's/.*Maximum resident set size (kbytes): //p' peer_$label.time) / 1024" | bc)
   speed=$(echo "scale=3; $c_asm / $c_sp" | bc)
-  printf '%-5s %8s %9s %7s | %7.2f %7s %7s %7s %7s | %8s %7s | %7s %7s %8s | %6s\n' \
+  printf '%-5s %8s %9s %7s | %7.2f %7s %7s %7s %7s | %8s %7s | %7s %7s %8s | %6.3f\n' \
     "$label" "$ndof" "$nnz" "$csr_mb" "$t_gmsh" "$t_read" "$t_asm" "$c_asm" "$t_write" "$rss_mb" "$ratio" "$t_sp" "$c_sp" "$sp_mb" "$speed"
   sed 's/^/      peer: /' peer_$label.log
   grep '^mesh2fe: rod' m2f_$label.log | sed 's/^/      /'

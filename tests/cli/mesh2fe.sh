@@ -112,6 +112,22 @@ h5ls beam.h5/mesh/elements | grep -q beam2 || bad "rodbeam to stdout: no /mesh/e
 grep -Eq '^mesh2fe: rod.fe.h5: [0-9]+ nodes, [0-9]+ tet4, 2 interfaces, [0-9]+ dofs, mass 1\.[0-9]+ kg, .* s wall, .* s cpu$' err.txt || bad "rod summary: $(cat err.txt)"
 h5dump -a /interfaces/end1/kind rod.fe.h5 | grep -q rbe3 || bad "rod: /interfaces/end1 kind"
 h5dump -a /interfaces/end1/point rod.fe.h5 | grep -q '0.3, 0, 0' || bad "rod: /interfaces/end1 point: $(h5dump -a /interfaces/end1/point rod.fe.h5)"
+# STEP and BREP (exported from rod.geo by gmsh's command line; they carry no physical groups,
+# so the end face is named by a box) and a .msh of 3-node lines (each split into two beams)
+if gmsh "$GEO/rod.geo" -0 -o rod.step >gmsh.log 2>&1 && gmsh "$GEO/rod.geo" -0 -o rod.brep >>gmsh.log 2>&1; then
+  "$EXE" rod.step --size 0.01 --group end0:-1,-1,-1,0,1,1 --clamp end0 -o step.fe.h5 2>err.txt || bad "rod.step: exit $? ($(cat err.txt))"
+  h5ls step.fe.h5/clamped | grep -q end0 || bad "rod.step: no /clamped/end0"
+  "$EXE" rod.brep --size 0.01 -o brep.fe.h5 2>err.txt || bad "rod.brep: exit $? ($(cat err.txt))"
+  grep -q 'tet10' err.txt || bad "rod.brep: not tet10: $(cat err.txt)"
+else
+  bad "gmsh could not export rod.step/rod.brep: $(tail -3 gmsh.log)"
+fi
+if gmsh -1 -order 2 "$GEO/rodbeam.geo" -o line3.msh >gmsh.log 2>&1; then
+  "$EXE" line3.msh --circle 0.015 -o line3.fe.h5 2>err.txt || bad "line3.msh: exit $? ($(cat err.txt))"
+  grep -q ' 41 nodes, 40 beam2' err.txt || bad "line3.msh: 20 line3 should give 40 beams: $(cat err.txt)"
+else
+  bad "gmsh -1 -order 2 rodbeam.geo failed: $(tail -3 gmsh.log)"
+fi
 # default output name beside the input's name in the current folder, when stdout is a terminal:
 # only testable with a terminal (script(1)); skipped without it
 if command -v script >/dev/null 2>&1; then

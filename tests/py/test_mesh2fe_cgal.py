@@ -7,8 +7,9 @@
    facet_distance (= size / 10, mesh2fe's CGAL criterion) times the surface area. Free-free:
    exactly six rigid-body modes; K symmetric. A --group box names the end face x = 0; clamping
    it leaves no rigid-body mode.
-2. A cube as an OFF file with quadrilateral faces (fan-triangulated by the reader): its sharp
-   edges are protected by Mesh_3, its faces are planar, so the volume is exact to roundoff.
+2. A cube as an OFF file with quadrilateral faces (fan-triangulated by the reader), and as a
+   binary STL: its sharp edges are protected by Mesh_3, its faces are planar, so the volume is
+   exact to roundoff (for the binary STL, the cube of its float32 side).
 """
 import math
 import os
@@ -98,6 +99,22 @@ def main():
     vol = f["body"].attrs["volume"]
     check("tet4" in f["mesh/elements"] and abs(vol - a**3) < 1e-12 * a**3 * 100,
           "OFF cube, tet4: volume %.12e vs %.12e" % (vol, a**3))
+    # ---- 3. the same cube as a binary STL (12 triangles, outward normals) ----
+    import struct
+    X = np.array([[a * (k & 1), a * ((k >> 1) & 1), a * ((k >> 2) & 1)] for k in range(8)])
+    tris = []
+    for q in ([0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]):
+        tris += [(q[0], q[1], q[2]), (q[0], q[2], q[3])]
+    with open("cube.stl", "wb") as o:
+        o.write(b"binary STL cube".ljust(80, b" ") + struct.pack("<I", len(tris)))
+        for t in tris:
+            nrm = np.cross(X[t[1]] - X[t[0]], X[t[2]] - X[t[0]])
+            o.write(struct.pack("<12fH", *nrm, *X[t[0]], *X[t[1]], *X[t[2]], 0))
+    mesh2fe("cube.stl", "--size", "0.02", "-o", "cubestl.fe.h5")
+    f = h5py.File("cubestl.fe.h5", "r")
+    vol = f["body"].attrs["volume"]
+    a32 = float(np.float32(a))  # the side as stored in float32
+    check(abs(vol - a32**3) < 1e-10 * a32**3, "binary STL cube, tet10: volume %.12e vs %.12e" % (vol, a32**3))
     print("%d failure(s)" % len(fails))
     return 1 if fails else 0
 
