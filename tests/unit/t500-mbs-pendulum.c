@@ -3,6 +3,7 @@
 // rho_inf = 1 shrinking at second order as the step halves; variable steps
 // SPDX-License-Identifier: MIT
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "check.h"
@@ -114,7 +115,7 @@ int main(void) {
   fmbd_mbs_stats st;
   // --- fixed steps, rho_inf = 1: period ---
   fmbd_mbs_settings_defaults(&s);
-  s.rho_inf = 1, s.fixed = true, s.step = 1e-3, s.t_end = 2.6 * Texact, s.newton_tol = 1e-10;
+  s.rho_inf = 1, s.fixed = true, s.step = 1e-3, s.t_end = 2.6 * Texact;
   double P, dE;
   int rc = pendulum(th0, &s, &P, &dE, &st);
   EXPECT(rc == 0, "fixed-step run failed: %s", fmbd_err_get()->msg);
@@ -127,11 +128,10 @@ int main(void) {
   // --- energy error order with rho_inf = 1 ---
   double e[3];
   double hs[3] = {4e-3, 2e-3, 1e-3};
-  // index-3 generalized alpha with rho_inf = 1 does not damp the errors left by Newton in the
-  // algebraic directions (they reach the velocities as gamma/(beta h) dx and accumulate), so
-  // the iteration error must lie well below the discretisation error to see the order:
-  // newton_tol 1e-12 (measured: the order holds down to h = 5e-4 with it; 1e-8 does not)
-  s.newton_tol = 1e-12;
+  // the Newton tolerance (default 1e-8) bounds the iteration error in accelerations too
+  // (fmbd_mbs.h, NEWTON): with rho_inf = 1 nothing damps errors left in the algebraic
+  // directions, and a looser bound shows up as an h-independent energy error floor
+  s.newton_tol = 1e-8;
   for (int i = 0; i < 3; i++) {
     s.step = hs[i], s.t_end = 1.2 * Texact;
     rc = pendulum(th0, &s, &P, &e[i], &st);
@@ -158,7 +158,7 @@ int main(void) {
   EXPECT(fabs(P / Texact - 1) < 1e-4, "variable steps: period %.9f s, exact %.9f s, rel. error %.3g", P, Texact,
          P / Texact - 1);
   EXPECT(st.steps > 10 && st.steps < 20000, "variable steps: %lld steps", (long long)st.steps);
-  fprintf(stderr, "t500: fixed P/T-1 tested; variable: P/T-1 = %.3g, %lld steps, %lld rejected, %lld newton, %lld factor, energy err %.3g, orders e = %.3g %.3g %.3g\n", P / Texact - 1,
+  if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t500: fixed P/T-1 tested; variable: P/T-1 = %.3g, %lld steps, %lld rejected, %lld newton, %lld factor, energy err %.3g, orders e = %.3g %.3g %.3g\n", P / Texact - 1,
           (long long)st.steps, (long long)st.rejected, (long long)st.newton_iterations, (long long)st.factorizations, dE, e[0], e[1], e[2]);
   TEST_EXIT();
 }

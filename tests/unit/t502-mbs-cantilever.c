@@ -239,7 +239,7 @@ int main(void) {
     EXPECT(fabs(dsim[c] / dm - 1) < 1e-7, "nm = %d: simulated tip deflection %.9g, modal static %.9g", nm, dsim[c], dm);
     fmbd_mbs_stats st;
     fmbd_mbs_get_stats(m, &st);
-    fprintf(stderr, "t502: nm %d tip %.9g m (FE %.9g) steps %lld rej %lld newton %lld\n", nm, dsim[c], d_fe,
+    if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t502: nm %d tip %.9g m (FE %.9g) steps %lld rej %lld newton %lld\n", nm, dsim[c], d_fe,
             (long long)st.steps, (long long)st.rejected, (long long)st.newton_iterations);
     fmbd_mbs_destroy(&m);
   }
@@ -266,7 +266,7 @@ int main(void) {
     fmbd_mbs_settings s;
     fmbd_mbs_settings_defaults(&s);
     const double w1 = sqrt(B.w2[0]), T1 = 2 * M_PI / w1;
-    s.fixed = true, s.step = 5e-5, s.t_end = 3.2 * T1, s.rho_inf = 1, s.newton_tol = 1e-12;
+    s.fixed = true, s.step = 5e-5, s.t_end = 3.2 * T1, s.rho_inf = 1;
     osc o;
     memset(&o, 0, sizeof o);
     o.tip = tip, o.d[0] = dir[0] / nd, o.d[1] = dir[1] / nd;
@@ -276,7 +276,7 @@ int main(void) {
     // rho_inf = 1: relative period error ~ (w1 h)^2 / 12 = 2.3e-6; allow 1e-5
     double Tm = o.n >= 3 ? (o.tc[2] - o.tc[0]) / 2 : NAN;
     EXPECT(fabs(Tm / T1 - 1) < 1e-5, "period %.9g s, first mode %.9g s (%d crossings)", Tm, T1, o.n);
-    fprintf(stderr, "t502: period %.9g vs %.9g (f1 = %.4f Hz)\n", Tm, T1, 1 / T1);
+    if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t502: period %.9g vs %.9g (f1 = %.4f Hz)\n", Tm, T1, 1 / T1);
     fmbd_mbs_destroy(&m);
   }
   TEST_EXIT();
