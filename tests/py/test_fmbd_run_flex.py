@@ -91,7 +91,9 @@ if make_bodies(cant, os.path.join(TMP, "rodbeam.cb.h5")):
         p = run([path, "--body-dir", TMP, "-o", f"cant{nm}.run.h5", "-q"])
         with h5py.File(os.path.join(TMP, f"cant{nm}.run.h5"), "r") as f:
             errs.append(abs(-f["outputs/tip/position"][-1, 1] / d_exact - 1))
-    check(errs[0] >= errs[1] >= errs[2] > 100 * abs(-y[-1] / d_exact - 1),
+    # modes 9..12 (torsion, axial, the second pair's partners) add nothing to a bending
+    # deflection: 8 and 12 modes give the same error up to the damped transient (0.1 %)
+    check(errs[0] > errs[1] and errs[2] <= 1.001 * errs[1] and errs[2] > 100 * abs(-y[-1] / d_exact - 1),
           f"static deflection error with 4, 8, 12, all modes: {['%.2e' % e for e in errs]}, {abs(-y[-1] / d_exact - 1):.1e}")
 
     # --- 2. free oscillation under a suddenly applied load: the first clamped-free mode --------
