@@ -50,6 +50,8 @@ static const char *usage_text =
     "  --estimator W    the estimate that drives the selection: upper (kappa_n, the\n"
     "                   paper's, default), upper-next (kappa_(Nd+1)), second, lower\n"
     "  --max-modes N    largest Nd the selection may reach (default: interior dofs - 1)\n"
+    "  --nd N           without --tol: the estimates of the body with N fixed-interface\n"
+    "                   modes instead of the cb file's (more are computed from the fe file)\n"
     "  --exact          exact errors from a full eigensolution of the body (costly)\n"
     "  --csv FILE       the table as CSV (\"-\": standard output): mode,frequency_hz,\n"
     "                   eigenvalue,lower,second_order,upper,exact,upper_kappa_next,cluster\n"
@@ -74,7 +76,7 @@ typedef struct args {
   const char *input, *fe, *csv, *plot, *output;
   double tol;
   bool has_tol, exact, stress;
-  long range, init, max_modes;
+  long range, init, max_modes, nd;
   int which;
   int quiet, verbose;
 } args;
@@ -84,6 +86,7 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
   a->init = 5;
   a->range = -1;
   a->max_modes = -1;
+  a->nd = -1;
   a->stress = true;
   a->which = FMBD_EST_UPPER;
   for (int i = 1; i < argc; i++) {
@@ -130,7 +133,8 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
         return fmbd_cli_finish(FMBD_ERR_USAGE);
       }
       a->has_tol = true;
-    } else if (!strcmp(arg, "--range") || !strcmp(arg, "--init") || !strcmp(arg, "--max-modes")) {
+    } else if (!strcmp(arg, "--range") || !strcmp(arg, "--init") || !strcmp(arg, "--max-modes") ||
+               !strcmp(arg, "--nd")) {
       NEED_VALUE();
       long v;
       if (fmbd_cli_parse_int(arg, val, &v)) {
@@ -141,6 +145,11 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
           return fmbd_cli_usage_error("--range: %s must be >= 1", val);
         }
         a->range = v;
+      } else if (!strcmp(arg, "--nd")) {
+        if (v < 0) {
+          return fmbd_cli_usage_error("--nd: %s must be >= 0", val);
+        }
+        a->nd = v;
       } else if (!strcmp(arg, "--init")) {
         if (v < 0) {
           return fmbd_cli_usage_error("--init: %s must be >= 0", val);
@@ -181,6 +190,9 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
   }
   if (!a->input) {
     return fmbd_cli_usage_error("no BODY.cb.h5 given");
+  }
+  if (a->has_tol && a->nd >= 0) {
+    return fmbd_cli_usage_error("--nd and --tol are exclusive (the selection chooses Nd)");
   }
   if (a->has_tol && !(a->tol > 0)) {
     return fmbd_cli_usage_error("%s: --tol %g: the relative eigenvalue error tolerance must be > 0",
@@ -700,6 +712,12 @@ int main(int argc, char **argv) {
     FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the body has only %lld flexible modes (%lld dofs, %lld rigid-body modes)",
                (long long)nm, (long long)nflex_body, (long long)cb->ndof, (long long)cb->n_rigid);
   }
+  if (a.nd >= 0 && !a.has_tol) {
+    nflex_red = a.nd + cb->nb - cb->n_rigid;
+    if (a.range <= 0) {
+      nm = nflex_red;
+    }
+  }
   if (!a.has_tol && nm > nflex_red) {
     fmbd_err_context(cbname, "/reduced/eigenvalues");
     FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the reduced body has only %lld flexible modes (give --tol to add modes)",
@@ -767,6 +785,15 @@ int main(int argc, char **argv) {
                 sel.log[i].largest);
       }
     }
+  } else if (a.nd >= 0) {  // the estimates of another Nd (extended from the fe file if larger)
+    if (a.nd > r.nd_max) {
+      fmbd_err_context(cbname, "/cb/interior_dofs");
+      FMBD_GFAIL(FMBD_ERR_VALUE, "--nd %ld: at most %lld fixed-interface modes", a.nd, (long long)r.nd_max);
+    }
+    if (a.nd > fmbd_est_npool(r.est)) {
+      FMBD_GCALL(extend(&r, r.est, a.nd));
+    }
+    FMBD_GCALL(fmbd_est_set_nd(r.est, a.nd));
   } else {
     FMBD_GCALL(fmbd_est_set_nd(r.est, cb->nd));
   }
@@ -774,7 +801,7 @@ int main(int argc, char **argv) {
   FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nr + 1)));
   FMBD_GCALL(fmbd_est_run(r.est, &m, Xi));
   r.t_est_s = fmbd_wall_s() - t0 - t_sel;  // the selection is timed apart
-  if (!a.has_tol) {  // the re-solved reduced problem must be the file's
+  if (!a.has_tol && nd == r.nd_file) {  // the re-solved reduced problem must be the file's
     for (int64_t k = 0; k < m.nmodes && k < cb->nr; k++) {
       double d = fabs(m.chibar[k] - cb->chibar[k]);
       if (!m.rigid[k] && d > 1e-6 * fabs(cb->chibar[k])) {

@@ -24,6 +24,7 @@ struct fmbd_est {
 void fmbd_est_options_defaults(fmbd_est_options *o) {
   o->rigid_rtol = 1e-6;
   o->cluster_rtol = 1e-3;
+  o->cluster_overlap = true;
 }
 
 static void symmetrize(int64_t n, double *X) {
@@ -372,7 +373,9 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
     m->upper[n] = (c + c * c / kn) * x;          // [H42]
     m->upper_next[n] = (c + c * c / knext) * x;  // [H38] with kappa_(nd+1)
   }
-  // repeated clusters: consecutive flexible modes within cluster_rtol
+  // clusters: consecutive flexible modes within cluster_rtol (repeated eigenvalues), or whose
+  // uncertainty intervals [chibar / (1 + upper), chibar] overlap: the full body's eigenvalues
+  // of such modes may come in another order, so a per-mode value would be arbitrary
   int64_t n = 0;
   while (n < nm) {
     if (m->rigid[n]) {
@@ -380,8 +383,12 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
       continue;
     }
     int64_t last = n;
-    while (last + 1 < nm && !m->rigid[last + 1] &&
-           fabs(chibar[last + 1] - chibar[last]) <= e->opt.cluster_rtol * fabs(chibar[last + 1])) {
+    while (last + 1 < nm && !m->rigid[last + 1]) {
+      double c1 = chibar[last + 1], gap = fabs(c1 - chibar[last]);
+      double unc = c1 - c1 / (1 + fmax(m->upper[last + 1], 0));  // before the clusters' max
+      if (!(gap <= e->opt.cluster_rtol * fabs(c1) || (e->opt.cluster_overlap && gap <= unc))) {
+        break;
+      }
       last++;
     }
     if (last > n) {

@@ -39,11 +39,14 @@
 //                          [H36] since Phi_r Lambda_r^-2 Phi_r' <= Frs / kappa_(nd+1) [H38])
 // When kappa_(nd+1) is unknown (nd == npool), kappa_nd is used instead: smaller, so still a
 // valid (slightly looser) upper estimate; `knext_known` reports it.
-// Rigid-body modes (chibar ~ 0) get 0 and are flagged. Repeated clusters (relative gap of
-// chibar below cluster_rtol) get consistent values: each member gets the cluster's largest
-// upper and second-order estimates and the cluster's smallest lower estimate (so that the
-// bracket stays conservative), independent of the arbitrary basis inside the cluster
-// (THEORY.md section 8).
+// Rigid-body modes (chibar ~ 0) get 0 and are flagged. Clusters get consistent values: each
+// member gets the cluster's largest upper and second-order estimates and the cluster's
+// smallest lower estimate (so that the bracket stays conservative), independent of the
+// arbitrary basis inside the cluster (THEORY.md section 8). A cluster is a run of consecutive
+// flexible modes each within cluster_rtol of the previous one (repeated eigenvalues), or whose
+// uncertainty interval [chibar / (1 + upper), chibar] reaches the previous eigenvalue: the full
+// body's eigenvalues of such modes may come in another order than the reduced ones, so the
+// error of "the n-th mode" is not defined better than over the cluster.
 #ifndef FMBD_EST_H
 #define FMBD_EST_H
 
@@ -72,6 +75,8 @@ typedef struct fmbd_est_options {
   double cluster_rtol; ///< |chibar_i - chibar_j| <= cluster_rtol * chibar_j groups modes into a
                        ///< repeated cluster. Default 1e-3 (tet meshes of symmetric sections
                        ///< split pairs by ~1e-4)
+  bool cluster_overlap; ///< also cluster modes whose intervals [chibar / (1 + upper), chibar]
+                        ///< overlap. Default true
 } fmbd_est_options;
 
 /// @brief The defaults documented in fmbd_est_options.
