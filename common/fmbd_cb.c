@@ -394,6 +394,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   fmbd_eig_result er = {0};
   double *tmp = NULL;
   char *mark = NULL;
+  int64_t *perm = NULL;
   *out = NULL;
   int64_t n = K->nrows;
   FMBD_CHECK(o.nmodes >= 0, FMBD_ERR_VALUE, "negative number of modes");
@@ -569,9 +570,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       fmbd_chol_stats st;
       fmbd_chol_get_stats(F, &st);
       cb->time.solves += st.n_solves - er.n_solves;  // the constraint and projection solves
+      FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
+      FMBD_GCALL(fmbd_chol_get_perm(F, perm));
       fmbd_chol_destroy(&F);
       bool ok = false;
-      FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, &er, &ok));
+      FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok));
       if (!ok) {
         // a skipped mode, or no gap to place the shift: again with the full checked solver
         fmbd_log(FMBD_LOG_INFO, "Sturm count %lld below %.6g Hz, Lanczos found %lld: solving again "
@@ -579,7 +582,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
                  isnan(er.sturm_shift) ? NAN : hz(er.sturm_shift), (long long)er.nev);
         take_eig_time(cb, &er);
         fmbd_eig_result_free(&er);
-        FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
+        FMBD_GCALL(fmbd_chol_analyze_perm(Ks, NULL, FMBD_CHOL_LLT, perm, &F));
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
         FMBD_GCALL(modes(Ks, Ms, F, &o, nev + 5, lmax, false, &er));
         if (o.fmax_hz <= 0.0) er.nev = o.nmodes < er.nev ? o.nmodes : er.nev;
@@ -631,6 +634,7 @@ done:
   fmbd_eig_result_free(&er);
   fmbd_free(tmp);
   fmbd_free(mark);
+  fmbd_free(perm);
   return rc;
 }
 

@@ -11,11 +11,14 @@
 //   A - sigma B is not positive definite, or when a pivot is tiny against the diagonal (a
 //   singular matrix that round-off made barely positive, e.g. a floating region of a body):
 //   the message names the row (the caller maps it to a dof; fmbd_chol_failed_row).
-// - FMBD_CHOL_LDLT: simplicial LDL' without pivoting (c.supernodal = CHOLMOD_SIMPLICIAL,
-//   c.final_ll = 0). Works on indefinite matrices; the number of negative entries of D is the
-//   inertia count of Sylvester's law: for B positive definite, the number of eigenvalues of
-//   A x = lambda B x below sigma (the Sturm-sequence check). About 10-20 times slower than
-//   the supernodal LL' on 3-D meshes (TOOLCHAIN.md 3e); meant for the count only.
+// - FMBD_CHOL_LDLT: LDL' without pivoting, for the inertia count only (no solves): the number
+//   of negative entries of D is, by Sylvester's law of inertia, for B positive definite the
+//   number of eigenvalues of A x = lambda B x below sigma (the Sturm-sequence check). Numeric
+//   factorisation written here (left-looking supernodal, BLAS-3) on CHOLMOD's supernodal
+//   symbolic analysis: CHOLMOD's own LDL' is simplicial only, 10-20 times slower than its
+//   supernodal LL' on 3-D meshes (TOOLCHAIN.md 3e), and stores a row index per entry.
+// - FMBD_CHOL_LDLT_SIMPLICIAL: the same count with CHOLMOD's simplicial LDL'
+//   (c.supernodal = CHOLMOD_SIMPLICIAL, c.final_ll = 0): the reference of the tests.
 //
 // CHOLMOD's memory goes through fmbd_malloc & co and it never prints (c.print = 0,
 // SuiteSparse_config.printf_func = NULL).
@@ -26,7 +29,7 @@
 
 #include "fmbd_csr.h"
 
-enum fmbd_chol_kind { FMBD_CHOL_LLT = 0, FMBD_CHOL_LDLT = 1 };
+enum fmbd_chol_kind { FMBD_CHOL_LLT = 0, FMBD_CHOL_LDLT = 1, FMBD_CHOL_LDLT_SIMPLICIAL = 2 };
 
 typedef struct fmbd_chol fmbd_chol;
 
@@ -54,6 +57,14 @@ typedef struct fmbd_chol_stats {
 /// @param[out] out caller destroys with fmbd_chol_destroy
 /// @return FMBD_OK, FMBD_ERR_VALUE (bad shapes), FMBD_ERR_NOMEM, FMBD_ERR_EXTERNAL
 int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol **out);
+
+/// @brief fmbd_chol_analyze with a given fill-reducing permutation (perm[k] = the row that
+/// becomes pivot k; e.g. fmbd_chol_get_perm of an earlier factor of the same pattern), which
+/// saves the ordering time (METIS). perm NULL: CHOLMOD's choice. perm is copied.
+int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t *perm,
+                           fmbd_chol **out);
+/// @brief The permutation of an analysed factor into perm (n entries, caller allocates).
+int fmbd_chol_get_perm(const fmbd_chol *F, int64_t *perm);
 
 /// @brief Numeric factorisation of A - sigma B.
 /// LLT: FMBD_ERR_SINGULAR if not positive definite or if a pivot d_k = L_kk^2 falls below

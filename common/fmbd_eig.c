@@ -497,7 +497,14 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
         continue;
       }
       double t3 = fmbd_wall_s();
-      if (!ldl) FMBD_GCALL(fmbd_chol_analyze(K, M, FMBD_CHOL_LDLT, &ldl));
+      if (!ldl) {
+        int64_t *pm = fmbd_malloc((size_t)n * sizeof(int64_t));
+        FMBD_GCHECK(pm, FMBD_ERR_NOMEM, "out of memory");
+        rc = fmbd_chol_get_perm(op, pm);
+        if (rc == 0) rc = fmbd_chol_analyze_perm(K, M, FMBD_CHOL_LDLT, pm, &ldl);
+        fmbd_free(pm);
+        FMBD_GCALL(rc);
+      }
       if (o.progress) o.progress(o.progress_ctx, "Sturm check", res->n_solves, keep);
       FMBD_GCALL(fmbd_chol_factor(ldl, s));
       int64_t cnt = fmbd_chol_negative_pivots(ldl);
@@ -541,7 +548,8 @@ done:
   return rc;
 }
 
-int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_eig_result *res, bool *ok) {
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const int64_t *perm,
+                         fmbd_eig_result *res, bool *ok) {
   int rc = FMBD_OK;
   fmbd_chol *ldl = NULL;
   *ok = false;
@@ -551,7 +559,7 @@ int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_eig_result *
   if (!(hi - lo > 1e-6 * ref)) return FMBD_OK;  // inside a cluster: inconclusive
   double s = 0.5 * (lo + hi);
   double t0 = fmbd_wall_s();
-  FMBD_GCALL(fmbd_chol_analyze(K, M, FMBD_CHOL_LDLT, &ldl));
+  FMBD_GCALL(fmbd_chol_analyze_perm(K, M, FMBD_CHOL_LDLT, perm, &ldl));
   FMBD_GCALL(fmbd_chol_factor(ldl, s));
   res->sturm_shift = s;
   res->sturm_count = fmbd_chol_negative_pivots(ldl);

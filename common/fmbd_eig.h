@@ -103,7 +103,9 @@ void fmbd_eig_result_free(fmbd_eig_result *res);
 /// @param[in,out] res  sturm_shift, sturm_count and t_sturm_s are set
 /// @param[out] ok  true: the count equals res->nev; false: a mode was skipped, or no gap above
 ///                 the last pair to place the shift (then solve again with o->sturm = true)
-int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_eig_result *res, bool *ok);
+/// @param[in] perm  a fill-reducing ordering of K's pattern to reuse (fmbd_chol_get_perm), or NULL
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const int64_t *perm,
+                         fmbd_eig_result *res, bool *ok);
 
 /// @brief Relative residual ||K x - lambda M x|| / max(||K x||, |scale| ||M x||) of one pair.
 /// @param[in] work  2n doubles of scratch

@@ -25,7 +25,84 @@ static fmbd_csr *tridiag(int64_t n, double d, double o, double dend) {
   return A;
 }
 
+// C = A (x) B (Kronecker product), rows sorted
+static fmbd_csr *kron(const fmbd_csr *A, const fmbd_csr *B) {
+  int64_t nb = B->nrows, N = A->nrows * nb;
+  int64_t nnz = fmbd_csr_nnz(A) * fmbd_csr_nnz(B);
+  fmbd_csr *C = NULL;
+  if (fmbd_csr_create(N, N, nnz, &C)) return NULL;
+  int64_t q = 0;
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int64_t a = 0; a < nb; a++) {
+      C->indptr[i * nb + a] = q;
+      for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++)
+        for (int64_t r = B->indptr[a]; r < B->indptr[a + 1]; r++) {
+          C->indices[q] = A->indices[p] * nb + B->indices[r];
+          C->data[q++] = A->data[p] * B->data[r];
+        }
+    }
+  }
+  C->indptr[N] = q;
+  return C;
+}
+
+// C = A + B (same pattern: the Kronecker products below share theirs)
+static void add_into(fmbd_csr *A, const fmbd_csr *B) {
+  for (int64_t p = 0; p < fmbd_csr_nnz(A); p++) A->data[p] += B->data[p];
+}
+
+static int cmpd(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+// the supernodal LDL' count against the simplicial one and the exact count, on a 3-D
+// Laplacian (K3 = K(x)M(x)M + M(x)K(x)M + M(x)M(x)K, M3 = M(x)M(x)M): real supernodes
+static void inertia_3d(void) {
+  const int64_t m = 14;
+  const double h = 1.0 / (double)(m + 1);
+  fmbd_csr *K = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h), *M = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
+  fmbd_csr *KM = kron(K, M), *MM = kron(M, M), *MK = kron(M, K);
+  fmbd_csr *K3 = kron(K, MM), *t1 = kron(M, KM), *t2 = kron(MM, K), *M3 = kron(M, MM);
+  add_into(K3, t1);
+  add_into(K3, t2);
+  int64_t n = m * m * m;
+  double *ex = malloc((size_t)n * sizeof(double));
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = 0; j < m; j++)
+      for (int64_t k = 0; k < m; k++) {
+        double l[3];
+        int64_t ijk[3] = {i, j, k};
+        for (int t = 0; t < 3; t++) {
+          double c = cos((double)(ijk[t] + 1) * M_PI * h);
+          l[t] = 6.0 / (h * h) * (1 - c) / (2 + c);
+        }
+        ex[(i * m + j) * m + k] = l[0] + l[1] + l[2];
+      }
+  qsort(ex, (size_t)n, sizeof(double), cmpd);
+  fmbd_chol *Fs = NULL, *Fp = NULL;
+  int rc = fmbd_chol_analyze(K3, M3, FMBD_CHOL_LDLT, &Fs);
+  rc = rc ? rc : fmbd_chol_analyze(K3, M3, FMBD_CHOL_LDLT_SIMPLICIAL, &Fp);
+  EXPECT(rc == 0, "3-D analyse: rc %d", rc);
+  int64_t idx[] = {1, 5, 30, 200, 1000, 2000, 2700};
+  for (size_t t = 0; rc == 0 && t < sizeof idx / sizeof idx[0]; t++) {
+    int64_t k = idx[t];
+    while (k < n && ex[k] - ex[k - 1] < 1e-9 * ex[k]) k++;  // a shift between distinct values
+    double sgm = 0.5 * (ex[k - 1] + ex[k]);
+    int r1 = fmbd_chol_factor(Fs, sgm), r2 = fmbd_chol_factor(Fp, sgm);
+    EXPECT(r1 == 0 && r2 == 0 && fmbd_chol_negative_pivots(Fs) == k && fmbd_chol_negative_pivots(Fp) == k,
+           "3-D count below %.6g: supernodal %lld, simplicial %lld, exact %lld", sgm,
+           (long long)fmbd_chol_negative_pivots(Fs), (long long)fmbd_chol_negative_pivots(Fp), (long long)k);
+  }
+  fmbd_chol_destroy(&Fs);
+  fmbd_chol_destroy(&Fp);
+  free(ex);
+  fmbd_csr *all[] = {K, M, KM, MM, MK, K3, t1, t2, M3};
+  for (size_t t = 0; t < sizeof all / sizeof all[0]; t++) fmbd_csr_destroy(&all[t]);
+}
+
 int main(void) {
+  inertia_3d();
   const int64_t n = 500;
   const double h = 1.0 / (double)(n + 1);
   fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h);
