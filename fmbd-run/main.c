@@ -470,6 +470,15 @@ int main(int argc, char **argv) {
   }
   FMBD_GCALL(fmbd_cli_output_name(scene_file, opt_o, strip, ".run.h5", &out_name));
 
+  // --- the reference run, checked before the work ------------------------------------------
+  if (ref) {
+    fmbd_h5 *g = NULL;
+    rc = fmbd_h5_open(ref, &g);
+    if (!rc) rc = fmbd_h5_check_format(g, "fmbd-run", 1);
+    fmbd_h5_close(&g);
+    if (rc) goto done;
+  }
+
   // --- build and initialise -----------------------------------------------------------------
   FMBD_GCALL(fmbd_scene_build(s, &m));
   fmbd_mbs_settings set;

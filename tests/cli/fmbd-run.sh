@@ -44,6 +44,7 @@ expect missing-file 1 "nofile.yaml:3:39: body 'rod': missing.rflex.h5" -- fmbd-r
 printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: nofile.yaml}\n' >notfmbd.yaml
 expect not-hdf5 1 "notfmbd.yaml:3:39: body 'rod': nofile.yaml" -- fmbd-run notfmbd.yaml -o out.run.h5
 
+expect bad-reference 1 "^fmbd-run: error: nofile.yaml: .*HDF5" -- fmbd-run "$ROOT/examples/scenes/pendulum.yaml" -o out.run.h5 --reference nofile.yaml
 expect no-scene 1 "missing.yaml: cannot open the scene" -- fmbd-run missing.yaml -o out.run.h5
 expect usage 2 "no scene file given" -- fmbd-run -o out.run.h5
 expect bad-t-end 2 "t-end" -- fmbd-run unknown.yaml --t-end -1 -o out.run.h5
@@ -125,18 +126,27 @@ else
   echo "sigint: no out.run.h5.part"; fail=1
 fi
 
+# --- the examples of the man page (docs/man/fmbd-run.1) run as written ---------------------
+ex=$ROOT/examples
+( cd "$T" && mkdir -p man && cd man &&
+  fmbd-run "$ex/scenes/pendulum.yaml" -o pendulum.run.h5 --plot pend- -q &&
+  [ -f pend-bob-trajectory.svg ] &&
+  fmbd-run -M "$ex/quadpend/quadpend.yaml" --body-dir out | grep -q '^out/rod.rflex.h5: out/rod.cb.h5 out/rod.fe.h5$' &&
+  fmbd-run "$ex/scenes/pendulum.yaml" -o coarse.run.h5 --reference pendulum.run.h5 2>ref.err &&
+  grep -q "bob: RMS position error 0.0000e+00 m" ref.err ) || { echo "man page examples failed"; fail=1; }
+
 # --- flexible bodies: need a reduced body from the toolchain ------------------------------
 if mesh2fe "$ROOT/examples/geometry/rodbeam.geo" --circle 0.015 --interface end0 --interface end1 -o rod.fe.h5 -q 2>mesh.err &&
   fe2cb rod.fe.h5 --modes 10 -o rod.cb.h5 -q 2>cb.err &&
   cbcheck rod.cb.h5 --fe rod.fe.h5 -o rod.rflex.h5 -q >/dev/null 2>check.err; then
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.fe.h5}\n' >wrongkind.yaml
-  expect wrong-kind 1 "wrongkind.yaml:3:42: body 'rod': rod.fe.h5 is a fmbd-fe file" -- fmbd-run wrongkind.yaml -o out.run.h5
+  expect wrong-kind 1 "wrongkind.yaml:3:39: body 'rod': rod.fe.h5 is a fmbd-fe file" -- fmbd-run wrongkind.yaml -o out.run.h5
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5}\njoints:\n  - {name: j, type: spherical, body1: ground, body2: rod, point: [0.1, 0.02, 0]}\n' >offbody.yaml
-  expect off-body 1 "offbody.yaml:5:65: joint 'j': the point \(0.1, 0.02, 0\) \(body frame\) is not on body 'rod'" -- fmbd-run offbody.yaml -o out.run.h5
+  expect off-body 1 "offbody.yaml:5:66: joint 'j': the point \(0.1, 0.02, 0\) \(body frame\) is not on body 'rod'" -- fmbd-run offbody.yaml -o out.run.h5
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5}\njoints:\n  - {name: j, type: fixed, body1: ground, body2: rod, at2: {interface: middle}}\n' >noif.yaml
-  expect no-interface 1 "noif.yaml:5:67: joint 'j': body 'rod' .* has no interface 'middle' \(it has: end0, end1\)" -- fmbd-run noif.yaml -o out.run.h5
+  expect no-interface 1 "noif.yaml:5:72: joint 'j': body 'rod' .* has no interface 'middle' \(it has: end0, end1\)" -- fmbd-run noif.yaml -o out.run.h5
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5, modes: 500}\n' >toomany.yaml
-  expect too-many-modes 1 "toomany.yaml:3:42: body 'rod' asks for 500 modes" -- fmbd-run toomany.yaml -o out.run.h5
+  expect too-many-modes 1 "toomany.yaml:3:39: body 'rod' asks for 500 modes" -- fmbd-run toomany.yaml -o out.run.h5
 else
   echo "flexible-body cases: the toolchain could not make rod.rflex.h5:"; cat mesh.err cb.err check.err 2>/dev/null
   fail=1
