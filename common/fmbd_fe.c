@@ -854,7 +854,9 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
     }
     FMBD_GCALL(add_element(&c, e, kt, Ke, diag_mass ? NULL : Me));
     if (diag_mass) {
-      for (int a = 0; a < tn; a++) FMBD_GCALL(add_diag(b->M, b->node_dof[en[a]], 3, d[a]));
+      for (int a = 0; a < tn; a++) {
+        if (nact(b, en[a]) > 0) FMBD_GCALL(add_diag(b->M, b->node_dof[en[a]], 3, d[a]));
+      }
     }
   }
   for (int64_t e = 0; e < m->nbeam; e++) {

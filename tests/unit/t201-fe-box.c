@@ -234,6 +234,30 @@ int main(void) {
     }
     fmbd_mesh_destroy(&mesh);
   }
+  // --- lumped mass with a clamped face: the diagonal of every active dof is its node's HRZ mass
+  {
+    fmbd_mesh mesh;
+    box_mesh(&mesh, a, bb, c, 2, 1, 2, 2);
+    const char *cl[1] = {"xmin"};
+    o.mass = FMBD_FE_MASS_LUMPED;
+    o.nclamps = 1;
+    o.clamps = cl;
+    fmbd_fe_body *b = NULL;
+    int rc = fmbd_fe_assemble(&mesh, &o, &b);
+    EXPECT(rc == FMBD_OK, "lumped clamped: %s", fmbd_err_get()->msg);
+    if (!rc) {
+      int g = fmbd_mesh_find_group(&mesh, "xmin");
+      EXPECT(b->ndof == 3 * (mesh.nnodes - (mesh.group_ptr[g + 1] - mesh.group_ptr[g])), "lumped clamped: dofs");
+      EXPECT(fmbd_csr_nnz(b->M) == b->ndof, "lumped clamped: M diagonal");
+      double err = 0.0;
+      for (int64_t i = 0; i < b->ndof; i++) err = fmax(err, fabs(fmbd_csr_get(b->M, i, i) - b->node_mass[b->dofs[2 * i]]));
+      EXPECT(err < 1e-13 * b->mass, "lumped clamped: diagonal vs node mass off by %.3g", err);
+      EXPECT(count_rigid(b, NULL) == 0, "lumped clamped: no rigid modes");
+      fmbd_fe_body_destroy(&b);
+    }
+    o.nclamps = 0;
+    fmbd_mesh_destroy(&mesh);
+  }
   // --- mixed solid + beam: a beam of 4 elements sticking out of a box corner, sharing the corner
   // node (6 dofs there: the tets' 3 translations plus the beam's rotations). The shared node
   // passes no moment into the solid, so the beam can also swing rigidly about it: 6 rigid-body
