@@ -455,8 +455,9 @@ static void print_table(FILE *fp, const table *t, bool exact) {
     any = any || t->cluster[j] != j + 1;
   }
   if (any) {
-    fprintf(fp, "repeated clusters (eigenvalues within 1e-3): each member gets the cluster's largest\n"
-                "upper and second-order estimates and its smallest lower estimate\n");
+    fprintf(fp, "clusters (eigenvalues within 1e-3, or overlapping intervals [chibar/(1+upper), chibar]):\n"
+                "each member gets the cluster's largest upper and second-order estimates and its\n"
+                "smallest lower estimate\n");
   }
   if (exact) {  // measured bounding rates over modes with exact error below 10 %
     int64_t n = 0, up = 0, lo = 0, un = 0;
