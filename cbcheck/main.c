@@ -708,10 +708,16 @@ int main(int argc, char **argv) {
     r.nd_max = a.max_modes;
   }
   int64_t nm = a.range > 0 ? a.range : (a.has_tol ? 10 : nflex_red);
+  // the most flexible modes a reduced body can have: Nd <= ns - 1 (the eigensolver needs
+  // nev < n) plus the boundary dofs, less the rigid-body modes
+  if (r.nd_max + cb->nb - cb->n_rigid < nflex_body) {
+    nflex_body = r.nd_max + cb->nb - cb->n_rigid;
+  }
   if (nm > nflex_body) {
     fmbd_err_context(cbname, "/dofs");
-    FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the body has only %lld flexible modes (%lld dofs, %lld rigid-body modes)",
-               (long long)nm, (long long)nflex_body, (long long)cb->ndof, (long long)cb->n_rigid);
+    FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the body can have at most %lld flexible modes (%lld dofs, %lld rigid-body modes%s)",
+               (long long)nm, (long long)nflex_body, (long long)cb->ndof, (long long)cb->n_rigid,
+               r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
   }
   if (a.nd >= 0 && !a.has_tol) {
     nflex_red = a.nd + cb->nb - cb->n_rigid;
