@@ -920,35 +920,34 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
   static const double node_xi[10][3] = {{0, 0, 0},   {1, 0, 0},   {0, 1, 0},  {0, 0, 1},
                                         {.5, 0, 0},  {.5, .5, 0}, {0, .5, 0}, {0, 0, .5},
                                         {0, .5, .5}, {.5, 0, .5}};
-  FMBD_GALLOC(u = fmbd_malloc((size_t)(6 * b->nnodes) * sizeof *u));
+  double dNn[10][30], Nn[10];
+  for (int a = 0; a < nn; a++) fmbd_fe_tet_shape(nn, node_xi[a], Nn, dNn[a]);
+  // cases in blocks: the displacements of a block of cases at all nodes, U = expand * q
+  const int64_t nb = ncases < 16 ? ncases : 16, ld = 6 * b->nnodes;
+  FMBD_GALLOC(u = fmbd_malloc((size_t)(ld * (nb ? nb : 1)) * sizeof *u));
   FMBD_GALLOC(count = fmbd_calloc((size_t)b->nnodes, sizeof *count));
   memset(sigma, 0, (size_t)(b->nnodes * 6 * ncases) * sizeof *sigma);
   for (int64_t e = 0; e < b->ntet; e++) {
     for (int a = 0; a < nn; a++) count[b->tet[e * nn + a]]++;
   }
-  for (int64_t c = 0; c < ncases; c++) {
-    fmbd_csr_matvec(b->expand, q + c * b->ndof, u);
-    double *sg = sigma + c * b->nnodes * 6;
+  for (int64_t c0 = 0; c0 < ncases; c0 += nb) {
+    const int64_t ncb = ncases - c0 < nb ? ncases - c0 : nb;
+    fmbd_csr_matmat(b->expand, ncb, q + c0 * b->ndof, b->ndof, u, ld);
     for (int64_t e = 0; e < b->ntet; e++) {
       const int64_t *en = b->tet + e * nn;
-      double xe[30], ue[30], N[10], dN[30], J[9], Ji[9];
+      double G[10][30]; // global gradients of the shape functions at each node of the element
       for (int a = 0; a < nn; a++) {
-        memcpy(xe + 3 * a, b->xyz + 3 * en[a], 3 * sizeof(double));
-        memcpy(ue + 3 * a, u + 6 * en[a], 3 * sizeof(double));
-      }
-      for (int a = 0; a < nn; a++) {
-        fmbd_fe_tet_shape(nn, node_xi[a], N, dN);
-        memset(J, 0, sizeof J);
+        double J[9] = {0}, Ji[9];
         for (int k = 0; k < nn; k++) {
+          const double *x = b->xyz + 3 * en[k];
           for (int i = 0; i < 3; i++) {
-            for (int j = 0; j < 3; j++) J[i * 3 + j] += dN[k * 3 + i] * xe[k * 3 + j];
+            for (int j = 0; j < 3; j++) J[i * 3 + j] += dNn[a][k * 3 + i] * x[j];
           }
         }
         double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
                      J[2] * (J[3] * J[7] - J[4] * J[6]);
-        FMBD_GCHECK(det > 0.0, FMBD_ERR_VALUE,
-                    "element %lld (tet%d): Jacobian determinant %g at node %d", (long long)e, nn,
-                    det, a);
+        FMBD_GCHECK(det > 0.0, FMBD_ERR_VALUE, "element %lld (tet%d): Jacobian determinant %g at node %d",
+                    (long long)e, nn, det, a);
         Ji[0] = (J[4] * J[8] - J[5] * J[7]) / det;
         Ji[1] = (J[2] * J[7] - J[1] * J[8]) / det;
         Ji[2] = (J[1] * J[5] - J[2] * J[4]) / det;
@@ -958,25 +957,40 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
         Ji[6] = (J[3] * J[7] - J[4] * J[6]) / det;
         Ji[7] = (J[1] * J[6] - J[0] * J[7]) / det;
         Ji[8] = (J[0] * J[4] - J[1] * J[3]) / det;
-        double gu[9] = {0}; // gu[i][j] = d u_i / d x_j
         for (int k = 0; k < nn; k++) {
-          double g[3];
           for (int j = 0; j < 3; j++) {
-            g[j] = Ji[j * 3 + 0] * dN[k * 3 + 0] + Ji[j * 3 + 1] * dN[k * 3 + 1] +
-                   Ji[j * 3 + 2] * dN[k * 3 + 2];
-          }
-          for (int i = 0; i < 3; i++) {
-            for (int j = 0; j < 3; j++) gu[i * 3 + j] += ue[k * 3 + i] * g[j];
+            G[a][k * 3 + j] = Ji[j * 3 + 0] * dNn[a][k * 3 + 0] + Ji[j * 3 + 1] * dNn[a][k * 3 + 1] +
+                              Ji[j * 3 + 2] * dNn[a][k * 3 + 2];
           }
         }
-        double tr = gu[0] + gu[4] + gu[8];
-        double s[6] = {lambda * tr + 2 * mu * gu[0], lambda * tr + 2 * mu * gu[4],
-                       lambda * tr + 2 * mu * gu[8], mu * (gu[1] + gu[3]),
-                       mu * (gu[5] + gu[7]),         mu * (gu[2] + gu[6])};
-        double *dst = sg + en[a] * 6;
-        for (int i = 0; i < 6; i++) dst[i] += s[i];
+      }
+      for (int64_t c = 0; c < ncb; c++) {
+        const double *uc = u + c * ld;
+        double *sg = sigma + (c0 + c) * b->nnodes * 6;
+        for (int a = 0; a < nn; a++) {
+          double gu[9] = {0}; // gu[i][j] = d u_i / d x_j
+          for (int k = 0; k < nn; k++) {
+            const double *uk = uc + 6 * en[k], *g = G[a] + 3 * k;
+            for (int i = 0; i < 3; i++) {
+              gu[i * 3 + 0] += uk[i] * g[0];
+              gu[i * 3 + 1] += uk[i] * g[1];
+              gu[i * 3 + 2] += uk[i] * g[2];
+            }
+          }
+          double tr = gu[0] + gu[4] + gu[8];
+          double *dst = sg + en[a] * 6;
+          dst[0] += lambda * tr + 2 * mu * gu[0];
+          dst[1] += lambda * tr + 2 * mu * gu[4];
+          dst[2] += lambda * tr + 2 * mu * gu[8];
+          dst[3] += mu * (gu[1] + gu[3]);
+          dst[4] += mu * (gu[5] + gu[7]);
+          dst[5] += mu * (gu[2] + gu[6]);
+        }
       }
     }
+  }
+  for (int64_t c = 0; c < ncases; c++) {
+    double *sg = sigma + c * b->nnodes * 6;
     for (int64_t p = 0; p < b->nnodes; p++) {
       if (count[p] > 1) {
         for (int i = 0; i < 6; i++) sg[p * 6 + i] /= count[p];

@@ -66,26 +66,35 @@ static double translation_mass(const fmbd_fe_body *b, int d) {
   return s;
 }
 
-// patch test: u = G x + c; nodal stresses equal D eps(G) everywhere; with `interior`, K u = 0 on
-// the dofs of nodes strictly inside the box
+// patch test: u = s_c (G x) + t_c for 20 cases c (two blocks of the stress routine), s_c =
+// 1 + c/10; nodal stresses equal s_c D eps(G) everywhere; with `interior`, K u = 0 on the dofs of
+// nodes strictly inside the box
+#define NCASES 20
 static void patch_test(const fmbd_fe_body *b, const char *what, double a, double bb, double c, bool interior) {
   const double G[9] = {1e-3, 2e-4, -3e-4, 5e-4, -7e-4, 1e-4, -2e-4, 6e-4, 4e-4};
-  double *q = fmbd_malloc(b->ndof * sizeof *q), *f = fmbd_malloc(b->ndof * sizeof *f);
-  double *sig = fmbd_malloc(b->nnodes * 6 * sizeof *sig);
-  for (int64_t i = 0; i < b->ndof; i++) {
-    int64_t p = b->dofs[2 * i], d = b->dofs[2 * i + 1];
-    const double *x = b->xyz + 3 * p;
-    q[i] = G[d * 3] * x[0] + G[d * 3 + 1] * x[1] + G[d * 3 + 2] * x[2] + 1e-3 * (d + 1);
+  double *q = fmbd_malloc(NCASES * b->ndof * sizeof *q), *f = fmbd_malloc(b->ndof * sizeof *f);
+  double *sig = fmbd_malloc(NCASES * b->nnodes * 6 * sizeof *sig);
+  for (int cs = 0; cs < NCASES; cs++) {
+    for (int64_t i = 0; i < b->ndof; i++) {
+      int64_t p = b->dofs[2 * i], d = b->dofs[2 * i + 1];
+      const double *x = b->xyz + 3 * p;
+      q[cs * b->ndof + i] = (1 + 0.1 * cs) * (G[d * 3] * x[0] + G[d * 3 + 1] * x[1] + G[d * 3 + 2] * x[2]) +
+                            1e-3 * (d + 1) * cs;
+    }
   }
-  EXPECT(fmbd_fe_nodal_stress(b, 1, q, sig) == FMBD_OK, "%s: nodal stress", what);
+  EXPECT(fmbd_fe_nodal_stress(b, NCASES, q, sig) == FMBD_OK, "%s: nodal stress", what);
   const double lam = E * NU / ((1 + NU) * (1 - 2 * NU)), mu = E / (2 * (1 + NU));
   double tr = G[0] + G[4] + G[8];
   double ex[6] = {lam * tr + 2 * mu * G[0], lam * tr + 2 * mu * G[4], lam * tr + 2 * mu * G[8],
                   mu * (G[1] + G[3]), mu * (G[5] + G[7]), mu * (G[2] + G[6])};
   double smax = 0.0, err = 0.0;
   for (int i = 0; i < 6; i++) smax = fmax(smax, fabs(ex[i]));
-  for (int64_t p = 0; p < b->nnodes; p++) {
-    for (int i = 0; i < 6; i++) err = fmax(err, fabs(sig[p * 6 + i] - ex[i]));
+  for (int cs = 0; cs < NCASES; cs++) {
+    for (int64_t p = 0; p < b->nnodes; p++) {
+      for (int i = 0; i < 6; i++) {
+        err = fmax(err, fabs(sig[(cs * b->nnodes + p) * 6 + i] - (1 + 0.1 * cs) * ex[i]) / (1 + 0.1 * cs));
+      }
+    }
   }
   // exact up to rounding: gradients of a linear field through J^-1 on unit-size elements
   EXPECT(err <= 1e-12 * smax, "%s: patch test stress error %.3g of %.3g", what, err, smax);
