@@ -155,8 +155,9 @@ typedef struct fmbd_fe_body {
 /// M' = T' M T exactly, without forming K. RBE2 eliminates the tied nodes'
 /// dofs exactly, u_s = u_m + theta_m x (x_s - x_m) (theta_s = theta_m for 6-dof nodes);
 /// RBE3 keeps the interface node's 6 dofs and eliminates 6 translations of the group instead
-/// (the MSC Nastran RBE3 "UM" form): see fmbd_fe_tie.c for the equations. Overlapping ties
-/// (a node in two interfaces, or tied and clamped) are refused.
+/// (the MSC Nastran RBE3 "UM" form): see fmbd_fe_tie.c for the equations. A node tied to two
+/// interfaces, or an RBE2-tied node that is also clamped, is refused (clamp the interface
+/// instead); clamped nodes of an RBE3 group simply contribute zero translations.
 /// /body: mass, centre of mass and inertia are r' M r for the rigid-body modes r of the
 /// consistent element mass (exact for the element polynomials; beams: translational mass
 /// rho*A*L and torsional rho*J, Euler-Bernoulli has no section rotary inertia).
