@@ -1151,6 +1151,9 @@ int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *tex
   FMBD_GALLOC(s);
   c.s = s;
   FMBD_GALLOC(s->file = fmbd_strdup(file));
+  FMBD_GALLOC(s->text = fmbd_malloc((size_t)len + 1));
+  memcpy(s->text, text, (size_t)len);
+  s->text[len] = 0;
   {
     const char *slash = strrchr(file, '/');
     if (slash) {
@@ -1286,6 +1289,7 @@ void fmbd_scene_destroy(fmbd_scene **sp) {
   fmbd_free(s->reactions);
   fmbd_free(s->reaction_locs);
   fmbd_free(s->title);
+  fmbd_free(s->text);
   fmbd_free(s->file);
   fmbd_free(s->dir);
   fmbd_free(s);

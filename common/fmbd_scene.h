@@ -172,6 +172,7 @@ typedef struct fmbd_scene {
   char *file;               ///< the scene file's name as given
   char *dir;                ///< its folder ("." if none), against which body files resolve
   char *title;
+  char *text;               ///< the scene file's text as read (provenance in the run file)
   double gravity[3];        ///< default 0
   fmbd_scene_solver solver;
   int nbodies;

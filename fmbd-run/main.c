@@ -505,6 +505,7 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_h5_make_group(r.f, "/scene"));
   FMBD_GCALL(fmbd_h5_write_attr_str(r.f, "/scene", "file", scene_file));
   if (s->title) FMBD_GCALL(fmbd_h5_write_attr_str(r.f, "/scene", "title", s->title));
+  FMBD_GCALL(fmbd_h5_write_attr_str(r.f, "/scene", "text", s->text));
   FMBD_GCALL(fmbd_h5_write_attr_f64(r.f, "/scene", "t_end", 1, &s->solver.t_end));
   FMBD_GCALL(col_open(r.f, "/time", 0, &r.time));
   FMBD_GALLOC(r.out = fmbd_calloc((size_t)s->noutputs + 1, sizeof *r.out));
