@@ -217,7 +217,8 @@ typedef struct run {
   bool fe_tried;
   fmbd_est *est;
   int64_t nd_max;
-  double t_extend_s, t_exact_s, t_est_s, t_load_s;
+  double t_extend_s, t_exact_s, t_est_s, t_load_s;  // wall
+  double c_exact_s, c_est_s, c_load_s;               // cpu
   int64_t nd_file;  // modes in the cb file
   int64_t nextend;
 } run;
@@ -247,7 +248,7 @@ static int load_fe(run *r, bool required, const char *why) {
     return FMBD_OK;
   }
   r->fe_tried = true;
-  double t_open = fmbd_wall_s();
+  double t_open = fmbd_wall_s(), c_open = fmbd_cpu_s();
   const char *cbname = fmbd_h5_name(r->cbf);
   const char *name = r->a->fe ? r->a->fe : r->cb->fe_file;
   if (!name || !name[0]) {
@@ -304,6 +305,7 @@ static int load_fe(run *r, bool required, const char *why) {
   }
   snprintf(r->fe_sha, sizeof r->fe_sha, "%s", sha);
   r->t_load_s = fmbd_wall_s() - t_open;
+  r->c_load_s = fmbd_cpu_s() - c_open;
   r->fe_name = cand;
   cand = NULL;
   FMBD_GCALL(fmbd_csr_submatrix(r->fe->K, r->cb->ns, r->cb->interior, r->cb->ns, r->cb->interior, &r->Ks));
@@ -553,11 +555,12 @@ static int exact_eigenvalues(run *r, const fmbd_est_modes *m, int64_t nflex, dou
   eo.free_body = nrig > 0;
   eo.progress = eig_progress;
   fmbd_eig_result res = {0};
-  double t0 = fmbd_wall_s();
+  double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s();
   fmbd_err_context(r->fe_name, "/K");
   int rc = fmbd_eig_solve(r->fe->K, r->fe->M, NULL, &eo, &res);
   fmbd_progress(NULL);
   r->t_exact_s += fmbd_wall_s() - t0;
+  r->c_exact_s += fmbd_cpu_s() - c0;
   if (rc == FMBD_OK) {
     memcpy(*chi, res.lambda + nrig, sizeof(double) * (size_t)nflex);
   }
@@ -744,7 +747,7 @@ int main(int argc, char **argv) {
   }
 
   // --- estimator: fe file if available (exact arithmetic of the residual blocks) ---
-  double t0 = fmbd_wall_s(), t_sel = 0;
+  double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s(), t_sel = 0, c_sel = 0;
   FMBD_GCALL(load_fe(&r, false, ""));
   {
     int64_t nb = cb->nb, nd = cb->nd, nr = cb->nr;
@@ -777,9 +780,10 @@ int main(int argc, char **argv) {
   // --- selection or plain estimates ---
   if (a.has_tol) {
     fmbd_est_select_opts so = {a.tol, nm, a.init, r.nd_max, a.which};
-    double ts = fmbd_wall_s();
+    double ts = fmbd_wall_s(), cs = fmbd_cpu_s();
     FMBD_GCALL(fmbd_est_select(r.est, &so, extend, &r, &sel));
     t_sel = fmbd_wall_s() - ts;
+    c_sel = fmbd_cpu_s() - cs;
     if (rep) {
       fprintf(rep, "selection: tol %g on flexible modes 1..%lld, estimator %s, from Nd = %ld\n", a.tol,
               (long long)nm,
@@ -808,6 +812,7 @@ int main(int argc, char **argv) {
   FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nr + 1)));
   FMBD_GCALL(fmbd_est_run(r.est, &m, Xi));
   r.t_est_s = fmbd_wall_s() - t0 - t_sel;  // the selection is timed apart
+  r.c_est_s = fmbd_cpu_s() - c0 - c_sel;
   if (!a.has_tol && nd == r.nd_file) {  // the re-solved reduced problem must be the file's
     for (int64_t k = 0; k < m.nmodes && k < cb->nr; k++) {
       double d = fabs(m.chibar[k] - cb->chibar[k]);
@@ -909,6 +914,8 @@ int main(int argc, char **argv) {
              "iterations of which extensions %.3f s (%lld calls, %lld modes), exact %.3f s",
              r.t_est_s, r.t_load_s, t_sel, (long long)sel.niter, r.t_extend_s, (long long)r.nextend,
              (long long)(r.cb->nd - r.nd_file), r.t_exact_s);
+    fmbd_log(FMBD_LOG_INFO, "cpu: estimates %.3f s (reading the fe file %.3f s), selection %.3f s, exact %.3f s",
+             r.c_est_s, r.c_load_s, c_sel, r.c_exact_s);
   }
   if (a.has_tol) {
     fmbd_cli_summary("%s: Nd = %lld meets %g on flexible modes 1..%lld (%lld iterations, %lld extensions), %lld modes kept",
