@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "fmbd_alloc.h"
+#include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 
@@ -873,6 +874,15 @@ void fmbd_mbs_set_gravity(fmbd_mbs *m, const double g[3]) { memcpy(m->g, g, size
 // 0.1 with extrapolation halves the iterations of 0.5 at a few more factorisations)
 #define PRED_EXTRAP 1
 #define THETA_REFACTOR 0.1
+// step-size controller: safety factor, and the dead band [DEAD_LOW, 1.25] of proposed step
+// ratios that keep h (and the factorised matrix) unchanged. Modal error floor: deformations
+// below MODAL_FLOOR L_ref (physical, via sqrt(m) for mass-normalised modes) do not tighten
+// the error test. Chosen on the quadruple pendulum with 30 modes (3 rigid + 1 flexible body,
+// 1 s, tolerance 1e-4): floor 1e-6 / 1e-5 / 1e-4 gave 10434 / 3914 / 1415 steps; dead band
+// 0.85 cut the CPU time by 25 % against 1.0; safety 0.9 vs 0.8 vs 0.7 within 15 %.
+#define SAFETY 0.9
+#define DEAD_LOW 0.85
+#define MODAL_FLOOR 1e-5
 // body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
@@ -902,14 +912,8 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   memcpy(J, b->J0, sizeof b->J);
   double s1qd[3] = {0, 0, 0};
   if (nm > 0) {
-    double *P = b->P;
-    memset(P, 0, sizeof(double) * 9 * (size_t)nm);
-    for (int l = 0; l < nm; l++) {
-      double ql = q[l];
-      if (ql == 0) continue;
-      const double *S = b->SS + 9 * (size_t)nm * l;
-      for (int i = 0; i < 9 * nm; i++) P[i] += ql * S[i];
-    }
+    double *P = b->P; // P = SS q, SS as a (9 nm) x nm column-major matrix
+    fmbd_dense_gemm('N', 'N', 9 * (int64_t)nm, 1, nm, 1.0, b->SS, 9 * (int64_t)nm, q, nm, 0.0, P, 9 * (int64_t)nm);
     for (int k = 0; k < nm; k++) {
       const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
@@ -1754,11 +1758,20 @@ static void update_scales(fmbd_mbs *m) {
     v = fabs(m->xdd[i]);
     if (v > m->ascale[i]) m->ascale[i] = v;
   }
+  // modal coordinates of a body share one scale, the largest modal amplitude seen on the body
+  // (mass-normalised coordinates are comparable): errors of weak high modes count against
+  // the body's deformation, not against their own tiny amplitude; likewise for accelerations
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
+    double qm = 0, am = 0;
+    for (int k = 0; k < b->nm; k++) {
+      qm = fmax(qm, m->scale[b->off + 7 + k]);
+      am = fmax(am, m->ascale[b->off + 7 + k]);
+    }
     for (int k = 0; k < b->nm; k++) {
       int64_t i = b->off + 7 + k;
-      m->nscale[i] = fmax(m->scale[i], 1e-3 * m->Lref * sqrt(b->m));
+      m->scale[i] = qm, m->ascale[i] = am;
+      m->nscale[i] = fmax(qm, 1e-3 * m->Lref * sqrt(b->m));
     }
   }
 }
@@ -1894,7 +1907,7 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
       int64_t k = b->off + i;
       if (i < 3) m->floor_[k] = 1e-3 * m->Lref, m->nscale[k] = m->Lref;
       else if (i < 7) m->floor_[k] = 1e-3, m->nscale[k] = 1;
-      else m->floor_[k] = 1e-6 * m->Lref * sqrt(b->m), m->nscale[k] = 1e-3 * m->Lref * sqrt(b->m);
+      else m->floor_[k] = MODAL_FLOOR * m->Lref * sqrt(b->m), m->nscale[k] = 1e-3 * m->Lref * sqrt(b->m);
       m->scale[k] = m->floor_[k];
     }
   }
@@ -2152,7 +2165,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     double c = h * h * fabs(be - 1.0 / 6.0), e = 0;
     for (int64_t i = 0; i < n; i++) {
       double sc = fmax(m->scale[i], m->floor_[i]);
-            double v = c * fabs(m->a[i] - m->an[i]) / (m->set.tolerance * sc);
+      double v = c * fabs(m->a[i] - m->an[i]) / (m->set.tolerance * sc);
       if (!(v <= e)) e = v;
     }
     *err = e;
@@ -2245,9 +2258,10 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       // elementary controller (order 2 method: local error ~ h^3) with a dead band that
       // keeps h (and the factorised matrix) unchanged for small proposed increases, and no
       // increase right after a rejection (Hairer, Norsett & Wanner I, sec. II.4)
-      double f = err > 0 ? 0.9 * pow(err, -1.0 / 3.0) : 2.0;
+      double f = err > 0 ? SAFETY * pow(err, -1.0 / 3.0) : 2.0;
       f = fmin(2.0, fmax(0.2, f));
       if (f > 1 && (f < 1.25 || m->after_reject)) f = 1;
+      if (f < 1 && f > DEAD_LOW) f = 1;
       double hn = h * f;
       if (clipped && m->h_prop > hn) hn = m->h_prop;
       m->h_next = fmin(m->set.max_step, fmax(m->set.min_step, hn));
