@@ -341,9 +341,9 @@ done:
   return rc;
 }
 
+// ctx: a label ("more fixed-interface modes", "exact eigenvalues")
 static void eig_progress(void *ctx, const char *stage, int64_t solves, int64_t nev) {
-  (void)ctx;
-  fmbd_progress("more fixed-interface modes (%lld): %s, %lld solves", (long long)nev, stage,
+  fmbd_progress("%s (%lld): %s, %lld solves", (const char *)ctx, (long long)nev, stage,
                 (long long)solves);
 }
 
@@ -370,6 +370,7 @@ static int extend(void *ctx, fmbd_est *e, int64_t nd_wanted) {
   fmbd_eig_opts eo;
   fmbd_eig_defaults(&eo);
   eo.progress = eig_progress;
+  eo.progress_ctx = (void *)"more fixed-interface modes";
   fmbd_err_context(r->fe_name, "/K");
   FMBD_CALL(fmbd_cb_extend(r->fe->K, r->fe->M, r->cb, nd_new, &eo));
   fmbd_progress(NULL);
@@ -554,6 +555,7 @@ static int exact_eigenvalues(run *r, const fmbd_est_modes *m, int64_t nflex, dou
   eo.nev = nrig + nflex;
   eo.free_body = nrig > 0;
   eo.progress = eig_progress;
+  eo.progress_ctx = (void *)"exact eigenvalues of the full body";
   fmbd_eig_result res = {0};
   double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s();
   fmbd_err_context(r->fe_name, "/K");
