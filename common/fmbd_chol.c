@@ -4,6 +4,7 @@
 
 #include <cblas.h>
 #include <cholmod.h>
+#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -560,4 +561,24 @@ int fmbd_chol_count_below(const fmbd_csr *A, const fmbd_csr *B, double sigma, in
 done:
   fmbd_chol_destroy(&F);
   return rc;
+}
+
+// OpenBLAS's thread count, found at run time (libblas.so.3 is whatever update-alternatives
+// selects: TOOLCHAIN.md 3c); nothing happens with another BLAS
+int fmbd_blas_set_threads(int n) {
+  static int looked = 0;
+  static void (*set)(int) = NULL;
+  static int (*get)(void) = NULL;
+  if (!looked) {
+    looked = 1;
+    void *self = dlopen(NULL, RTLD_LAZY);
+    if (self) {
+      *(void **)&set = dlsym(self, "openblas_set_num_threads");
+      *(void **)&get = dlsym(self, "openblas_get_num_threads");
+    }
+  }
+  if (!set || !get) return -1;
+  int old = get();
+  if (n > 0 && n != old) set(n);
+  return old;
 }

@@ -83,6 +83,7 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   int64_t n = M->nrows;
   double *resid = NULL, *v = NULL, *workd = NULL, *workl = NULL, *d = NULL, *tmp = NULL;
   int *select = NULL;
+  int threads = -1;
   memset(out, 0, sizeof *out);
   FMBD_CHECK(nreq >= 1 && nreq < n && ncv > nreq && ncv <= n, FMBD_ERR_INTERNAL,
              "bad Lanczos sizes nev %lld ncv %lld n %lld", (long long)nreq, (long long)ncv,
@@ -101,6 +102,8 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   iparam[6] = 3;            // mode 3: shift-invert, generalized
   int64_t solves = 0;
   double sigma = fmbd_chol_sigma(F);
+  // one BLAS thread for the single-vector solves (see fmbd_blas_set_threads), restored below
+  threads = fmbd_blas_set_threads(1);
   for (;;) {
     dsaupd_c(&ido, "G", (a_int)n, "LM", (a_int)nreq, tol, resid, (a_int)ncv, v, (a_int)n,
              iparam, ipntr, workd, workl, lworkl, &info);
@@ -122,6 +125,8 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
       o->progress(o->progress_ctx, "Lanczos", solves0 + solves, nreq);
     }
   }
+  fmbd_blas_set_threads(threads);
+  threads = -1;
   out->solves = solves;
   out->restarts = iparam[2];
   if (info < 0) {
@@ -150,6 +155,7 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   out->lam = d;
   d = NULL;
 done:
+  if (threads > 0) fmbd_blas_set_threads(threads);
   if (rc != 0) run_out_free(out);
   fmbd_free(resid);
   fmbd_free(v);
