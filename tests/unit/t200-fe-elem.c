@@ -203,8 +203,117 @@ static void test_tet_element(void) {
     double ex = a < 4 ? -rho * V / 20 : rho * V / 5; // int N_a dV: corners -V/20, mid-sides V/5
     EXPECT(fabs(s - ex) < 1e-13 * rho * V, "tet10 row %d sum %.17g, expected %.17g", a, s, ex);
   }
-  EXPECT(fabs(M10[0] - 6 * rho * V / 420) < 1e-13 * rho * V, "tet10 corner diagonal");
-  EXPECT(fabs(M10[4 * 10 + 4] - 32 * rho * V / 420) < 1e-13 * rho * V, "tet10 mid-side diagonal");
+  // every entry against the closed form (units rho V / 420): corners 6 / 1; corner-mid -4 if the
+  // edge holds the corner, else -6; mid-mid 32 / 16 (edges sharing a corner) / 8 (opposite)
+  static const int ed[6][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 0}, {3, 2}, {3, 1}};
+  for (int a = 0; a < 10; a++) {
+    for (int b = 0; b < 10; b++) {
+      double ex;
+      if (a < 4 && b < 4) {
+        ex = a == b ? 6 : 1;
+      } else if (a < 4 || b < 4) {
+        int c = a < 4 ? a : b, l = (a < 4 ? b : a) - 4;
+        ex = (ed[l][0] == c || ed[l][1] == c) ? -4 : -6;
+      } else if (a == b) {
+        ex = 32;
+      } else {
+        int l = a - 4, k = b - 4;
+        bool share = ed[l][0] == ed[k][0] || ed[l][0] == ed[k][1] || ed[l][1] == ed[k][0] || ed[l][1] == ed[k][1];
+        ex = share ? 16 : 8;
+      }
+      ex *= rho * V / 420;
+      EXPECT(fabs(M10[a * 10 + b] - ex) < 1e-13 * rho * V, "tet10 M[%d][%d] = %.17g, closed form %.17g", a, b,
+             M10[a * 10 + b], ex);
+    }
+  }
+}
+
+// K = sum_q w_q det J_q B' D B with the 6x6 Voigt D and the 6 x 3nn strain matrix B (engineering
+// shears), the textbook form, for any rule: independent of the library's lambda/mu pair formula
+static void ke_bdb(int nn, const double *x, double E, double nu, int degree, double *K) {
+  int np;
+  const double *pts, *w;
+  fmbd_fe_tet_rule(degree, &np, &pts, &w);
+  const int n3 = 3 * nn;
+  double D[36] = {0}, f = E / ((1 + nu) * (1 - 2 * nu));
+  for (int i = 0; i < 3; i++) {
+    for (int j = 0; j < 3; j++) D[i * 6 + j] = f * (i == j ? 1 - nu : nu);
+    D[(3 + i) * 6 + 3 + i] = f * (1 - 2 * nu) / 2;
+  }
+  memset(K, 0, sizeof(double) * n3 * n3);
+  for (int q = 0; q < np; q++) {
+    double N[10], dN[30], J[9] = {0}, Ji[9], B[6 * 30] = {0}, DB[6 * 30];
+    fmbd_fe_tet_shape(nn, pts + 3 * q, N, dN);
+    for (int a = 0; a < nn; a++) {
+      for (int k = 0; k < 3; k++) {
+        for (int j = 0; j < 3; j++) J[k * 3 + j] += dN[a * 3 + k] * x[a * 3 + j];
+      }
+    }
+    double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) + J[2] * (J[3] * J[7] - J[4] * J[6]);
+    // inverse by cofactors
+    Ji[0] = (J[4] * J[8] - J[5] * J[7]) / det; Ji[1] = (J[2] * J[7] - J[1] * J[8]) / det; Ji[2] = (J[1] * J[5] - J[2] * J[4]) / det;
+    Ji[3] = (J[5] * J[6] - J[3] * J[8]) / det; Ji[4] = (J[0] * J[8] - J[2] * J[6]) / det; Ji[5] = (J[2] * J[3] - J[0] * J[5]) / det;
+    Ji[6] = (J[3] * J[7] - J[4] * J[6]) / det; Ji[7] = (J[1] * J[6] - J[0] * J[7]) / det; Ji[8] = (J[0] * J[4] - J[1] * J[3]) / det;
+    for (int a = 0; a < nn; a++) {
+      double g[3];
+      for (int j = 0; j < 3; j++) g[j] = Ji[j * 3] * dN[a * 3] + Ji[j * 3 + 1] * dN[a * 3 + 1] + Ji[j * 3 + 2] * dN[a * 3 + 2];
+      // strains xx yy zz, gamma yz xz xy (order only matters within D, which is isotropic)
+      B[0 * n3 + 3 * a] = g[0];
+      B[1 * n3 + 3 * a + 1] = g[1];
+      B[2 * n3 + 3 * a + 2] = g[2];
+      B[3 * n3 + 3 * a + 1] = g[2]; B[3 * n3 + 3 * a + 2] = g[1];
+      B[4 * n3 + 3 * a] = g[2]; B[4 * n3 + 3 * a + 2] = g[0];
+      B[5 * n3 + 3 * a] = g[1]; B[5 * n3 + 3 * a + 1] = g[0];
+    }
+    for (int i = 0; i < 6; i++) {
+      for (int c = 0; c < n3; c++) {
+        double sum = 0.0;
+        for (int k = 0; k < 6; k++) sum += D[i * 6 + k] * B[k * n3 + c];
+        DB[i * n3 + c] = sum;
+      }
+    }
+    for (int r = 0; r < n3; r++) {
+      for (int c = 0; c < n3; c++) {
+        double sum = 0.0;
+        for (int k = 0; k < 6; k++) sum += B[k * n3 + r] * DB[k * n3 + c];
+        K[r * n3 + c] += w[q] * det * sum;
+      }
+    }
+  }
+}
+
+static double max_diff(int n, const double *A, const double *B, double *scale) {
+  double d = 0.0, s = 0.0;
+  for (int i = 0; i < n; i++) {
+    d = fmax(d, fabs(A[i] - B[i]));
+    s = fmax(s, fabs(B[i]));
+  }
+  *scale = s;
+  return d;
+}
+
+static void test_stiffness_bdb(void) {
+  const double E = 2e11, nu = 0.28;
+  double x10[30], K[900], R[900], scale, vol;
+  make_tet10(X4, x10);
+  // tet4 (1-point rule in the library) against B'DB with the degree-5 rule: both exact
+  EXPECT(fmbd_fe_tet_matrices(4, X4, E, nu, 1.0, 0, K, NULL, &vol) == FMBD_OK, "tet4");
+  ke_bdb(4, X4, E, nu, 5, R);
+  double d = max_diff(144, K, R, &scale);
+  EXPECT(d < 1e-13 * scale, "tet4 K vs B'DB: %.3g of %.3g", d, scale);
+  // straight tet10: the library's 4-point rule against B'DB with the degree-5 rule; both are
+  // exact for the degree-2 integrand, so they agree to rounding
+  EXPECT(fmbd_fe_tet_matrices(10, x10, E, nu, 1.0, 0, K, NULL, &vol) == FMBD_OK, "tet10");
+  ke_bdb(10, x10, E, nu, 5, R);
+  d = max_diff(900, K, R, &scale);
+  EXPECT(d < 1e-13 * scale, "straight tet10 K vs B'DB (degree 5): %.3g of %.3g", d, scale);
+  // curved tet10 (isoparametric path): against B'DB with the same 4-point rule
+  x10[3 * 8 + 0] += 0.04;
+  x10[3 * 5 + 2] -= 0.03;
+  EXPECT(fmbd_fe_tet_matrices(10, x10, E, nu, 1.0, 0, K, NULL, &vol) == FMBD_OK, "curved tet10");
+  ke_bdb(10, x10, E, nu, 2, R);
+  d = max_diff(900, K, R, &scale);
+  EXPECT(d < 1e-13 * scale, "curved tet10 K vs B'DB (4 points): %.3g of %.3g", d, scale);
 }
 
 static void test_bad_elements(void) {
@@ -332,6 +441,7 @@ int main(void) {
   test_rules();
   test_shape();
   test_tet_element();
+  test_stiffness_bdb();
   test_bad_elements();
   test_beam_element();
   TEST_EXIT();
