@@ -272,7 +272,7 @@ static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
 
 static void progress_sink(void *ctx, const char *stage, int64_t solves, int64_t nev) {
   (void)ctx;
-  fmbd_progress("%s: %lld solves, %lld modes wanted", stage, (long long)solves, (long long)nev);
+  fmbd_progress("%s: %lld solves (%lld pairs sought)", stage, (long long)solves, (long long)nev);
 }
 
 // the fixed-interface (or held / free) modes
@@ -574,6 +574,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
       fmbd_chol_destroy(&F);
       bool ok = false;
+      if (fmbd_progress_enabled()) fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
       FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok));
       if (!ok) {
         // a skipped mode, or no gap to place the shift: again with the full checked solver

@@ -18,7 +18,7 @@
 //   against lambda_f = 4e7 loses modes (THEORY.md 8): this is what the strategy avoids.
 // - Every pair is checked by its residual ||K x - lambda M x|| / max(||K x||, |sigma| ||M x||)
 //   (the second term keeps rigid-body pairs, K x ~ 0, meaningful).
-// - Sturm check: an LDL' factorisation of K - s M (no pivoting, CHOLMOD simplicial) counts
+// - Sturm check: an LDL' factorisation of K - s M (no pivoting; supernodal, fmbd_chol) counts
 //   the eigenvalues below s by Sylvester's law of inertia, with s placed in the first clear gap
 //   above the last wanted eigenvalue (between two returned ones). The count must equal the
 //   number returned below s; otherwise the solve is repeated with more vectors (a missing
