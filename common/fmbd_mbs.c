@@ -384,7 +384,6 @@ void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s) {
   s->newton_max = 10;
   s->output_every = 0;
   s->reactions = false;
-  s->tangent_fd = false;
   s->max_steps = 0;
 }
 

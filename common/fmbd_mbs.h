@@ -58,44 +58,64 @@
 //   Multibody Syst. Dyn. 18:185): the equations hold exactly at t_{n+1}; pseudo-accelerations
 //   a with (1-am) a_{n+1} + am a_n = (1-af) x''_{n+1} + af x''_n; Newmark updates of x and x'
 //   with a; Chung & Hulbert (1993) parameters am = (2 rho - 1)/(rho + 1), af = rho/(rho + 1),
-//   gamma = 1/2 + af - am, beta = (gamma + 1/2)^2 / 4 from rho = rho_inf. Newton on the
+//   gamma = 1/2 + af - am, beta = (gamma + 1/2)^2 / 4 from rho = rho_inf. Predictor: x''_{n+1}
+//   extrapolated linearly from the last two steps, lambda_{n+1} = lambda_n. Newton on the
 //   SCALED iteration matrix (Bottasso, Dopico & Trainelli 2008, Multibody Syst. Dyn. 19:3;
 //   Bottasso, Bauchau & Cardona 2007, SIAM J. Sci. Comput. 29:397): rows of the dynamics
 //   divided by beta' = (1-am)/(beta h^2 (1-af)), multipliers lambda = beta' lambda~:
 //     [ M + (gamma'/beta') C_t + K_t/beta'   Phi_x' ] [ dx       ]   = -[ r / beta' ]
 //     [ Phi_x                                0      ] [ dlambda~ ]      [ Phi       ]
-//   gamma' = gamma/(beta h). Tangent: M exact; C_t: modal damping and the derivative of the
-//   gyroscopic term wb x I wb (rigid part); K_t: Kff only. Neglected (convergence is checked
-//   every iteration; the factor is refreshed when the contraction rate exceeds 0.5): the
-//   derivative of M x'' and of the quadratic velocity vector with respect to x, of the
-//   flexible Coriolis terms with respect to x', of the loads, and the geometric stiffness
-//   (Phi_x' lambda)_x. These terms carry a factor h^2 (or h) relative to M, so the neglected
-//   part shrinks with the step.
+//   gamma' = gamma/(beta h). Tangent: M exact (plus a mass mu p p' on the Euler parameters,
+//   mu = snorm/4: it makes the block regular and leaves the physics unchanged since G p = 0;
+//   the normalisation multiplier absorbs it); C_t the complete derivative of the quadratic
+//   velocity vector with respect to [R', wb, q'] and the modal damping; K_t = Kff only.
+//   Neglected (convergence is monitored every iteration): the derivatives with respect to x
+//   of M x'', of the quadratic velocity vector, of gravity and loads (follower loads too), and
+//   the geometric stiffness (Phi_x' lambda)_x; they carry a factor h^2 relative to M.
 //   Sparse matrix (one dense (7+nm)^2 block per body, constraint rows on the coordinates of
 //   their two bodies) in compressed columns, factored with KLU (SuiteSparse klu_l_*): the
 //   symbolic analysis once at fmbd_mbs_init, the numeric factor kept across iterations and
-//   steps while Newton converges (modified Newton); refactored (klu_l_refactor, same
-//   pivoting; full klu_l_factor if that is ill-conditioned) when the contraction rate is
-//   poor, the step size changed by more than 25 %, or the iteration count is reached.
-// STEP-SIZE CONTROL (variable steps): local error estimate of the Newmark-type update
-//   (Geradin & Cardona, Flexible Multibody Dynamics, 2001, sec. 11.5; Zienkiewicz & Xie
-//   1991): e = h^2 |beta - 1/6| (x''_{n+1} - x''_n), measured per coordinate against
-//   tolerance * scale_i (scale_i = the largest |x_i| seen, at least a floor: 1e-3 L_ref for
-//   positions, 1e-3 for Euler parameters, 1e-6 L_ref sqrt(m) for modal coordinates; L_ref is
-//   the size of the system). A step is rejected when max |e_i|/(tol scale_i) > 1. The new
-//   step is h (0.9/err)^(1/3), limited to [0.2 h, 2 h] and to [min_step, max_step]. A
-//   Newton failure divides h by 4 and retries; below min_step the run fails with
-//   FMBD_ERR_CONVERGE naming the time, the step and the equation (joint equation or body
-//   coordinate) with the largest scaled residual.
-// NEWTON convergence: max_i |dx_i| / scale_i <= newton_tol (scale_i as above) and
-//   |Phi|_inf <= newton_tol * L_ref (positions) after at least one iteration.
-// INITIAL CONDITIONS (fmbd_mbs_init): redundant constraint equations are found by QR with
-//   column pivoting (LAPACK dgeqp3) of Phi_x' with unit-normalised rows, rank from
-//   |R_kk| > 1e-8 |R_11|, and removed (fmbd_log WARN naming joint and equation; queries
-//   below); positions projected onto Phi = 0 (Newton on the mass-weighted least-change
-//   problem), velocities onto Phi_x x' + Phi_t = 0 (mass-weighted), consistent
-//   accelerations and multipliers solved from [M Phi_x'; Phi_x 0] (the second derivative of
-//   Phi along x' by a central difference of Phi_x x' along x', error O(eps^2)).
+//   steps while Newton converges (modified Newton); refactored (klu_l_refactor with the old
+//   pivoting, full klu_l_factor if KLU's rcond estimate drops below 1e-13) when the
+//   contraction rate exceeds 0.1, when h differs by more than 25 % from the h of the factor,
+//   and before retrying a step whose Newton failed with an old factor.
+// NEWTON convergence: with theta the contraction rate of successive increments, stop when
+//   theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II, IV.8), or |dx_i| <= 1e-3 tx_i
+//   in the first iteration, or |dx_i| <= tx_i with theta >= 1 (round-off stagnation), where
+//   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, nscale_i)):
+//   newton_tol is relative to the size of the coordinate AND of its acceleration (an error
+//   dx in x is an error beta' dx in x''; bounding only dx leaves a spurious force that, at
+//   small steps, spoils momentum and energy conservation). nscale_i = L_ref for positions, 1
+//   for Euler parameters, max(largest modal amplitude of the body, 1e-3 L_ref sqrt(m)) for
+//   modal coordinates; ascale_i = the largest |x''_i| seen (modal: per body), at least
+//   nscale_i / t_end^2.
+// STEP-SIZE CONTROL (variable steps): local error estimate of the Newmark-type position
+//   update (Geradin & Cardona, Flexible Multibody Dynamics, 2001, ch. 11; Zienkiewicz & Xie
+//   1991): e_i = h^2 |beta - 1/6| |a_{n+1,i} - a_{n,i}|, tested as max_i e_i/(tol s_i) <= 1,
+//   s_i = max(largest |x_i| seen, floor_i); floors 1e-3 L_ref (positions), 1e-3 (Euler
+//   parameters), 1e-5 L_ref sqrt(m) (modal: deformations below 1e-5 L_ref do not tighten the
+//   test); all modal coordinates of a body share the body's largest modal amplitude as s_i.
+//   L_ref = the size of the system (largest distance of a body or point from the origin,
+//   with the bodies' gyration radii). A failed test rejects the step and retries with
+//   h max(0.2, 0.9 err^(-1/3)); after an accepted step h becomes h * 0.9 err^(-1/3), limited
+//   to [0.2, 2], kept unchanged for ratios in [0.85, 1.25] (the factor stays valid) and not
+//   increased right after a rejection (Hairer, Norsett & Wanner I, II.4), then clipped to
+//   [min_step, max_step]. A Newton failure divides h by 4; at min_step the run fails with
+//   FMBD_ERR_CONVERGE naming the time, the step and the equation (joint or driver equation,
+//   or a body's translational / rotational / modal equation of motion) with the largest
+//   scaled residual in the last iteration. Fixed steps: h = step always (divided by 4 only
+//   after a Newton failure, then back to step), no error test.
+// INITIAL CONDITIONS (fmbd_mbs_init): redundant constraint equations (joints and drivers) are
+//   found at the initial configuration by QR with column pivoting (LAPACK dgeqp3) of Phi_x'
+//   with unit-normalised rows (the Euler-parameter direction projected out), rank from
+//   |R_kk| > 1e-8 |R_11|; the equations dropped are chosen greedily in the order joints were
+//   added (Gram-Schmidt), so that the joint closing a loop loses its dependent equations;
+//   they are removed from the system (fmbd_log WARN naming them; fmbd_mbs_redundant) and must
+//   still hold after the projection, else the assembly is inconsistent (FMBD_ERR_CONVERGE).
+//   Positions are projected onto Phi = 0 by minimum-change Newton steps in the mass metric,
+//   velocities onto Phi_x x' + Phi_t = 0 (mass-weighted least change), and consistent
+//   accelerations and multipliers solved from [M Phi_x'; Phi_x 0] with the right-hand side
+//   -(Phi_x x')_x x' - Phi_tt (a central difference of Phi_x x' along x', error O(eps^2)).
 //
 // JOINTS between point P1 (side 1) and P2 (side 2); a point on FMBD_MBS_GROUND is fixed in
 // the world. Axes are given in WORLD coordinates at the initial configuration and attached
@@ -270,12 +290,13 @@ typedef struct fmbd_mbs_settings {
   double first_step;    ///< variable: first step, default 1e-6 (paper [H])
   double min_step;      ///< variable: smallest step, default 1e-12
   double max_step;      ///< variable: largest step, default 1e-2 (paper [H])
-  double tolerance;     ///< variable: local error tolerance (relative to scale_i), default 1e-4
-  double newton_tol;    ///< Newton increment tolerance (relative to scale_i), default 1e-8
+  double tolerance;     ///< variable: local error tolerance (relative to s_i, see STEP-SIZE), default 1e-4
+  double newton_tol;    ///< Newton tolerance, relative to coordinate and acceleration sizes
+                        ///< (see NEWTON), default 1e-8
   int newton_max;       ///< Newton iterations per attempt, default 10
   double output_every;  ///< > 0: steps end exactly on multiples of it (callback flag), default 0
-  bool reactions;       ///< keep multipliers for fmbd_mbs_joint_reaction, default false
-  bool tangent_fd;      ///< test aid: full tangent by finite differences, default false
+  bool reactions;       ///< the caller will ask for joint reactions (they are computed on
+                        ///< query from the multipliers, which are always kept), default false
   int64_t max_steps;    ///< stop with FMBD_ERR_CONVERGE after so many steps (0 = none)
 } fmbd_mbs_settings;
 /// @brief Fill the documented defaults.
@@ -327,10 +348,12 @@ int64_t fmbd_mbs_modal(const fmbd_mbs *m, int body, const double **q, const doub
 void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, double *strain);
 /// @brief Total linear momentum and angular momentum about the world origin (any NULL).
 void fmbd_mbs_momentum(const fmbd_mbs *m, double L[3], double H[3]);
-/// @brief Reaction of a joint (settings.reactions): the force and torque the joint applies
-/// to the body of side 1 at its point P1 (world). If side 1 is ground: minus those applied to
-/// side 2, torque about P2. Redundant equations removed carry zero.
-/// @return FMBD_OK; FMBD_ERR_VALUE (bad id, reactions not enabled)
+/// @brief Reaction of a joint: the force and torque the joint (with a driver acting on it)
+/// applies to the body of side 1, torque about its point P1 (world). If side 1 is ground:
+/// minus those applied to side 2, torque about P2. From the multipliers and the rigid
+/// (R, orientation) part of the constraint force; the modal part of a flexible body's
+/// generalized constraint force is not included. Redundant equations removed carry zero.
+/// @return FMBD_OK; FMBD_ERR_VALUE (bad id, before fmbd_mbs_init)
 int fmbd_mbs_joint_reaction(const fmbd_mbs *m, int joint, double F[3], double T[3]);
 /// @brief The current value of a joint coordinate (revolute angle, slide) and its rate.
 int fmbd_mbs_joint_coordinate(const fmbd_mbs *m, int joint, double *value, double *rate);
