@@ -11,6 +11,7 @@
 #include "fmbd_err.h"
 #include "fmbd_fe.h"
 #include "fmbd_fe_impl.h"
+#include "fmbd_log.h"
 
 // --- small helpers ----------------------------------------------------------------------------
 void fmbd_mesh_destroy(fmbd_mesh *m) {
@@ -830,7 +831,11 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
   FMBD_GALLOC(Me = fmbd_malloc(900 * sizeof *Me));
   FMBD_GALLOC(Ml = fmbd_malloc(900 * sizeof *Ml));
   double Mr[36] = {0}, vol_solid = 0.0, vol_beam = 0.0;
+  const bool progress = fmbd_progress_enabled() && m->ntet + m->nbeam > 200000;
   for (int64_t e = 0; e < m->ntet; e++) {
+    if (progress && e % 65536 == 0) {
+      fmbd_progress("assembling: %lld of %lld elements", (long long)e, (long long)(m->ntet + m->nbeam));
+    }
     double xe[30], vol, d[10], Ms[100];
     const int64_t *en = m->tet + e * tn;
     for (int a = 0; a < tn; a++) memcpy(xe + 3 * a, m->xyz + 3 * en[a], 3 * sizeof(double));
@@ -888,6 +893,7 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
       }
     }
   }
+  if (progress) fmbd_progress(NULL);
   b->volume = vol_solid + vol_beam;
   body_properties(b, Mr);
   *out = b;
