@@ -187,6 +187,10 @@ static int check_inputs(const fmbd_mesh *m, const fmbd_fe_options *o) {
                  (long long)m->group_node[i], (long long)m->nnodes);
     }
   }
+  FMBD_CHECK(o->ninterfaces >= 0 && (o->ninterfaces == 0 || o->interfaces), FMBD_ERR_VALUE,
+             "%d interfaces but no interface list", o->ninterfaces);
+  FMBD_CHECK(o->nclamps >= 0 && (o->nclamps == 0 || o->clamps), FMBD_ERR_VALUE,
+             "%d clamps but no clamp list", o->nclamps);
   for (int i = 0; i < o->ninterfaces; i++) {
     const fmbd_fe_interface_spec *s = &o->interfaces[i];
     FMBD_CHECK(s->group && s->group[0], FMBD_ERR_VALUE, "interface %d has no group name", i);
