@@ -363,8 +363,6 @@ static bool elem_plain(const asm_ctx *c, int nen, const int64_t *nodes, int per)
   return true;
 }
 
-// the reduced node list of element e into list (returns its length): plain elements keep their
-// active nodes; others take the nodes of the active dofs their T rows refer to
 // Ask for transparent huge pages on a large array about to be filled: first touches of 4 KiB
 // pages dominated assembly on the benchmark machine (a VM: ~10 ms per MB); huge pages halve it.
 // A hint only: failure is harmless, and other systems simply skip it.
@@ -380,6 +378,8 @@ static void hugepage_hint(void *p, size_t n) {
 #endif
 }
 
+// the reduced node list of element e into list (returns its length): plain elements keep their
+// active nodes; others take the nodes of the active dofs their T rows refer to
 static int64_t elem_list(asm_ctx *c, int64_t e, int64_t *list) {
   const int64_t *nodes;
   int per, nen = elem_nodes(c, e, &nodes, &per);
