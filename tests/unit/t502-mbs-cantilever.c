@@ -237,6 +237,13 @@ int main(void) {
     // the simulated equilibrium is the modal static solution up to the decayed transient and
     // the Newton tolerance: 1e-7 relative
     EXPECT(fabs(dsim[c] / dm - 1) < 1e-7, "nm = %d: simulated tip deflection %.9g, modal static %.9g", nm, dsim[c], dm);
+    // clamp reaction, reported on side 1 (ground) = minus the force and moment on the beam:
+    // the beam needs +P y and +P L z at the clamp to balance the tip load -P y at (L, 0, 0)
+    double F[3], Tq[3];
+    rc = fmbd_mbs_joint_reaction(m, 0, F, Tq);
+    EXPECT(rc == 0 && fabs(F[1] + P) < 1e-6 * P && fabs(F[0]) + fabs(F[2]) < 1e-6 * P &&
+               fabs(Tq[2] + P * LEN) < 1e-6 * P * LEN && fabs(Tq[0]) + fabs(Tq[1]) < 1e-6 * P * LEN,
+           "nm = %d: clamp reaction F = (%g %g %g), T = (%g %g %g)", nm, F[0], F[1], F[2], Tq[0], Tq[1], Tq[2]);
     fmbd_mbs_stats st;
     fmbd_mbs_get_stats(m, &st);
     if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t502: nm %d tip %.9g m (FE %.9g) steps %lld rej %lld newton %lld\n", nm, dsim[c], d_fe,
