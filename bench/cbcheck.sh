@@ -5,18 +5,18 @@
 # BENCH_LARGE=1 also ~200 k dofs. Side-by-side peer for the exact eigenvalues: scipy's
 # shift-invert eigsh on the same K, M (50 k only). Ratios are reported, never asserted.
 # CPU seconds (all threads) as the programs report them: wall times on a shared machine mean
-# little; both are in the logs under $BENCH_OUT/cbcheck.
+# little; both are in the logs under $BENCH_OUT/cbcheck. BENCH_SIZES="H:TAG ..." picks sizes.
 set -u
 OUT=${BENCH_OUT:-$ROOT/$BUILD/bench}/cbcheck
 mkdir -p "$OUT" && cd "$OUT" || exit 1
 export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-2}
-sizes="0.0047:50k"
-[ "${BENCH_LARGE:-0}" = 1 ] && sizes="$sizes 0.0028:200k"
+sizes=${BENCH_SIZES:-"0.0047:50k"}
+[ "${BENCH_LARGE:-0}" = 1 ] && [ -z "${BENCH_SIZES:-}" ] && sizes="$sizes 0.0028:200k"
 cpu() { grep -oE '[0-9.e+-]+ s cpu' "$1" | tail -1 | cut -d' ' -f1; }     # summary line
 vcpu() { grep "cpu: " "$1" | sed -E "s/.*$2 ([0-9.]+) s.*/\1/"; }           # -v cpu line
 r() { echo "$1" | bc -l | xargs printf "%.${2:-3}f"; }
 echo "CPU seconds; est = the whole cbcheck run without --exact (reading both files, residual blocks,"
-echo "reduced eigensolution, report); num = est less reading the fe file; plain = est from the cb file alone"
+echo "reduced eigensolution, report); num = est less reading the fe file; plain = est with --plain (cb file alone)"
 printf '%-7s %7s %9s %8s %8s %8s %7s %9s %9s %9s %4s %5s %10s %10s\n' body dofs fe2cb est est/fe2cb num plain \
   exact exact/est exact/num Nd iter s/iter s/ext.mode
 for spec in $sizes; do
@@ -25,7 +25,7 @@ for spec in $sizes; do
     -o $tag.fe.h5 -q || { echo "mesh2fe failed"; exit 1; }
   fe2cb $tag.fe.h5 --modes 30 -o $tag.cb.h5 2> $tag.fe2cb.err || { echo "fe2cb failed"; cat $tag.fe2cb.err; exit 1; }
   cbcheck $tag.cb.h5 -v > $tag.est.txt 2> $tag.est.err || { echo "cbcheck failed"; cat $tag.est.err; exit 1; }
-  cbcheck $tag.cb.h5 --fe none -v > $tag.plain.txt 2> $tag.plain.err || { echo "cbcheck (plain) failed"; exit 1; }
+  cbcheck $tag.cb.h5 --plain -v > $tag.plain.txt 2> $tag.plain.err || { echo "cbcheck (plain) failed"; exit 1; }
   cbcheck $tag.cb.h5 --exact -v --csv $tag.exact.csv > $tag.exact.txt 2> $tag.exact.err || { echo "--exact failed"; exit 1; }
   cbcheck $tag.cb.h5 --tol 1e-3 --range 10 -v -o $tag.rflex.h5 > $tag.sel.txt 2> $tag.sel.err || { echo "selection failed"; cat $tag.sel.err; exit 1; }
   dofs=$(grep -oE '[0-9]+ dofs' $tag.est.txt | head -1 | cut -d' ' -f1)

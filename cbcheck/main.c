@@ -57,6 +57,9 @@ static const char *usage_text =
     "                   eigenvalue,lower,second_order,upper,exact,upper_kappa_next,cluster\n"
     "  --plot PREFIX    PREFIX-estimates.svg (estimates and exact error per mode) and\n"
     "                   PREFIX-convergence.svg (error of chosen modes against Nd)\n"
+    "  --plain          residual flexibility by the plain formula from the cb file alone,\n"
+    "                   without reading the fe file (faster; the second-order estimate may\n"
+    "                   lose digits, see the man page)\n"
     "  --no-stress      do not compute the modal stresses of the rflex file\n"
     "  -o FILE          write the reduced flexible body (\"-\": standard output). With --tol\n"
     "                   and no -o: BODY.rflex.h5, or standard output when it is not a\n"
@@ -75,7 +78,7 @@ static const char *usage_text =
 typedef struct args {
   const char *input, *fe, *csv, *plot, *output;
   double tol;
-  bool has_tol, exact, stress;
+  bool has_tol, exact, stress, plain;
   long range, init, max_modes, nd;
   int which;
   int quiet, verbose;
@@ -176,6 +179,8 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
       }
     } else if (!strcmp(arg, "--exact")) {
       a->exact = true;
+    } else if (!strcmp(arg, "--plain")) {
+      a->plain = true;
     } else if (!strcmp(arg, "--no-stress")) {
       a->stress = false;
     } else if (arg[0] == '-' && arg[1] != '\0') {
@@ -244,7 +249,7 @@ static int load_fe(run *r, bool required, const char *why) {
   if (r->fe) {
     return FMBD_OK;
   }
-  if (r->fe_tried && !required) {
+  if ((r->fe_tried || r->a->plain) && !required) {
     return FMBD_OK;
   }
   r->fe_tried = true;
@@ -325,7 +330,7 @@ static int set_pool(run *r) {
   double *Gb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
   FMBD_GCHECK(Xb && Gb, FMBD_ERR_NOMEM, "out of memory");
   if (nb > 0) {
-    if (r->Ks) {
+    if (r->Ks && !r->a->plain) {
       FMBD_GCALL(fmbd_est_base_projected(r->Ks, r->Ms, nb, cb->nd, cb->A, cb->KsinvA, cb->Phi,
                                          cb->kappa, cb->PhitA, Xb, Gb));
     } else {
@@ -775,7 +780,7 @@ int main(int argc, char **argv) {
             cbname, cb->method, (long long)cb->ndof, (long long)cb->nb, (long long)cb->nd,
             (long long)cb->n_rigid);
     fprintf(rep, "residual flexibility: %s\n",
-            r.Ks ? "projected with the FE matrices of the fe file (no cancellation)"
+            r.Ks && !a.plain ? "projected with the FE matrices of the fe file (no cancellation)"
                  : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone (may lose digits on slender bodies)");
   }
 
