@@ -718,6 +718,11 @@ int main(int argc, char **argv) {
     r.nd_max = a.max_modes;
   }
   int64_t nm = a.range > 0 ? a.range : (a.has_tol ? 10 : nflex_red);
+  if (a.has_tol && a.init > r.nd_max) {
+    fmbd_err_context(cbname, "/cb/interior_dofs");
+    FMBD_GFAIL(FMBD_ERR_VALUE, "--init %ld: at most %lld fixed-interface modes (%lld interior dofs%s)",
+               a.init, (long long)r.nd_max, (long long)cb->ns, r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
+  }
   // the most flexible modes a reduced body can have: Nd <= ns - 1 (the eigensolver needs
   // nev < n) plus the boundary dofs, less the rigid-body modes
   if (r.nd_max + cb->nb - cb->n_rigid < nflex_body) {

@@ -69,6 +69,8 @@ noout bad.rflex.h5
 # --range beyond the modes the body can have (ndof - rigid-body modes)
 expect 1 "cbcheck: error" "beam.cb.h5:/dofs" "flexible modes" -- cbcheck beam.cb.h5 --tol 1e-3 --range 100000 -o bad.rflex.h5
 noout bad.rflex.h5
+expect 1 "cbcheck: error" "beam.cb.h5:/cb/interior_dofs" "--init" -- cbcheck beam.cb.h5 --tol 1e-3 --init 100000 -o bad.rflex.h5
+noout bad.rflex.h5
 # without --tol, --range beyond the reduced body's modes
 expect 1 "cbcheck: error" "beam.cb.h5:/reduced/eigenvalues" -- cbcheck beam.cb.h5 --range 50
 # an unreachable tolerance: the best reached is reported, exit 1, no rflex
