@@ -218,7 +218,6 @@ typedef struct run {
   char *fe_name;         // fe file used (or NULL)
   char fe_sha[65];
   fmbd_fe_body *fe;      // the fe body with K, M (NULL until needed/available)
-  fmbd_csr *Ks, *Ms;     // interior blocks (projected estimates)
   bool fe_tried;
   fmbd_est *est;
   int64_t nd_max;
@@ -313,8 +312,6 @@ static int load_fe(run *r, bool required, const char *why) {
   r->c_load_s = fmbd_cpu_s() - c_open;
   r->fe_name = cand;
   cand = NULL;
-  FMBD_GCALL(fmbd_csr_submatrix(r->fe->K, r->cb->ns, r->cb->interior, r->cb->ns, r->cb->interior, &r->Ks));
-  FMBD_GCALL(fmbd_csr_submatrix(r->fe->M, r->cb->ns, r->cb->interior, r->cb->ns, r->cb->interior, &r->Ms));
 done:
   fmbd_free(cand);
   fmbd_h5_close(&f);
@@ -330,9 +327,9 @@ static int set_pool(run *r) {
   double *Gb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
   FMBD_GCHECK(Xb && Gb, FMBD_ERR_NOMEM, "out of memory");
   if (nb > 0) {
-    if (r->Ks && !r->a->plain) {
-      FMBD_GCALL(fmbd_est_base_projected(r->Ks, r->Ms, nb, cb->nd, cb->A, cb->KsinvA, cb->Phi,
-                                         cb->kappa, cb->PhitA, Xb, Gb));
+    if (r->fe && !r->a->plain) {
+      FMBD_GCALL(fmbd_est_base_projected(r->fe->K, r->fe->M, cb->ns, cb->interior, nb, cb->nd,
+                                         cb->A, cb->KsinvA, cb->Phi, cb->kappa, cb->PhitA, Xb, Gb));
     } else {
       FMBD_GCALL(fmbd_est_base_plain(cb->ns, nb, cb->nd, cb->A, cb->KsinvA, cb->KsinvMsKsinvA,
                                      cb->kappa, cb->PhitA, Xb, Gb, NULL));
@@ -785,7 +782,7 @@ int main(int argc, char **argv) {
             cbname, cb->method, (long long)cb->ndof, (long long)cb->nb, (long long)cb->nd,
             (long long)cb->n_rigid);
     fprintf(rep, "residual flexibility: %s\n",
-            r.Ks && !a.plain ? "projected with the FE matrices of the fe file (no cancellation)"
+            r.fe && !a.plain ? "projected with the FE matrices of the fe file (no cancellation)"
                  : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone (may lose digits on slender bodies)");
   }
 
@@ -952,8 +949,6 @@ done:
   fmbd_free(Xi);
   fmbd_free(outname);
   fmbd_est_destroy(&r.est);
-  fmbd_csr_destroy(&r.Ks);
-  fmbd_csr_destroy(&r.Ms);
   fmbd_fe_body_destroy(&r.fe);
   fmbd_fe_body_destroy(&r.desc);
   fmbd_free(r.fe_name);

@@ -88,23 +88,50 @@ int fmbd_est_base_plain(int64_t ns, int64_t nb, int64_t npool, const double *A,
   return FMBD_OK;
 }
 
-int fmbd_est_base_projected(const fmbd_csr *Ks, const fmbd_csr *Ms, int64_t nb, int64_t npool,
-                            const double *A, const double *KsinvA, const double *Phi,
-                            const double *kappa, const double *PhitA, double *Xb, double *Gb) {
+// Y (ns x nb) = Ks X for X (ns x nb): K X0 restricted to the interior rows (X0 = X scattered to
+// the interior rows of an n x nb block Z that is zero elsewhere); Z, KZ are n x nb scratch
+static void interior_matmat(const fmbd_csr *K, int64_t ns, const int64_t *interior, int64_t nb,
+                            const double *X, double *Y, double *Z, double *KZ) {
+  if (!interior) {
+    fmbd_csr_matmat(K, nb, X, ns, Y, ns);
+    return;
+  }
+  int64_t n = K->nrows;
+  memset(Z, 0, sizeof(double) * (size_t)(n * nb));
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t i = 0; i < ns; i++) {
+      Z[interior[i] + n * j] = X[i + ns * j];
+    }
+  }
+  fmbd_csr_matmat(K, nb, Z, n, KZ, n);
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t i = 0; i < ns; i++) {
+      Y[i + ns * j] = KZ[interior[i] + n * j];
+    }
+  }
+}
+
+int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
+                            const int64_t *interior, int64_t nb, int64_t npool, const double *A,
+                            const double *KsinvA, const double *Phi, const double *kappa,
+                            const double *PhitA, double *Xb, double *Gb) {
   int rc = FMBD_OK;
-  int64_t ns = Ks->nrows;
-  double *W = NULL, *C = NULL, *Y = NULL;
-  FMBD_GCHECK(Ks->ncols == ns && Ms->nrows == ns && Ms->ncols == ns, FMBD_ERR_VALUE,
-              "Ks and Ms must be square of the same order");
+  int64_t n = K->nrows;
+  double *W = NULL, *C = NULL, *Y = NULL, *Z = NULL, *KZ = NULL;
+  FMBD_GCHECK(K->ncols == n && M->nrows == n && M->ncols == n && (interior ? ns <= n : ns == n),
+              FMBD_ERR_VALUE, "K and M must be square of the same order, with %lld interior rows",
+              (long long)ns);
   for (int64_t k = 0; k < npool; k++) {
     FMBD_GCHECK(kappa[k] > 0, FMBD_ERR_VALUE,
                 "fixed-interface eigenvalue %lld is %g, not positive", (long long)k + 1, kappa[k]);
   }
-  size_t nsb = (size_t)(ns * nb);
-  FMBD_GALLOC(W = fmbd_malloc(sizeof(double) * (nsb ? nsb : 1)));
-  FMBD_GALLOC(Y = fmbd_malloc(sizeof(double) * (nsb ? nsb : 1)));
+  size_t nsb = (size_t)(ns * nb) + 1, nb_n = interior ? (size_t)(n * nb) + 1 : 1;
+  FMBD_GALLOC(W = fmbd_malloc(sizeof(double) * nsb));
+  FMBD_GALLOC(Y = fmbd_malloc(sizeof(double) * nsb));
+  FMBD_GALLOC(Z = fmbd_malloc(sizeof(double) * nb_n));
+  FMBD_GALLOC(KZ = fmbd_malloc(sizeof(double) * nb_n));
   FMBD_GALLOC(C = fmbd_malloc(sizeof(double) * (size_t)(npool * nb + 1)));
-  memcpy(W, KsinvA, sizeof(double) * nsb);
+  memcpy(W, KsinvA, sizeof(double) * (nsb - 1));
   // W = Ks^-1 A - Phi Lambda^-1 PhitA
   for (int64_t j = 0; j < nb; j++) {
     for (int64_t k = 0; k < npool; k++) {
@@ -114,19 +141,21 @@ int fmbd_est_base_projected(const fmbd_csr *Ks, const fmbd_csr *Ms, int64_t nb, 
   fmbd_dense_gemm('N', 'N', ns, nb, npool, -1.0, Phi, ns, C, npool, 1.0, W, ns);
   // W -= Phi (Phi' Ms W), twice (classical Gram-Schmidt, reorthogonalised)
   for (int pass = 0; pass < 2 && npool > 0; pass++) {
-    fmbd_csr_matmat(Ms, nb, W, ns, Y, ns);
+    interior_matmat(M, ns, interior, nb, W, Y, Z, KZ);
     fmbd_dense_gemm('T', 'N', npool, nb, ns, 1.0, Phi, ns, Y, ns, 0.0, C, npool);
     fmbd_dense_gemm('N', 'N', ns, nb, npool, -1.0, Phi, ns, C, npool, 1.0, W, ns);
   }
-  fmbd_csr_matmat(Ks, nb, W, ns, Y, ns);
+  interior_matmat(K, ns, interior, nb, W, Y, Z, KZ);
   fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, Y, ns, 0.0, Xb, nb);
   symmetrize(nb, Xb);
-  fmbd_csr_matmat(Ms, nb, W, ns, Y, ns);
+  interior_matmat(M, ns, interior, nb, W, Y, Z, KZ);
   fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, Y, ns, 0.0, Gb, nb);
   symmetrize(nb, Gb);
 done:
   fmbd_free(W);
   fmbd_free(Y);
+  fmbd_free(Z);
+  fmbd_free(KZ);
   fmbd_free(C);
   return rc;
 }

@@ -96,13 +96,17 @@ int fmbd_est_base_plain(int64_t ns, int64_t nb, int64_t npool, const double *A,
                         const double *PhitA, double *Xb, double *Gb, double *noise);
 
 /// @brief Xb, Gb at nd = npool without the cancellation (see ROUND-OFF above).
-/// @param[in] Ks, Ms ns x ns interior blocks of the FE matrices (full symmetric CSR)
+/// @param[in] K, M   the FE matrices (full symmetric CSR), n x n
+/// @param[in] ns, interior  the interior rows of K, M (interior == NULL: K, M are already the
+///            ns x ns blocks Ks, Ms). Products Ks W are formed as K W0 (W0 = W on the interior
+///            rows, 0 elsewhere) restricted to the interior rows: no submatrix is extracted.
 /// @param[in] A, KsinvA ns x nb; Phi ns x npool (Ms-normalised); kappa (npool); PhitA npool x nb
 /// @param[out] Xb, Gb nb x nb (caller allocates)
 /// @return FMBD_OK, FMBD_ERR_VALUE (shapes), FMBD_ERR_NOMEM
-int fmbd_est_base_projected(const fmbd_csr *Ks, const fmbd_csr *Ms, int64_t nb, int64_t npool,
-                            const double *A, const double *KsinvA, const double *Phi,
-                            const double *kappa, const double *PhitA, double *Xb, double *Gb);
+int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
+                            const int64_t *interior, int64_t nb, int64_t npool, const double *A,
+                            const double *KsinvA, const double *Phi, const double *kappa,
+                            const double *PhitA, double *Xb, double *Gb);
 
 // --- the estimator state ---------------------------------------------------------------------
 /// @brief Create an estimator for a body with nb boundary dofs.

@@ -134,9 +134,23 @@ int main(void) {
   EXPECT(noise >= 0 && noise < 1e-10 * maxabs(NB * NB, Xref), "noise %g", noise);
   fmbd_csr *cK = to_csr(NS, Ks), *cM = to_csr(NS, Ms);
   double Xp[NB * NB], Gp[NB * NB];
-  EXPECT(fmbd_est_base_projected(cK, cM, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xp, Gp) == 0, "proj");
+  EXPECT(fmbd_est_base_projected(cK, cM, NS, NULL, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xp, Gp) == 0, "proj");
   EXPECT(reldiff(NB * NB, Xp, Xref) < 1e-10, "projected Xb off by %g", reldiff(NB * NB, Xp, Xref));
   EXPECT(reldiff(NB * NB, Gp, Gref) < 1e-10, "projected Gb off by %g", reldiff(NB * NB, Gp, Gref));
+  {  // the same from the full matrices and the interior rows (last NB rows are the boundary)
+    fmbd_csr *fK = to_csr(N, K), *fM = to_csr(N, M);
+    int64_t inter[NS];
+    for (int i = 0; i < NS; i++) {
+      inter[i] = i;
+    }
+    double Xq[NB * NB], Gq[NB * NB];
+    EXPECT(fmbd_est_base_projected(fK, fM, NS, inter, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xq, Gq) == 0,
+           "proj full");
+    // same arithmetic up to summation order: 1e-12
+    EXPECT(reldiff(NB * NB, Xq, Xp) < 1e-12 && reldiff(NB * NB, Gq, Gp) < 1e-12, "interior rows of K, M");
+    fmbd_csr_destroy(&fK);
+    fmbd_csr_destroy(&fM);
+  }
 
   // --- the estimator state: downdates and updates -----------------------------------------
   double Mbb[NB * NB], Kbb[NB * NB];
