@@ -588,6 +588,7 @@ static int plot_estimates(const char *prefix, const table *t, bool exact, int64_
   p.xlabel = "flexible mode";
   p.ylabel = "relative eigenvalue error";
   p.ylog = true;
+  p.ymax = 1;  // errors above 100 % say nothing: clipped
   p.legend = 4;
   fmbd_svg_series s[5] = {
       {"upper (kappa_n)", t->nflex, x, t->upper, "#d62728", FMBD_SVG_TRIANGLE, FMBD_SVG_DASHED},
@@ -668,6 +669,7 @@ static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t n
   p.xlabel = "fixed-interface modes Nd";
   p.ylabel = "relative eigenvalue error";
   p.ylog = true;
+  p.ymax = 1;  // errors above 100 % (few modes) say nothing: clipped
   snprintf(path, sizeof path, "%s-convergence.svg", prefix);
   FMBD_GCALL(fmbd_svg_write(path, &p, ns, s));
 done:
