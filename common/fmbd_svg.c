@@ -51,6 +51,12 @@ static int set_range(axis *a, double dmin, double dmax, double umin, double umax
     lo = 0;
     hi = 1;
   }
+  if (isnan(umin) && isfinite(lo) && isfinite(hi) && lo > hi) {  // data above a given max
+    lo = a->log ? hi / 1000 : hi - 1;
+  }
+  if (isnan(umax) && isfinite(lo) && isfinite(hi) && lo > hi) {  // data below a given min
+    hi = a->log ? lo * 1000 : lo + 1;
+  }
   if (a->log && (lo <= 0 || hi <= 0)) {
     FMBD_FAIL(FMBD_ERR_VALUE, "%s axis: log range [%g, %g] not positive", name, lo, hi);
   }
