@@ -3,6 +3,7 @@
 // SPDX-License-Identifier: MIT
 #include "fmbd_mbs.h"
 
+#include <cblas.h>
 #include <float.h>
 #include <klu.h>
 #include <lapacke.h>
@@ -13,7 +14,6 @@
 #include <string.h>
 
 #include "fmbd_alloc.h"
-#include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 
@@ -266,6 +266,8 @@ typedef struct mbody {
   double *P;        // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
   double *Hk;       // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;      // 3 x nm
+  double *cor;      // 3 x nm: sum_l q'_l int rho S_l x S_k
+  bool kdiag;       // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
 } mbody;
 
 typedef struct mpoint {
@@ -407,7 +409,7 @@ static void body_free(mbody *b) {
   fmbd_free(b->name);
   fmbd_free(b->S1), fmbd_free(b->XS), fmbd_free(b->SS), fmbd_free(b->Mff), fmbd_free(b->Kff);
   fmbd_free(b->Dff), fmbd_free(b->XSx), fmbd_free(b->SSx), fmbd_free(b->q0), fmbd_free(b->qd0);
-  fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf);
+  fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
 }
 
 void fmbd_mbs_destroy(fmbd_mbs **mp) {
@@ -543,7 +545,7 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
                       const fmbd_mbs_state0 *s0, int *id) {
   const char *nm_ = name ? name : "?";
   FMBD_CHECK(d, FMBD_ERR_VALUE, "body '%s': no flexible data", nm_);
-  FMBD_CHECK(d->nm >= 0 && d->nm <= 100000, FMBD_ERR_VALUE, "body '%s': bad number of modes %lld", nm_,
+  FMBD_CHECK(d->nm >= 0 && d->nm <= 10000, FMBD_ERR_VALUE, "body '%s': bad number of modes %lld", nm_,
              (long long)d->nm);
   FMBD_CHECK(isfinite(d->mass) && d->mass > 0, FMBD_ERR_VALUE, "body '%s': mass %g must be positive", nm_, d->mass);
   FMBD_CHECK(finite_n(d->first_moment, 3) && finite_n(d->second_moment, 9), FMBD_ERR_VALUE,
@@ -603,8 +605,9 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     b->P = fmbd_calloc(9 * n1, sizeof(double));
     b->Hk = fmbd_calloc(9 * n1, sizeof(double));
     b->Mwf = fmbd_calloc(3 * n1, sizeof(double));
+    b->cor = fmbd_calloc(3 * n1, sizeof(double));
     FMBD_CHECK(b->S1 && b->XS && b->SS && b->Mff && b->Kff && b->Dff && b->XSx && b->SSx && b->q0 && b->qd0 &&
-                   b->P && b->Hk && b->Mwf,
+                   b->P && b->Hk && b->Mwf && b->cor,
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);
@@ -620,6 +623,15 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     for (size_t k = 0; k < n1; k++) {
       double kk = b->Kff[k + n1 * k], mk = b->Mff[k + n1 * k];
       b->Dff[k + n1 * k] = 2 * d->damping_ratio * sqrt(fmax(kk, 0) * mk);
+    }
+    b->kdiag = true;
+    for (size_t i = 0; i < n1 && b->kdiag; i++) {
+      for (size_t k = 0; k < n1; k++) {
+        if (i != k && b->Kff[i + n1 * k] != 0) {
+          b->kdiag = false;
+          break;
+        }
+      }
     }
     if (d->q0) memcpy(b->q0, d->q0, sizeof(double) * n1);
     if (d->qd0) memcpy(b->qd0, d->qd0, sizeof(double) * n1);
@@ -872,7 +884,9 @@ void fmbd_mbs_set_gravity(fmbd_mbs *m, const double g[3]) { memcpy(m->g, g, size
 // matrix when the Newton contraction rate exceeds THETA_REFACTOR (measured on t500-t502:
 // 0.1 with extrapolation halves the iterations of 0.5 at a few more factorisations)
 #define PRED_EXTRAP 1
+#ifndef THETA_REFACTOR
 #define THETA_REFACTOR 0.1
+#endif
 // step-size controller: safety factor, and the dead band [DEAD_LOW, 1.25] of proposed step
 // ratios that keep h (and the factorised matrix) unchanged. Modal error floor: deformations
 // below MODAL_FLOOR L_ref (physical, via sqrt(m) for mass-normalised modes) do not tighten
@@ -912,7 +926,7 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   double s1qd[3] = {0, 0, 0};
   if (nm > 0) {
     double *P = b->P; // P = SS q, SS as a (9 nm) x nm column-major matrix
-    fmbd_dense_gemm('N', 'N', 9 * (int64_t)nm, 1, nm, 1.0, b->SS, 9 * (int64_t)nm, q, nm, 0.0, P, 9 * (int64_t)nm);
+    cblas_dgemv(CblasColMajor, CblasNoTrans, 9 * nm, nm, 1.0, b->SS, 9 * nm, q, 1, 0.0, P, 1);
     for (int k = 0; k < nm; k++) {
       const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
@@ -980,6 +994,10 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   for (int a = 0; a < 3; a++) Hw[a] = H[a] * w[0] + H[a + 3] * w[1] + H[a + 6] * w[2];
   for (int a = 0; a < 3; a++) rb[3 + a] += 2 * (trH * w[a] - Hw[a]);
   double ww = dot3(w, w);
+  double *cor = b->cor; // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
+  if (nm > 0) {
+    cblas_dgemv(CblasColMajor, CblasNoTrans, 3 * nm, nm, -1.0, b->SSx, 3 * nm, qd, 1, 0.0, cor, 1);
+  }
   for (int k = 0; k < nm; k++) {
     const double *Hk = b->Hk + 9 * k;
     double wHw = 0;
@@ -987,13 +1005,12 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
       for (int bb = 0; bb < 3; bb++) wHw += w[a] * Hk[a + 3 * bb] * w[bb];
     }
     double v = wHw - ww * (Hk[0] + Hk[4] + Hk[8]);
-    double cor[3] = {0, 0, 0};
-    for (int l = 0; l < nm; l++) {
-      const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-      cor[0] += qd[l] * sx[0], cor[1] += qd[l] * sx[1], cor[2] += qd[l] * sx[2];
+    v += 2 * dot3(w, cor + 3 * k);
+    if (b->kdiag) {
+      v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+    } else {
+      for (int l = 0; l < nm; l++) v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
     }
-    v += 2 * dot3(w, cor);
-    for (int l = 0; l < nm; l++) v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
     rb[6 + k] = v;
   }
   // gravity
@@ -1088,10 +1105,9 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
         hkw[a] = Hk[a] * w[0] + Hk[a + 3] * w[1] + Hk[a + 6] * w[2];
         hktw[a] = Hk[3 * a] * w[0] + Hk[3 * a + 1] * w[1] + Hk[3 * a + 2] * w[2];
       }
-      double cor[3] = {0, 0, 0};
+      const double *cor = b->cor + 3 * k;
       for (int l = 0; l < nm; l++) {
         const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-        cor[0] += qd[l] * sx[0], cor[1] += qd[l] * sx[1], cor[2] += qd[l] * sx[2];
         CB(6 + k, 6 + l) = 2 * dot3(w, sx) + b->Dff[k + (size_t)nm * l];
       }
       for (int a = 0; a < 3; a++) {
