@@ -2201,6 +2201,7 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
   for (;;) {
     double h = m->h_next;
     if (m->set.fixed && h > m->set.step) h = m->set.step;
+    if (!m->set.fixed && h > m->set.max_step) h = m->set.max_step;
     double lim = tend;
     bool out_lim = false;
     if (oe > 0) {
