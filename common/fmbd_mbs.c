@@ -582,6 +582,25 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     fmbd_free(L);
     FMBD_CHECK(pd, FMBD_ERR_SINGULAR, "body '%s': modal mass matrix Mff is not positive definite", nm_);
   }
+  {
+    // the rigid part of the mass matrix is regular iff the inertia about the centre of mass,
+    // Ic = tr(Jc) 1 - Jc with Jc = J0 - c0 c0'/m, is positive definite (mass not on a line)
+    double Jc[9], Ic[9];
+    for (int a = 0; a < 3; a++)
+      for (int c = 0; c < 3; c++)
+        Jc[3 * a + c] = 0.5 * (d->second_moment[3 * a + c] + d->second_moment[3 * c + a]) -
+                        d->first_moment[a] * d->first_moment[c] / d->mass;
+    double tr = Jc[0] + Jc[4] + Jc[8];
+    for (int i = 0; i < 9; i++) Ic[i] = -Jc[i];
+    Ic[0] += tr, Ic[4] += tr, Ic[8] += tr;
+    double d1 = Ic[0], d2 = Ic[0] * Ic[4] - Ic[1] * Ic[3];
+    double d3 = Ic[0] * (Ic[4] * Ic[8] - Ic[5] * Ic[7]) - Ic[1] * (Ic[3] * Ic[8] - Ic[5] * Ic[6]) +
+                Ic[2] * (Ic[3] * Ic[7] - Ic[4] * Ic[6]);
+    double sc = fabs(tr) > 0 ? fabs(tr) : 1;
+    FMBD_CHECK(d1 > 1e-12 * sc && d2 > 1e-12 * sc * sc && d3 > 1e-12 * sc * sc * sc, FMBD_ERR_SINGULAR,
+               "body '%s': singular mass matrix: the inertia about the centre of mass (%.3g %.3g %.3g on the "
+               "diagonal) is not positive definite", nm_, Ic[0], Ic[4], Ic[8]);
+  }
   mbody *b;
   FMBD_CALL(add_body(m, name, (int)nm, s0, &b));
   b->m = d->mass;
