@@ -584,7 +584,9 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
   }
   {
     // the rigid part of the mass matrix is regular iff the inertia about the centre of mass,
-    // Ic = tr(Jc) 1 - Jc with Jc = J0 - c0 c0'/m, is positive definite (mass not on a line)
+    // Ic = tr(Jc) 1 - Jc with Jc = J0 - c0 c0'/m, is positive definite (mass not on a line,
+    // e.g. lumped beam nodes); the iteration matrix may still be regular when joints hold the
+    // rotation without inertia, so this is only noted (fmbd_mbs_init names what is singular)
     double Jc[9], Ic[9];
     for (int a = 0; a < 3; a++)
       for (int c = 0; c < 3; c++)
@@ -597,9 +599,12 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     double d3 = Ic[0] * (Ic[4] * Ic[8] - Ic[5] * Ic[7]) - Ic[1] * (Ic[3] * Ic[8] - Ic[5] * Ic[6]) +
                 Ic[2] * (Ic[3] * Ic[7] - Ic[4] * Ic[6]);
     double sc = fabs(tr) > 0 ? fabs(tr) : 1;
-    FMBD_CHECK(d1 > 1e-12 * sc && d2 > 1e-12 * sc * sc && d3 > 1e-12 * sc * sc * sc, FMBD_ERR_SINGULAR,
+    if (!(d1 > 1e-12 * sc && d2 > 1e-12 * sc * sc && d3 > 1e-12 * sc * sc * sc)) {
+      fmbd_log(FMBD_LOG_INFO,
                "body '%s': singular mass matrix: the inertia about the centre of mass (%.3g %.3g %.3g on the "
-               "diagonal) is not positive definite", nm_, Ic[0], Ic[4], Ic[8]);
+               "diagonal) is not positive definite; joints must hold the rotation it leaves free",
+               nm_, Ic[0], Ic[4], Ic[8]);
+    }
   }
   mbody *b;
   FMBD_CALL(add_body(m, name, (int)nm, s0, &b));
