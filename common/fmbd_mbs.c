@@ -2240,7 +2240,11 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
     }
     bool conv, fresh;
     double err;
-    FMBD_CALL(attempt(m, h, retried_fresh, &conv, &fresh, &err));
+    int arc = attempt(m, h, retried_fresh, &conv, &fresh, &err);
+    if (arc != 0) {
+      restore_state(m); // the caller may still query (and write) the last accepted state
+      return arc;
+    }
     if (!conv) {
       restore_state(m);
       if (!fresh && !retried_fresh) {

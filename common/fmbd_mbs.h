@@ -315,7 +315,8 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s);
 /// @return FMBD_OK; 1 when t_end was already reached (nothing done); FMBD_ERR_CONVERGE
 /// (Newton failure at the smallest step: "t = T s, h = H s: Newton did not converge;
 /// largest residual: joint 'J' equation k (...)" or "body 'B' coordinate ...");
-/// FMBD_ERR_SINGULAR; FMBD_ERR_EXTERNAL
+/// FMBD_ERR_SINGULAR; FMBD_ERR_EXTERNAL. After an error the state is that of the last
+/// accepted step (queries still work, e.g. to keep a run's valid prefix).
 int fmbd_mbs_step(fmbd_mbs *m, bool *at_output);
 
 /// Called after every accepted step; return nonzero to stop the run (fmbd_mbs_run returns
