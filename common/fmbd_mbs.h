@@ -351,9 +351,12 @@ void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, doub
 void fmbd_mbs_momentum(const fmbd_mbs *m, double L[3], double H[3]);
 /// @brief Reaction of a joint: the force and torque the joint (with a driver acting on it)
 /// applies to the body of side 1, torque about its point P1 (world). If side 1 is ground:
-/// minus those applied to side 2, torque about P2. From the multipliers and the rigid
-/// (R, orientation) part of the constraint force; the modal part of a flexible body's
-/// generalized constraint force is not included. Redundant equations removed carry zero.
+/// minus those applied to side 2, torque about P2. From the multipliers: the force is the R
+/// part of the generalized constraint force -Phi_x' lambda of that body, the torque its
+/// orientation part (N = G Q_p / 2, body frame) moved from the body origin to the point (on
+/// a flexible body the deformed point position is used, so the result is the load at the
+/// point itself). Redundant equations removed carry zero (their share of the load is
+/// carried by the equations kept).
 /// @return FMBD_OK; FMBD_ERR_VALUE (bad id, before fmbd_mbs_init)
 int fmbd_mbs_joint_reaction(const fmbd_mbs *m, int joint, double F[3], double T[3]);
 /// @brief The current value of a joint coordinate (revolute angle, slide) and its rate.
