@@ -9,6 +9,9 @@
 
 #include <math.h>
 #include <stdio.h>
+#ifdef __GLIBC__
+#include <malloc.h>  // malloc_trim: give freed factor memory back before the next large phase
+#endif
 #include <stdlib.h>
 #include <string.h>
 
@@ -299,6 +302,21 @@ static void take_eig_time(fmbd_cb *cb, const fmbd_eig_result *er) {
   for (int64_t k = 0; k < er->nev; k++) cb->max_residual = fmax(cb->max_residual, er->resid[k]);
 }
 
+// current and peak resident memory in MB (Linux /proc; -1 elsewhere): -vv diagnostics
+static void mem_log(const char *where) {
+  if (fmbd_log_level() < FMBD_LOG_DEBUG) return;
+  FILE *f = fopen("/proc/self/status", "r");
+  if (!f) return;
+  char line[256];
+  double rss = -1, hwm = -1;
+  while (fgets(line, sizeof line, f)) {
+    if (!strncmp(line, "VmHWM:", 6)) hwm = atof(line + 6) / 1024.0;
+    if (!strncmp(line, "VmRSS:", 6)) rss = atof(line + 6) / 1024.0;
+  }
+  fclose(f);
+  fmbd_log(FMBD_LOG_DEBUG, "memory %s: %.0f MB resident, %.0f MB peak", where, rss, hwm);
+}
+
 static double hz(double lambda) { return sqrt(fabs(lambda)) / (2.0 * M_PI); }
 
 // nm free-free: the lowest flexible modes of the whole body (rigid-body modes removed)
@@ -452,6 +470,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   }
   cb->time.partition = fmbd_wall_s() - t0;
   if (o.fmax_hz <= 0.0) {
+  mem_log("after the partition");
     FMBD_GCHECK(o.nmodes <= ns, FMBD_ERR_VALUE,
                 "%lld modes asked for, but the body has only %lld interior dofs (%lld dofs, %lld "
                 "on the boundary)", (long long)o.nmodes, (long long)ns, (long long)n, (long long)nb);
@@ -461,6 +480,8 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
+  fmbd_chol_release_matrix(F);  // factored once: the matrix copy is not needed for solves
+  mem_log("after the factorisation");
   {
     fmbd_chol_stats st;
     fmbd_chol_get_stats(F, &st);
@@ -550,6 +571,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->time.projection = fmbd_wall_s() - t1;
   }  // !o.nm
 
+  mem_log("after the constraint modes and projections");
   // --- fixed-interface modes (Lanczos with the same factor; the Sturm check after the factor
   // is freed, since its LDL' factor is as large) ---
   fmbd_csr_destroy(&Kc);
@@ -573,6 +595,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
       fmbd_chol_destroy(&F);
+#ifdef __GLIBC__
+      malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
+#endif
+      mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
       if (fmbd_progress_enabled()) fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
       FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok));
@@ -599,6 +625,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     FMBD_GALLOC(cb->kappa = alloc_f64(0));
     FMBD_GALLOC(cb->Phi = alloc_f64(0));
   }
+  mem_log("after the modes");
   int64_t nd = cb->nd;
   FMBD_GALLOC(cb->PhitA = alloc_f64(nd * nb));
   if (nb > 0 && nd > 0) {

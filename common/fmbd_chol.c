@@ -99,15 +99,22 @@ static int build_pattern(fmbd_chol *F) {
   F->S = cholmod_l_allocate_sparse((size_t)n, (size_t)n, (size_t)(nnz ? nnz : 1), 1, 1, 1,
                                    CHOLMOD_REAL, &F->c);
   if (!F->S) return cholmod_fail(F, "allocate_sparse");
-  FMBD_GALLOC(F->posA = fmbd_malloc((size_t)(nA ? nA : 1) * sizeof(int64_t)));
-  FMBD_GALLOC(F->posB = fmbd_malloc((size_t)(nB ? nB : 1) * sizeof(int64_t)));
-  FMBD_GALLOC(F->diag = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+  // the supernodal LDL' assembles from A and B itself: the pattern alone serves its analysis
+  // (and without B the upper entries of A are S's entries in order: no map either)
+  bool pos = F->kind != FMBD_CHOL_LDLT;
+  if (pos) {
+    if (B) {
+      FMBD_GALLOC(F->posA = fmbd_malloc((size_t)(nA ? nA : 1) * sizeof(int64_t)));
+      FMBD_GALLOC(F->posB = fmbd_malloc((size_t)(nB ? nB : 1) * sizeof(int64_t)));
+    }
+    FMBD_GALLOC(F->diag = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+  }
   SuiteSparse_long *Sp = F->S->p, *Si = F->S->i;
   double *Sx = F->S->x;
   nnz = nA = nB = 0;
   for (int64_t j = 0; j < n; j++) {
     Sp[j] = nnz;
-    F->diag[j] = -1;
+    if (pos) F->diag[j] = -1;
     int64_t pa = A->indptr[j], ea = A->indptr[j + 1];
     int64_t pb = B ? B->indptr[j] : 0, eb = B ? B->indptr[j + 1] : 0;
     while (true) {
@@ -115,9 +122,15 @@ static int build_pattern(fmbd_chol *F) {
       int64_t ib = (pb < eb && B->indices[pb] <= j) ? B->indices[pb] : INT64_MAX;
       if (ia == INT64_MAX && ib == INT64_MAX) break;
       int64_t i = ia < ib ? ia : ib;
-      if (ia <= ib) F->posA[nA++] = nnz, pa++;
-      if (ib <= ia) F->posB[nB++] = nnz, pb++;
-      if (i == j) F->diag[j] = nnz;
+      if (ia <= ib) {
+        if (F->posA) F->posA[nA++] = nnz;
+        pa++;
+      }
+      if (ib <= ia) {
+        if (F->posB) F->posB[nB++] = nnz;
+        pb++;
+      }
+      if (pos && i == j) F->diag[j] = nnz;
       Si[nnz] = i;
       Sx[nnz] = 0.0;
       nnz++;
@@ -137,7 +150,8 @@ static void fill_values(fmbd_chol *F, double sigma) {
   int64_t k = 0;
   for (int64_t j = 0; j < F->n; j++) {
     for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
-      Sx[F->posA[k++]] += A->data[p];
+      Sx[F->posA ? F->posA[k] : k] += A->data[p];
+      k++;
     }
   }
   if (B && sigma != 0.0) {
@@ -182,6 +196,8 @@ static int super_ldl_setup(fmbd_chol *F) {
   }
   F->sizeC = maxC;
   F->sizeW = maxW;
+  fmbd_log(FMBD_LOG_DEBUG, "LDL': %lld supernodes, %.3g values in L, update workspaces %.3g + %.3g",
+           (long long)ns, (double)L->xsize, (double)maxC, (double)maxW);
   FMBD_GALLOC(F->wC = fmbd_malloc((size_t)maxC * sizeof(double)));
   FMBD_GALLOC(F->wW = fmbd_malloc((size_t)maxW * sizeof(double)));
 done:
@@ -376,7 +392,12 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
   if (!F->L || F->c.status < 0) FMBD_GCALL(cholmod_fail(F, "analyze"));
   F->st.ordering = ordering_name(F->c.method[F->c.selected].ordering);
   F->st.nnz_l = F->c.lnz;
-  if (kind == FMBD_CHOL_LDLT) FMBD_GCALL(super_ldl_setup(F));
+  if (kind == FMBD_CHOL_LDLT) {
+    // the numeric LDL' reads A and B directly: the CHOLMOD copy of the pattern goes first
+    cholmod_l_free_sparse(&F->S, &F->c);
+    cholmod_l_free_work(&F->c);
+    FMBD_GCALL(super_ldl_setup(F));
+  }
   *out = F;
   F = NULL;
 done:
@@ -407,18 +428,20 @@ static double pivot(const cholmod_factor *L, int64_t k) {
 
 int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   FMBD_CHECK(F->B || sigma == 0.0, FMBD_ERR_VALUE, "shift %g without a second matrix", sigma);
-  fill_values(F, sigma);
   F->sigma = sigma;
   F->neg = -1;
   F->failed_row = -1;
   g_cholmod_msg[0] = 0;
   double t0 = fmbd_wall_s();
   if (F->kind == FMBD_CHOL_LDLT) {
+    // assembled from A and B directly: no CHOLMOD matrix
     int rc = super_ldl_factor(F, sigma);
     F->st.t_factor_s += fmbd_wall_s() - t0;
     F->st.n_factor++;
     return rc;
   }
+  FMBD_CHECK(F->S, FMBD_ERR_INTERNAL, "factor after fmbd_chol_release_matrix");
+  fill_values(F, sigma);
   int ok = cholmod_l_factorize(F->S, F->L, &F->c);
   F->st.t_factor_s += fmbd_wall_s() - t0;
   F->st.n_factor++;
@@ -503,6 +526,18 @@ int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx) {
   F->st.t_solve_s += fmbd_wall_s() - t0;
   F->st.n_solves += nrhs;
   return FMBD_OK;
+}
+
+void fmbd_chol_release_matrix(fmbd_chol *F) {
+  if (!F) return;
+  if (F->started) {
+    cholmod_l_free_sparse(&F->S, &F->c);
+    cholmod_l_free_work(&F->c);
+  }
+  fmbd_free(F->posA);
+  fmbd_free(F->posB);
+  fmbd_free(F->diag);
+  F->posA = F->posB = F->diag = NULL;
 }
 
 int64_t fmbd_chol_negative_pivots(const fmbd_chol *F) { return F->kind != FMBD_CHOL_LLT ? F->neg : -1; }

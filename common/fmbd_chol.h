@@ -79,6 +79,11 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma);
 /// @param[in,out] X  column-major n x nrhs with leading dimension ldx (>= n)
 int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx);
 
+/// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
+/// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long
+/// solve phase by the size of the upper triangle.
+void fmbd_chol_release_matrix(fmbd_chol *F);
+
 /// @brief Number of negative pivots of the last LDLT factorisation (-1 for LLT or before a
 /// factorisation). With B positive definite: the number of eigenvalues below sigma.
 int64_t fmbd_chol_negative_pivots(const fmbd_chol *F);

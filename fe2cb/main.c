@@ -144,6 +144,19 @@ static int parse_args(int argc, char **argv, args *a) {
   return 0;
 }
 
+// peak resident memory so far in MB (Linux /proc; -1 elsewhere), for the -vv log
+static double peak_mb(void) {
+  FILE *f = fopen("/proc/self/status", "r");
+  if (!f) return -1.0;
+  char line[256];
+  double kb = -1.0;
+  while (fgets(line, sizeof line, f)) {
+    if (!strncmp(line, "VmHWM:", 6)) kb = atof(line + 6);
+  }
+  fclose(f);
+  return kb / 1024.0;
+}
+
 static void breakdown(const fmbd_cb *cb, double t_read, double t_write) {
   const fmbd_cb_timing *t = &cb->time;
   fmbd_log(FMBD_LOG_INFO, "%lld dofs: %lld interior, %lld boundary; factor of Ks: %s ordering, "
@@ -197,6 +210,7 @@ int main(int argc, char **argv) {
   fmbd_err_context(a.input, "/interfaces");
   FMBD_GCALL(fmbd_cb_boundary(body, a.ngroups, (const char *const *)a.groups, &nb, &boundary));
   double t_read = fmbd_wall_s() - t0;
+  fmbd_log(FMBD_LOG_DEBUG, "peak memory after reading: %.0f MB", peak_mb());
   if (nb == 0 && !(a.cb.nm && !a.cb.hold)) {
     fmbd_log(FMBD_LOG_WARN, "%s: no interface and no --boundary group: the fixed-interface modes "
              "are the body's own (it must be clamped)", a.input);
@@ -207,6 +221,7 @@ int main(int argc, char **argv) {
   // the body's K and M are handed over: freed once the blocks are extracted (peak memory)
   FMBD_GCALL(fmbd_cb_reduce_take(&body->K, &body->M, body->dofs, nb, boundary, &a.cb, &cb));
   fmbd_progress(NULL);
+  fmbd_log(FMBD_LOG_DEBUG, "peak memory after the reduction: %.0f MB", peak_mb());
   cb->fe_file = fmbd_strdup(strcmp(a.input, "-") ? a.input : "(stdin)");
   snprintf(cb->fe_sha256, sizeof cb->fe_sha256, "%s", fmbd_h5_sha256(in));
 
