@@ -141,10 +141,12 @@ int main(void) {
     EXPECT(c.max_ds < 1e-8, "%s steps: slider position error %.3g m", variable ? "variable" : "fixed", c.max_ds);
     EXPECT(c.max_phi < 1e-8, "%s steps: constraint residual %.3g", variable ? "variable" : "fixed", c.max_phi);
     // velocities of the index-3 scheme are second-order accurate: (w h)^2 = 4e-5 relative to
-    // the slider speed scale a w = 0.63 m/s for h = 1e-3; allow 5e-4 m/s (fixed) and, with
-    // the local error control at 1e-5, the same bound
-    EXPECT(c.max_dv < 5e-4, "%s steps: slider velocity error %.3g m/s", variable ? "variable" : "fixed", c.max_dv);
-    EXPECT(c.max_vphi < 5e-4, "%s steps: velocity constraint residual %.3g", variable ? "variable" : "fixed",
+    // the slider speed scale a w = 0.63 m/s for h = 1e-3; allow 5e-4 m/s with fixed steps. The
+    // velocity constraints are not enforced by the index-3 scheme: their residual is of the
+    // same order; with variable steps up to max_step = 1e-2, (w h)^2 a w = 2.5e-3 m/s bounds it
+    double vb = variable ? 2.5e-3 : 5e-4;
+    EXPECT(c.max_dv < vb, "%s steps: slider velocity error %.3g m/s", variable ? "variable" : "fixed", c.max_dv);
+    EXPECT(c.max_vphi < vb, "%s steps: velocity constraint residual %.3g", variable ? "variable" : "fixed",
            c.max_vphi);
     double th, thd;
     fmbd_mbs_joint_coordinate(m, c.crank_joint, &th, &thd);
