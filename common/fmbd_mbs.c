@@ -344,6 +344,7 @@ struct fmbd_mbs {
   int64_t k_out;
   int64_t worst_i;                           // largest scaled residual of the last iterate
   double worst_v;
+  int64_t worst_dx;                          // coordinate of the largest Newton correction
   bool need_factor, after_reject;
   // --- sparse matrix and KLU ---
   int64_t nnz;
@@ -2119,7 +2120,9 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
       else snprintf(what, sizeof what, "body '%s' modal equation %d", b->name, k - 6);
     }
   }
-  snprintf(buf, len, "%s (scaled residual %.3g)", what, m->worst_v);
+  char dxw[300] = "?";
+  if (m->worst_dx >= 0 && m->worst_dx < m->n) coord_describe(m, m->worst_dx, dxw, sizeof dxw);
+  snprintf(buf, len, "%s (scaled residual %.3g); largest correction: %s", what, m->worst_v, dxw);
 }
 
 // One attempt of a step of size h from the saved state. Returns FMBD_OK with *conv and *err
@@ -2188,7 +2191,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       double tx = m->set.newton_tol * fmin(m->nscale[i], m->ascale[i] / bp);
       tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), m->nscale[i]));
       double v = fabs(dx) / tx;
-      if (!(v <= nrm)) nrm = v;
+      if (!(v <= nrm)) nrm = v, m->worst_dx = i;
     }
     for (int64_t k = 0; k < m->m; k++) m->lam[k] += bp * m->rhs[n + k];
     if (!isfinite(nrm)) break;

@@ -101,9 +101,10 @@
 //   to [0.2, 2], kept unchanged for ratios in [0.85, 1.25] (the factor stays valid) and not
 //   increased right after a rejection (Hairer, Norsett & Wanner I, II.4), then clipped to
 //   [min_step, max_step]. A Newton failure divides h by 4; at min_step the run fails with
-//   FMBD_ERR_CONVERGE naming the time, the step and the equation (joint or driver equation,
+//   FMBD_ERR_CONVERGE naming the time, the step, the equation (joint or driver equation,
 //   or a body's translational / rotational / modal equation of motion) with the largest
-//   scaled residual in the last iteration. Fixed steps: h = step always (divided by 4 only
+//   scaled residual in the last iteration and the coordinate with the largest correction
+//   (near a singular configuration the residuals are small and the corrections blow up). Fixed steps: h = step always (divided by 4 only
 //   after a Newton failure, then back to step), no error test.
 // INITIAL CONDITIONS (fmbd_mbs_init): redundant constraint equations (joints and drivers) are
 //   found at the initial configuration by QR with column pivoting (LAPACK dgeqp3) of Phi_x'
@@ -314,7 +315,9 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s);
 /// @param[out] at_output true when the step ended on an output instant (or output_every = 0)
 /// @return FMBD_OK; 1 when t_end was already reached (nothing done); FMBD_ERR_CONVERGE
 /// (Newton failure at the smallest step: "t = T s, h = H s: Newton did not converge;
-/// largest residual: joint 'J' equation k (...)" or "body 'B' coordinate ...");
+/// largest residual: joint 'J' equation k (...) (scaled residual R); largest correction:
+/// body 'B' coordinate ..."; the residual may also be a driver's or a body's equation of
+/// motion);
 /// FMBD_ERR_SINGULAR; FMBD_ERR_EXTERNAL. After an error the state is that of the last
 /// accepted step (queries still work, e.g. to keep a run's valid prefix).
 int fmbd_mbs_step(fmbd_mbs *m, bool *at_output);
