@@ -611,8 +611,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         fmbd_eig_result_free(&er);
         FMBD_GCALL(fmbd_chol_analyze_perm(Ks, NULL, FMBD_CHOL_LLT, perm, &F));
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
-        FMBD_GCALL(modes(Ks, Ms, F, &o, nev + 5, lmax, false, &er));
-        if (o.fmax_hz <= 0.0) er.nev = o.nmodes < er.nev ? o.nmodes : er.nev;
+        FMBD_GCALL(modes(Ks, Ms, F, &o, nev, lmax, false, &er));
       }
     }
     take_eig_time(cb, &er);

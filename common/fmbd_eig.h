@@ -50,7 +50,7 @@ typedef struct fmbd_eig_opts {
   int maxit;           ///< ARPACK restarts per run. Default 500
   int max_passes;      ///< runs with more vectors after a failed check. Default 4
   bool sturm;          ///< do the Sturm count check. Default true
-  int64_t ncv;         ///< Lanczos basis size (0: automatic, max(2 nev + 1, nev + 20) capped)
+  int64_t ncv;         ///< Lanczos basis size (0: automatic, nev + max(20, nev/2), capped)
   int64_t dense_max;   ///< solve densely with LAPACK up to this order. Default 400
   fmbd_eig_progress_fn progress; ///< may be NULL (default)
   void *progress_ctx;
