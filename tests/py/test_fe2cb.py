@@ -230,5 +230,28 @@ chib = cb["reduced/eigenvalues"]
 check(em < 1e-10 and ek < 1e-10 and np.all(chib[6:] >= chil[6:len(chib)] * (1 - 1e-9)),
       "lattice (lumped): closed form %.1e / %.1e, reduced >= full" % (em, ek))
 
+# --- 5. a 3-D frame (L-shaped, rotated beam elements), interfaces at both feet and the corner --
+frame = fegen.beam(n_el=40, radius=0.01, path=[(0, 0, 0), (0.3, 0, 0), (0.3, 0.2, 0.1)],
+                   interfaces={"a": [0], "b": [80], "corner": [40]})
+fef = os.path.join(TMP, "frame.fe.h5")
+fegen.write(fef, frame)
+Kf, Mf = fegen.read_km(fef)
+out = os.path.join(TMP, "frame.cb.h5")
+run(fef, "-o", out, "--modes", "15")
+cb = fegen.read_cb(out)
+s, b = cb["cb/interior_dofs"], cb["cb/boundary_dofs"]
+Kfd, Mfd = Kf.toarray(), Mf.toarray()
+kref = sl.eigh(Kfd[np.ix_(s, s)], Mfd[np.ix_(s, s)], eigvals_only=True)
+T = t0_matrix(cb, Kf.shape[0])
+em = np.abs(T.T @ Mfd @ T - cb["reduced/M"]).max() / np.abs(cb["reduced/M"]).max()
+ek = np.abs(T.T @ Kfd @ T - cb["reduced/K"]).max() / np.abs(cb["reduced/K"]).max()
+chif = sl.eigh(Kfd, Mfd, eigvals_only=True)
+chib = cb["reduced/eigenvalues"]
+ok = (np.all(np.abs(cb["cb/kappa"] - kref[:15]) <= 1e-9 * kref[:15] + 100 * 2.2e-16 * kref[-1])
+      and em < 1e-10 and ek < 1e-10 and np.all(chib[6:] >= chif[6:len(chib)] * (1 - 1e-9))
+      and len(b) == 18 and cb["attrs"]["n_rigid"] == 6)
+check(ok, "3-D frame, 3 interfaces (18 boundary dofs): kappa vs scipy, closed form %.1e / %.1e, "
+      "reduced >= full, 6 rigid" % (em, ek))
+
 print("\n%d failure(s)" % len(failures))
 sys.exit(1 if failures else 0)
