@@ -7,7 +7,7 @@
 #include <klu.h>
 #include <lapacke.h>
 #include <math.h>
-#undef I // <complex.h> through lapacke.h; I is an inertia tensor here
+#undef I  // <complex.h> through lapacke.h; I is an inertia tensor here
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,12 +19,17 @@
 // ============================================================================================
 // small 3-vector and 3x3 (row-major) helpers
 // ============================================================================================
-static inline double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static inline double dot3(const double *a, const double *b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 static inline void cross3(const double *a, const double *b, double *c) {
-  double t0 = a[1] * b[2] - a[2] * b[1], t1 = a[2] * b[0] - a[0] * b[2], t2 = a[0] * b[1] - a[1] * b[0];
+  double t0 = a[1] * b[2] - a[2] * b[1], t1 = a[2] * b[0] - a[0] * b[2],
+         t2 = a[0] * b[1] - a[1] * b[0];
   c[0] = t0, c[1] = t1, c[2] = t2;
 }
-static inline double norm3(const double *a) { return sqrt(dot3(a, a)); }
+static inline double norm3(const double *a) {
+  return sqrt(dot3(a, a));
+}
 // y = A x (row-major 3x3)
 static inline void mv3(const double *A, const double *x, double *y) {
   double t0 = A[0] * x[0] + A[1] * x[1] + A[2] * x[2];
@@ -123,61 +128,63 @@ void fmbd_mbs_rotation_axis_angle(const double axis[3], double angle, double A[9
 double fmbd_mbs_fn_eval(const fmbd_mbs_fn *f, double t, double *dfdt, double *d2fdt2) {
   double v = 0, d = 0, dd = 0;
   switch (f->kind) {
-  case FMBD_MBS_FN_CONSTANT:
-    v = f->value;
-    break;
-  case FMBD_MBS_FN_LINEAR:
-    v = f->v0 + f->rate * (t - f->t0);
-    d = f->rate;
-    break;
-  case FMBD_MBS_FN_RAMP: {
-    double T = f->t1 - f->t0;
-    if (t < f->t0 || T <= 0) {
-      v = t < f->t0 ? f->v0 : f->v1;
-    } else if (t >= f->t1) {
-      v = f->v1;
-    } else {
-      double s = (t - f->t0) / T, dv = f->v1 - f->v0;
-      if (f->smooth) {
-        v = f->v0 + dv * s * s * (3 - 2 * s);
-        d = dv * 6 * s * (1 - s) / T;
-        dd = dv * (6 - 12 * s) / (T * T);
+    case FMBD_MBS_FN_CONSTANT:
+      v = f->value;
+      break;
+    case FMBD_MBS_FN_LINEAR:
+      v = f->v0 + f->rate * (t - f->t0);
+      d = f->rate;
+      break;
+    case FMBD_MBS_FN_RAMP: {
+      double T = f->t1 - f->t0;
+      if (t < f->t0 || T <= 0) {
+        v = t < f->t0 ? f->v0 : f->v1;
+      } else if (t >= f->t1) {
+        v = f->v1;
       } else {
-        v = f->v0 + dv * s;
-        d = dv / T;
+        double s = (t - f->t0) / T, dv = f->v1 - f->v0;
+        if (f->smooth) {
+          v = f->v0 + dv * s * s * (3 - 2 * s);
+          d = dv * 6 * s * (1 - s) / T;
+          dd = dv * (6 - 12 * s) / (T * T);
+        } else {
+          v = f->v0 + dv * s;
+          d = dv / T;
+        }
       }
+      break;
     }
-    break;
-  }
-  case FMBD_MBS_FN_SINE: {
-    double w = 2 * M_PI * f->frequency_hz, arg = w * t + f->phase;
-    v = f->offset + f->amplitude * sin(arg);
-    d = f->amplitude * w * cos(arg);
-    dd = -f->amplitude * w * w * sin(arg);
-    break;
-  }
-  case FMBD_MBS_FN_TABLE: {
-    int64_t n = f->n;
-    if (n <= 0 || !f->t || !f->v) break;
-    if (t < f->t[0]) {
-      v = f->v[0];
-    } else if (t >= f->t[n - 1]) {
-      v = f->v[n - 1];
-    } else {
-      int64_t lo = 0, hi = n - 1; // t[lo] <= t < t[hi]
-      while (hi - lo > 1) {
-        int64_t mid = (lo + hi) / 2;
-        if (f->t[mid] <= t) lo = mid;
-        else hi = mid;
+    case FMBD_MBS_FN_SINE: {
+      double w = 2 * M_PI * f->frequency_hz, arg = w * t + f->phase;
+      v = f->offset + f->amplitude * sin(arg);
+      d = f->amplitude * w * cos(arg);
+      dd = -f->amplitude * w * w * sin(arg);
+      break;
+    }
+    case FMBD_MBS_FN_TABLE: {
+      int64_t n = f->n;
+      if (n <= 0 || !f->t || !f->v) break;
+      if (t < f->t[0]) {
+        v = f->v[0];
+      } else if (t >= f->t[n - 1]) {
+        v = f->v[n - 1];
+      } else {
+        int64_t lo = 0, hi = n - 1;  // t[lo] <= t < t[hi]
+        while (hi - lo > 1) {
+          int64_t mid = (lo + hi) / 2;
+          if (f->t[mid] <= t)
+            lo = mid;
+          else
+            hi = mid;
+        }
+        double sl = (f->v[hi] - f->v[lo]) / (f->t[hi] - f->t[lo]);
+        v = f->v[lo] + sl * (t - f->t[lo]);
+        d = sl;
       }
-      double sl = (f->v[hi] - f->v[lo]) / (f->t[hi] - f->t[lo]);
-      v = f->v[lo] + sl * (t - f->t[lo]);
-      d = sl;
+      break;
     }
-    break;
-  }
-  default:
-    break;
+    default:
+      break;
   }
   if (dfdt) *dfdt = d;
   if (d2fdt2) *d2fdt2 = dd;
@@ -223,8 +230,8 @@ static int fn_copy(const fmbd_mbs_fn *src, fmbd_mbs_fn *dst, const char *what) {
   if (src->kind == FMBD_MBS_FN_TABLE) {
     FMBD_CHECK(src->n >= 1 && src->t && src->v, FMBD_ERR_VALUE, "%s: empty table", what);
     for (int64_t i = 1; i < src->n; i++) {
-      FMBD_CHECK(src->t[i] > src->t[i - 1], FMBD_ERR_VALUE, "%s: table times not increasing at point %lld",
-                 what, (long long)i);
+      FMBD_CHECK(src->t[i] > src->t[i - 1], FMBD_ERR_VALUE,
+                 "%s: table times not increasing at point %lld", what, (long long)i);
     }
     double *t = fmbd_malloc(sizeof(double) * (size_t)src->n);
     double *v = fmbd_malloc(sizeof(double) * (size_t)src->n);
@@ -250,29 +257,29 @@ static void fn_free(fmbd_mbs_fn *f) {
 // ============================================================================================
 typedef struct mbody {
   char *name;
-  int nm, n;        // modes; coordinates 7 + nm
-  int64_t off;      // first coordinate in x
+  int nm, n;    // modes; coordinates 7 + nm
+  int64_t off;  // first coordinate in x
   double m, c0[3], J0[9];
-  double *S1, *XS, *SS, *Mff, *Kff, *Dff; // layouts of fmbd_mbs.h; Dff nm x nm
-  double *XSx;      // 3 x nm: int rho x0 x S_k
-  double *SSx;      // 3 x nm x nm: SSx[a + 3 l + 3 nm k] = (int rho S_l x S_k)_a
-  double snorm;     // scale of the normalisation equation
-  double gyr;       // radius of gyration about the origin (m)
-  double x0[7], v0[3], w0[3]; // initial R, p; velocity, angular velocity (world)
+  double *S1, *XS, *SS, *Mff, *Kff, *Dff;  // layouts of fmbd_mbs.h; Dff nm x nm
+  double *XSx;                             // 3 x nm: int rho x0 x S_k
+  double *SSx;                 // 3 x nm x nm: SSx[a + 3 l + 3 nm k] = (int rho S_l x S_k)_a
+  double snorm;                // scale of the normalisation equation
+  double gyr;                  // radius of gyration about the origin (m)
+  double x0[7], v0[3], w0[3];  // initial R, p; velocity, angular velocity (world)
   double *q0, *qd0;
   // --- evaluation workspace (filled by body_eval) ---
   double A[9], G[12], pn, wb[3], c[3], J[9], I[9];
-  double *P;        // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
-  double *Hk;       // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
-  double *Mwf;      // 3 x nm
-  double *cor;      // 3 x nm: sum_l q'_l int rho S_l x S_k
-  bool kdiag;       // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
+  double *P;    // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
+  double *Hk;   // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
+  double *Mwf;  // 3 x nm
+  double *cor;  // 3 x nm: sum_l q'_l int rho S_l x S_k
+  bool kdiag;   // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
 } mbody;
 
 typedef struct mpoint {
   int body;
   double x0[3];
-  double *T, *Rr; // 3 x nm each or NULL
+  double *T, *Rr;  // 3 x nm each or NULL
 } mpoint;
 
 typedef struct mjoint {
@@ -299,16 +306,16 @@ typedef struct mload {
 
 enum { EQ_JOINT = 0, EQ_DRIVER, EQ_NORM };
 typedef struct meq {
-  int kind, owner, sub; // joint/driver/body id, equation index within the joint
-  int b[2];             // bodies whose coordinates appear (-1 none)
-  int nj;               // entries of jac: n(b0) + n(b1)
+  int kind, owner, sub;  // joint/driver/body id, equation index within the joint
+  int b[2];              // bodies whose coordinates appear (-1 none)
+  int nj;                // entries of jac: n(b0) + n(b1)
   bool kept;
-  int64_t row;          // index among kept equations (-1 removed)
-  double phi;           // value
-  double sc;            // scale of phi (m for positions, 1 for direction products)
-  double *jac;          // nj
-  int64_t *pr, *pc;     // positions in Ax of (row, col) and (col, row) per jac entry
-  char *text;           // description (redundant ones)
+  int64_t row;       // index among kept equations (-1 removed)
+  double phi;        // value
+  double sc;         // scale of phi (m for positions, 1 for direction products)
+  double *jac;       // nj
+  int64_t *pr, *pc;  // positions in Ax of (row, col) and (col, row) per jac entry
+  char *text;        // description (redundant ones)
 } meq;
 
 struct fmbd_mbs {
@@ -326,50 +333,50 @@ struct fmbd_mbs {
   bool ready;
   fmbd_mbs_settings set;
   // --- dimensions and state ---
-  int64_t n, neq, m, N; // coordinates, all equations, kept, matrix size
+  int64_t n, neq, m, N;  // coordinates, all equations, kept, matrix size
   meq *eq;
   double t;
-  double *x, *xd, *xdd, *a, *lam;           // lam: physical multipliers (m)
-  double *xn, *xdn, *xddn, *an, *lamn;      // state at the start of the step
-  double *xddp;                              // x'' one step before
+  double *x, *xd, *xdd, *a, *lam;       // lam: physical multipliers (m)
+  double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
+  double *xddp;                         // x'' one step before
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double Lref;
   int maxn;
-  double *wk;                                // side kinematics workspace
-  double *bres, *bblk;                       // per-body residual (n) and block (n^2), max size
-  double *bwork;                             // per-body workspace
+  double *wk;           // side kinematics workspace
+  double *bres, *bblk;  // per-body residual (n) and block (n^2), max size
+  double *bwork;        // per-body workspace
   // --- generalized alpha ---
   double am, af, beta, gamma;
   double h_next, h_fact, h_prop, h_prev;
   int64_t k_out;
-  int64_t worst_i;                           // largest scaled residual of the last iterate
+  int64_t worst_i;  // largest scaled residual of the last iterate
   double worst_v;
-  int64_t worst_dx;                          // coordinate of the largest Newton correction
+  int64_t worst_dx;  // coordinate of the largest Newton correction
   bool need_factor, after_reject;
   // --- sparse matrix and KLU ---
   int64_t nnz;
   SuiteSparse_long *Ap, *Ai;
   double *Ax;
-  int64_t **bpos;                            // per body n^2 positions
+  int64_t **bpos;  // per body n^2 positions
   klu_l_common kc;
   klu_l_symbolic *sym;
   klu_l_numeric *num;
   // --- results ---
   fmbd_mbs_stats st;
   int nred;
-  int *red;                                  // equation indices removed
+  int *red;  // equation indices removed
   double qmax_init;
 };
 
-#define GROW(arr, cnt, cap, T)                                                                    \
-  do {                                                                                            \
-    if ((cnt) == (cap)) {                                                                         \
-      int nc_ = (cap) ? 2 * (cap) : 8;                                                            \
-      T *np_ = fmbd_realloc((arr), sizeof(T) * (size_t)nc_);                                      \
-      if (!np_) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");                                       \
-      memset(np_ + (cap), 0, sizeof(T) * (size_t)(nc_ - (cap)));                                  \
-      (arr) = np_, (cap) = nc_;                                                                   \
-    }                                                                                             \
+#define GROW(arr, cnt, cap, T)                                   \
+  do {                                                           \
+    if ((cnt) == (cap)) {                                        \
+      int nc_ = (cap) ? 2 * (cap) : 8;                           \
+      T *np_ = fmbd_realloc((arr), sizeof(T) * (size_t)nc_);     \
+      if (!np_) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");      \
+      memset(np_ + (cap), 0, sizeof(T) * (size_t)(nc_ - (cap))); \
+      (arr) = np_, (cap) = nc_;                                  \
+    }                                                            \
   } while (0)
 
 void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s) {
@@ -427,12 +434,14 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
   fmbd_free(m->l);
   if (m->eq) {
     for (int64_t e = 0; e < m->neq; e++) {
-      fmbd_free(m->eq[e].jac), fmbd_free(m->eq[e].pr), fmbd_free(m->eq[e].pc), fmbd_free(m->eq[e].text);
+      fmbd_free(m->eq[e].jac), fmbd_free(m->eq[e].pr), fmbd_free(m->eq[e].pc),
+          fmbd_free(m->eq[e].text);
     }
     fmbd_free(m->eq);
   }
-  double *arrs[] = {m->x, m->xd, m->xdd, m->a, m->lam, m->xn, m->xdn, m->xddn, m->an, m->lamn, m->xddp,
-                    m->res, m->rhs, m->scale, m->nscale, m->ascale, m->floor_, m->wk, m->bres, m->bblk, m->bwork, m->Ax};
+  double *arrs[] = {m->x,      m->xd,   m->xdd,  m->a,    m->lam,   m->xn,    m->xdn,    m->xddn,
+                    m->an,     m->lamn, m->xddp, m->res,  m->rhs,   m->scale, m->nscale, m->ascale,
+                    m->floor_, m->wk,   m->bres, m->bblk, m->bwork, m->Ax};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
   fmbd_free(m->Ap), fmbd_free(m->Ai);
   if (m->bpos) {
@@ -472,9 +481,10 @@ static int check_state0(const char *name, const fmbd_mbs_state0 *s) {
   }
   double det = A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) +
                A[2] * (A[3] * A[7] - A[4] * A[6]);
-  FMBD_CHECK(err < 1e-6 && det > 0, FMBD_ERR_VALUE,
-             "body '%s': initial rotation is not a proper orthonormal matrix (|A'A - 1| = %.3g, det %.6g)",
-             name, err, det);
+  FMBD_CHECK(
+      err < 1e-6 && det > 0, FMBD_ERR_VALUE,
+      "body '%s': initial rotation is not a proper orthonormal matrix (|A'A - 1| = %.3g, det %.6g)",
+      name, err, det);
   return FMBD_OK;
 }
 
@@ -513,8 +523,8 @@ static void body_scales(mbody *b) {
 
 int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double com[3],
                        const double inertia[9], const fmbd_mbs_state0 *s0, int *id) {
-  FMBD_CHECK(isfinite(mass) && mass > 0, FMBD_ERR_VALUE, "body '%s': mass %g must be positive", name ? name : "?",
-             mass);
+  FMBD_CHECK(isfinite(mass) && mass > 0, FMBD_ERR_VALUE, "body '%s': mass %g must be positive",
+             name ? name : "?", mass);
   FMBD_CHECK(com && inertia && finite_n(com, 3) && finite_n(inertia, 9), FMBD_ERR_VALUE,
              "body '%s': missing or non-finite centre of mass or inertia", name ? name : "?");
   // symmetric positive definite inertia (Sylvester) and triangle inequality
@@ -522,7 +532,8 @@ int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double 
   double asym = fmax(fabs(I[1] - I[3]), fmax(fabs(I[2] - I[6]), fabs(I[5] - I[7])));
   double sc = fabs(I[0]) + fabs(I[4]) + fabs(I[8]);
   double d1 = I[0], d2 = I[0] * I[4] - I[1] * I[3];
-  double d3 = I[0] * (I[4] * I[8] - I[5] * I[7]) - I[1] * (I[3] * I[8] - I[5] * I[6]) + I[2] * (I[3] * I[7] - I[4] * I[6]);
+  double d3 = I[0] * (I[4] * I[8] - I[5] * I[7]) - I[1] * (I[3] * I[8] - I[5] * I[6]) +
+              I[2] * (I[3] * I[7] - I[4] * I[6]);
   FMBD_CHECK(asym <= 1e-9 * sc && d1 > 0 && d2 > 0 && d3 > 0, FMBD_ERR_VALUE,
              "body '%s': inertia tensor is not symmetric positive definite", name ? name : "?");
   mbody *b;
@@ -533,7 +544,8 @@ int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double 
   double tr = I[0] + I[4] + I[8];
   for (int a = 0; a < 3; a++) {
     for (int c = 0; c < 3; c++) {
-      b->J0[3 * a + c] = (a == c ? tr / 2 : 0) - 0.5 * (I[3 * a + c] + I[3 * c + a]) + mass * com[a] * com[c];
+      b->J0[3 * a + c] =
+          (a == c ? tr / 2 : 0) - 0.5 * (I[3 * a + c] + I[3 * c + a]) + mass * com[a] * com[c];
     }
   }
   body_scales(b);
@@ -545,9 +557,10 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
                       const fmbd_mbs_state0 *s0, int *id) {
   const char *nm_ = name ? name : "?";
   FMBD_CHECK(d, FMBD_ERR_VALUE, "body '%s': no flexible data", nm_);
-  FMBD_CHECK(d->nm >= 0 && d->nm <= 10000, FMBD_ERR_VALUE, "body '%s': bad number of modes %lld", nm_,
-             (long long)d->nm);
-  FMBD_CHECK(isfinite(d->mass) && d->mass > 0, FMBD_ERR_VALUE, "body '%s': mass %g must be positive", nm_, d->mass);
+  FMBD_CHECK(d->nm >= 0 && d->nm <= 10000, FMBD_ERR_VALUE, "body '%s': bad number of modes %lld",
+             nm_, (long long)d->nm);
+  FMBD_CHECK(isfinite(d->mass) && d->mass > 0, FMBD_ERR_VALUE,
+             "body '%s': mass %g must be positive", nm_, d->mass);
   FMBD_CHECK(finite_n(d->first_moment, 3) && finite_n(d->second_moment, 9), FMBD_ERR_VALUE,
              "body '%s': non-finite first or second moment", nm_);
   int64_t nm = d->nm;
@@ -580,7 +593,8 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
       }
     }
     fmbd_free(L);
-    FMBD_CHECK(pd, FMBD_ERR_SINGULAR, "body '%s': modal mass matrix Mff is not positive definite", nm_);
+    FMBD_CHECK(pd, FMBD_ERR_SINGULAR, "body '%s': modal mass matrix Mff is not positive definite",
+               nm_);
   }
   {
     // the rigid part of the mass matrix is regular iff the inertia about the centre of mass,
@@ -601,7 +615,8 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     double sc = fabs(tr) > 0 ? fabs(tr) : 1;
     if (!(d1 > 1e-12 * sc && d2 > 1e-12 * sc * sc && d3 > 1e-12 * sc * sc * sc)) {
       fmbd_log(FMBD_LOG_INFO,
-               "body '%s': singular mass matrix: the inertia about the centre of mass (%.3g %.3g %.3g on the "
+               "body '%s': singular mass matrix: the inertia about the centre of mass (%.3g %.3g "
+               "%.3g on the "
                "diagonal) is not positive definite; joints must hold the rotation it leaves free",
                nm_, Ic[0], Ic[4], Ic[8]);
     }
@@ -611,7 +626,8 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
   b->m = d->mass;
   memcpy(b->c0, d->first_moment, sizeof b->c0);
   for (int a = 0; a < 3; a++) {
-    for (int c = 0; c < 3; c++) b->J0[3 * a + c] = 0.5 * (d->second_moment[3 * a + c] + d->second_moment[3 * c + a]);
+    for (int c = 0; c < 3; c++)
+      b->J0[3 * a + c] = 0.5 * (d->second_moment[3 * a + c] + d->second_moment[3 * c + a]);
   }
   body_scales(b);
   if (nm > 0) {
@@ -630,8 +646,8 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     b->Hk = fmbd_calloc(9 * n1, sizeof(double));
     b->Mwf = fmbd_calloc(3 * n1, sizeof(double));
     b->cor = fmbd_calloc(3 * n1, sizeof(double));
-    FMBD_CHECK(b->S1 && b->XS && b->SS && b->Mff && b->Kff && b->Dff && b->XSx && b->SSx && b->q0 && b->qd0 &&
-                   b->P && b->Hk && b->Mwf && b->cor,
+    FMBD_CHECK(b->S1 && b->XS && b->SS && b->Mff && b->Kff && b->Dff && b->XSx && b->SSx && b->q0 &&
+                   b->qd0 && b->P && b->Hk && b->Mwf && b->cor,
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);
@@ -659,7 +675,8 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     }
     if (d->q0) memcpy(b->q0, d->q0, sizeof(double) * n1);
     if (d->qd0) memcpy(b->qd0, d->qd0, sizeof(double) * n1);
-    FMBD_CHECK(finite_n(b->q0, nm) && finite_n(b->qd0, nm), FMBD_ERR_VALUE, "body '%s': non-finite q0 or qd0", nm_);
+    FMBD_CHECK(finite_n(b->q0, nm) && finite_n(b->qd0, nm), FMBD_ERR_VALUE,
+               "body '%s': non-finite q0 or qd0", nm_);
     // XSx_k = int rho x0 x S_k: a-component eps_abc XS[b + 3c + 9k]
     for (size_t k = 0; k < n1; k++) {
       const double *X = b->XS + 9 * k;
@@ -683,10 +700,11 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
   return FMBD_OK;
 }
 
-int fmbd_mbs_add_point(fmbd_mbs *m, int body, const double x0[3], const double *T, const double *Rot, int *pid) {
+int fmbd_mbs_add_point(fmbd_mbs *m, int body, const double x0[3], const double *T,
+                       const double *Rot, int *pid) {
   FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "point added after fmbd_mbs_init");
-  FMBD_CHECK(body == FMBD_MBS_GROUND || (body >= 0 && body < m->nb), FMBD_ERR_VALUE, "point on unknown body %d",
-             body);
+  FMBD_CHECK(body == FMBD_MBS_GROUND || (body >= 0 && body < m->nb), FMBD_ERR_VALUE,
+             "point on unknown body %d", body);
   FMBD_CHECK(x0 && finite_n(x0, 3), FMBD_ERR_VALUE, "point: missing or non-finite position");
   int nm = body >= 0 ? m->b[body].nm : 0;
   if (nm > 0) {
@@ -714,8 +732,8 @@ int fmbd_mbs_add_point(fmbd_mbs *m, int body, const double x0[3], const double *
 }
 
 int fmbd_mbs_add_point_world(fmbd_mbs *m, int body, const double xw[3], int *pid) {
-  FMBD_CHECK(body == FMBD_MBS_GROUND || (body >= 0 && body < m->nb), FMBD_ERR_VALUE, "point on unknown body %d",
-             body);
+  FMBD_CHECK(body == FMBD_MBS_GROUND || (body >= 0 && body < m->nb), FMBD_ERR_VALUE,
+             "point on unknown body %d", body);
   FMBD_CHECK(xw && finite_n(xw, 3), FMBD_ERR_VALUE, "point: missing or non-finite position");
   double x0[3];
   if (body == FMBD_MBS_GROUND) {
@@ -731,17 +749,25 @@ int fmbd_mbs_add_point_world(fmbd_mbs *m, int body, const double xw[3], int *pid
 
 int fmbd_mbs_joint_equations(int kind) {
   switch (kind) {
-  case FMBD_MBS_SPHERICAL: return 3;
-  case FMBD_MBS_REVOLUTE: return 5;
-  case FMBD_MBS_UNIVERSAL: return 4;
-  case FMBD_MBS_PRISMATIC: return 5;
-  case FMBD_MBS_CYLINDRICAL: return 4;
-  case FMBD_MBS_FIXED: return 6;
-  default: return -1;
+    case FMBD_MBS_SPHERICAL:
+      return 3;
+    case FMBD_MBS_REVOLUTE:
+      return 5;
+    case FMBD_MBS_UNIVERSAL:
+      return 4;
+    case FMBD_MBS_PRISMATIC:
+      return 5;
+    case FMBD_MBS_CYLINDRICAL:
+      return 4;
+    case FMBD_MBS_FIXED:
+      return 6;
+    default:
+      return -1;
   }
 }
 static const char *joint_kind_name(int kind) {
-  static const char *names[] = {"spherical", "revolute", "universal", "prismatic", "cylindrical", "fixed"};
+  static const char *names[] = {"spherical", "revolute",    "universal",
+                                "prismatic", "cylindrical", "fixed"};
   return kind >= 0 && kind <= FMBD_MBS_FIXED ? names[kind] : "?";
 }
 
@@ -768,19 +794,20 @@ int fmbd_mbs_add_joint(fmbd_mbs *m, const fmbd_mbs_joint_desc *jd, int *jid) {
   FMBD_CHECK(neq > 0, FMBD_ERR_VALUE, "joint '%s': unknown kind %d", nm, jd->kind);
   int body[2];
   for (int s = 0; s < 2; s++) {
-    FMBD_CHECK(jd->point[s] >= 0 && jd->point[s] < m->np, FMBD_ERR_VALUE, "joint '%s': unknown point %d", nm,
-               jd->point[s]);
+    FMBD_CHECK(jd->point[s] >= 0 && jd->point[s] < m->np, FMBD_ERR_VALUE,
+               "joint '%s': unknown point %d", nm, jd->point[s]);
     body[s] = m->p[jd->point[s]].body;
   }
   FMBD_CHECK(body[0] != body[1], FMBD_ERR_VALUE, "joint '%s': both sides on the same %s", nm,
              body[0] < 0 ? "ground" : "body");
-  FMBD_CHECK(finite_n(jd->axis, 3) && finite_n(jd->axis2, 3) && finite_n(jd->ref, 3), FMBD_ERR_VALUE,
-             "joint '%s': non-finite axis", nm);
+  FMBD_CHECK(finite_n(jd->axis, 3) && finite_n(jd->axis2, 3) && finite_n(jd->ref, 3),
+             FMBD_ERR_VALUE, "joint '%s': non-finite axis", nm);
   // world frame of the joint: z = axis, x = ref (projected) or any normal
   double z[3] = {0, 0, 1}, x[3], y[3];
   double na = norm3(jd->axis);
   bool needs_axis = jd->kind != FMBD_MBS_SPHERICAL && jd->kind != FMBD_MBS_FIXED;
-  FMBD_CHECK(!needs_axis || na > 0, FMBD_ERR_VALUE, "joint '%s' (%s): zero axis", nm, joint_kind_name(jd->kind));
+  FMBD_CHECK(!needs_axis || na > 0, FMBD_ERR_VALUE, "joint '%s' (%s): zero axis", nm,
+             joint_kind_name(jd->kind));
   if (na > 0) {
     for (int a = 0; a < 3; a++) z[a] = jd->axis[a] / na;
   }
@@ -818,7 +845,8 @@ int fmbd_mbs_add_joint(fmbd_mbs *m, const fmbd_mbs_joint_desc *jd, int *jid) {
     FMBD_CHECK(n2 > 0, FMBD_ERR_VALUE, "joint '%s' (universal): zero axis2", nm);
     double a2[3] = {jd->axis2[0] / n2, jd->axis2[1] / n2, jd->axis2[2] / n2};
     FMBD_CHECK(fabs(dot3(a2, z)) < 1e-6, FMBD_ERR_VALUE,
-               "joint '%s' (universal): axis and axis2 are not orthogonal (cos = %.3g)", nm, dot3(a2, z));
+               "joint '%s' (universal): axis and axis2 are not orthogonal (cos = %.3g)", nm,
+               dot3(a2, z));
     to_local(m, body[1], a2, j->a2);
   }
   j->name = fmbd_strdup(nm);
@@ -828,7 +856,8 @@ int fmbd_mbs_add_joint(fmbd_mbs *m, const fmbd_mbs_joint_desc *jd, int *jid) {
   return FMBD_OK;
 }
 
-static int add_driver(fmbd_mbs *m, const char *name, int joint, int body, int coord, const fmbd_mbs_fn *f, int *did) {
+static int add_driver(fmbd_mbs *m, const char *name, int joint, int body, int coord,
+                      const fmbd_mbs_fn *f, int *did) {
   FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "driver added after fmbd_mbs_init");
   FMBD_CALL(check_name(m, name, "driver"));
   FMBD_CHECK(f, FMBD_ERR_VALUE, "driver '%s': no function", name);
@@ -849,33 +878,41 @@ static int add_driver(fmbd_mbs *m, const char *name, int joint, int body, int co
   return FMBD_OK;
 }
 
-int fmbd_mbs_add_driver_joint(fmbd_mbs *m, const char *name, int joint, const fmbd_mbs_fn *f, int *did) {
-  FMBD_CHECK(joint >= 0 && joint < m->nj, FMBD_ERR_VALUE, "driver '%s': unknown joint %d", name ? name : "?", joint);
+int fmbd_mbs_add_driver_joint(fmbd_mbs *m, const char *name, int joint, const fmbd_mbs_fn *f,
+                              int *did) {
+  FMBD_CHECK(joint >= 0 && joint < m->nj, FMBD_ERR_VALUE, "driver '%s': unknown joint %d",
+             name ? name : "?", joint);
   int k = m->j[joint].kind;
-  FMBD_CHECK(k == FMBD_MBS_REVOLUTE || k == FMBD_MBS_PRISMATIC || k == FMBD_MBS_CYLINDRICAL, FMBD_ERR_VALUE,
-             "driver '%s': joint '%s' is %s; only revolute, prismatic and cylindrical joints have a driven coordinate",
+  FMBD_CHECK(k == FMBD_MBS_REVOLUTE || k == FMBD_MBS_PRISMATIC || k == FMBD_MBS_CYLINDRICAL,
+             FMBD_ERR_VALUE,
+             "driver '%s': joint '%s' is %s; only revolute, prismatic and cylindrical joints have "
+             "a driven coordinate",
              name ? name : "?", m->j[joint].name, joint_kind_name(k));
   return add_driver(m, name, joint, -1, 0, f, did);
 }
 
-int fmbd_mbs_add_driver_body(fmbd_mbs *m, const char *name, int body, int coordinate, const fmbd_mbs_fn *f,
-                             int *did) {
-  FMBD_CHECK(body >= 0 && body < m->nb, FMBD_ERR_VALUE, "driver '%s': unknown body %d", name ? name : "?", body);
+int fmbd_mbs_add_driver_body(fmbd_mbs *m, const char *name, int body, int coordinate,
+                             const fmbd_mbs_fn *f, int *did) {
+  FMBD_CHECK(body >= 0 && body < m->nb, FMBD_ERR_VALUE, "driver '%s': unknown body %d",
+             name ? name : "?", body);
   FMBD_CHECK(coordinate >= 0 && coordinate < 3 + m->b[body].nm, FMBD_ERR_VALUE,
-             "driver '%s': body '%s' has no coordinate %d (0..2 position, 3.. modal)", name ? name : "?",
-             m->b[body].name, coordinate);
+             "driver '%s': body '%s' has no coordinate %d (0..2 position, 3.. modal)",
+             name ? name : "?", m->b[body].name, coordinate);
   return add_driver(m, name, -1, body, coordinate, f, did);
 }
 
-int fmbd_mbs_add_load(fmbd_mbs *m, const char *name, int kind, int point, bool body_frame, const double direction[3],
-                      const fmbd_mbs_fn *f, int *lid) {
+int fmbd_mbs_add_load(fmbd_mbs *m, const char *name, int kind, int point, bool body_frame,
+                      const double direction[3], const fmbd_mbs_fn *f, int *lid) {
   FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "load added after fmbd_mbs_init");
   FMBD_CALL(check_name(m, name, "load"));
-  FMBD_CHECK(kind == FMBD_MBS_FORCE || kind == FMBD_MBS_TORQUE, FMBD_ERR_VALUE, "load '%s': unknown kind %d", name,
-             kind);
-  FMBD_CHECK(point >= 0 && point < m->np, FMBD_ERR_VALUE, "load '%s': unknown point %d", name, point);
-  FMBD_CHECK(m->p[point].body >= 0, FMBD_ERR_VALUE, "load '%s': a load on ground does nothing", name);
-  FMBD_CHECK(direction && finite_n(direction, 3), FMBD_ERR_VALUE, "load '%s': missing or non-finite direction", name);
+  FMBD_CHECK(kind == FMBD_MBS_FORCE || kind == FMBD_MBS_TORQUE, FMBD_ERR_VALUE,
+             "load '%s': unknown kind %d", name, kind);
+  FMBD_CHECK(point >= 0 && point < m->np, FMBD_ERR_VALUE, "load '%s': unknown point %d", name,
+             point);
+  FMBD_CHECK(m->p[point].body >= 0, FMBD_ERR_VALUE, "load '%s': a load on ground does nothing",
+             name);
+  FMBD_CHECK(direction && finite_n(direction, 3), FMBD_ERR_VALUE,
+             "load '%s': missing or non-finite direction", name);
   FMBD_CHECK(f, FMBD_ERR_VALUE, "load '%s': no function", name);
   GROW(m->l, m->nl, m->nlcap, mload);
   mload *l = &m->l[m->nl];
@@ -895,7 +932,9 @@ int fmbd_mbs_add_load(fmbd_mbs *m, const char *name, int kind, int point, bool b
   return FMBD_OK;
 }
 
-void fmbd_mbs_set_gravity(fmbd_mbs *m, const double g[3]) { memcpy(m->g, g, sizeof m->g); }
+void fmbd_mbs_set_gravity(fmbd_mbs *m, const double g[3]) {
+  memcpy(m->g, g, sizeof m->g);
+}
 
 // ============================================================================================
 // body equations (fmbd_mbs.h, EQUATIONS)
@@ -937,8 +976,8 @@ static void matvec(int m, int n, const double *restrict A, const double *restric
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
 // xdd may be NULL (zero accelerations).
-static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg, const double *xddg,
-                      double *r, double *B, double cm, double cc, double ck) {
+static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
+                      const double *xddg, double *r, double *B, double cm, double cc, double ck) {
   mbody *b = &m->b[ib];
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
@@ -949,10 +988,12 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   b->pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
   double w[3], wd[3] = {0, 0, 0};
   for (int a = 0; a < 3; a++) {
-    w[a] = 2 * (G[4 * a] * pd[0] + G[4 * a + 1] * pd[1] + G[4 * a + 2] * pd[2] + G[4 * a + 3] * pd[3]);
+    w[a] =
+        2 * (G[4 * a] * pd[0] + G[4 * a + 1] * pd[1] + G[4 * a + 2] * pd[2] + G[4 * a + 3] * pd[3]);
     if (xdd) {
       const double *pdd = xdd + 3;
-      wd[a] = 2 * (G[4 * a] * pdd[0] + G[4 * a + 1] * pdd[1] + G[4 * a + 2] * pdd[2] + G[4 * a + 3] * pdd[3]);
+      wd[a] = 2 * (G[4 * a] * pdd[0] + G[4 * a + 1] * pdd[1] + G[4 * a + 2] * pdd[2] +
+                   G[4 * a + 3] * pdd[3]);
     }
   }
   memcpy(b->wb, w, sizeof w);
@@ -962,7 +1003,7 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   memcpy(J, b->J0, sizeof b->J);
   double s1qd[3] = {0, 0, 0};
   if (nm > 0) {
-    double *P = b->P; // P = SS q, SS as a (9 nm) x nm column-major matrix
+    double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
     matvec(9 * nm, nm, b->SS, q, 1.0, P);
     for (int k = 0; k < nm; k++) {
       const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
@@ -999,7 +1040,7 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   memset(Mb, 0, sizeof(double) * (size_t)n6 * n6);
   double Sc[9], Ac[9];
   skew3(c, Sc);
-  mm3(A, Sc, Ac); // A c~
+  mm3(A, Sc, Ac);  // A c~
   for (int a = 0; a < 3; a++) {
     MB(a, a) = b->m;
     for (int bb = 0; bb < 3; bb++) {
@@ -1020,18 +1061,18 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   // --- quadratic velocity vector v and forces f: rb = v - f (+ K q + D q') ---
   double t1[3], t2[3], Iw[3];
   cross3(w, c, t1);
-  cross3(w, t1, t2); // w x (w x c)
+  cross3(w, t1, t2);  // w x (w x c)
   double t3[3];
   cross3(w, s1qd, t3);
   for (int a = 0; a < 3; a++) t2[a] += 2 * t3[a];
   mv3(A, t2, rb);
   mv3(I, w, Iw);
   cross3(w, Iw, rb + 3);
-  double Hw[3]; // (H w)_a = sum_b H[a + 3b] w_b
+  double Hw[3];  // (H w)_a = sum_b H[a + 3b] w_b
   for (int a = 0; a < 3; a++) Hw[a] = H[a] * w[0] + H[a + 3] * w[1] + H[a + 6] * w[2];
   for (int a = 0; a < 3; a++) rb[3 + a] += 2 * (trH * w[a] - Hw[a]);
   double ww = dot3(w, w);
-  double *cor = b->cor; // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
+  double *cor = b->cor;  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
   if (nm > 0) {
     matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
   }
@@ -1046,7 +1087,8 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
     if (b->kdiag) {
       v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
     } else {
-      for (int l = 0; l < nm; l++) v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
+      for (int l = 0; l < nm; l++)
+        v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
     }
     rb[6 + k] = v;
   }
@@ -1097,7 +1139,8 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   }
   // r = T' rb
   r[0] = rb[0], r[1] = rb[1], r[2] = rb[2];
-  for (int c4 = 0; c4 < 4; c4++) r[3 + c4] = 2 * (G[c4] * rb[3] + G[4 + c4] * rb[4] + G[8 + c4] * rb[5]);
+  for (int c4 = 0; c4 < 4; c4++)
+    r[3 + c4] = 2 * (G[c4] * rb[3] + G[4 + c4] * rb[4] + G[8 + c4] * rb[5]);
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];
   // mass mu p p' on the Euler parameters (see fmbd_mbs.h): G p = 0, so the physical
   // equations are unchanged; the normalisation multiplier absorbs mu p (p . p'')
@@ -1128,7 +1171,8 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
         CB(a, 3 + bb) = AM[3 * a + bb];
-        CB(3 + a, 3 + bb) = SwI[3 * a + bb] - IwS[3 * a + bb] + 2 * ((a == bb ? trH : 0) - H[a + 3 * bb]);
+        CB(3 + a, 3 + bb) =
+            SwI[3 * a + bb] - IwS[3 * a + bb] + 2 * ((a == bb ? trH : 0) - H[a + 3 * bb]);
       }
     }
     for (int k = 0; k < nm; k++) {
@@ -1176,7 +1220,8 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
     const double *yc = Y + (size_t)n6 * j;
     double *bc = B + (size_t)n * j;
     bc[0] = yc[0], bc[1] = yc[1], bc[2] = yc[2];
-    for (int c4 = 0; c4 < 4; c4++) bc[3 + c4] = 2 * (G[c4] * yc[3] + G[4 + c4] * yc[4] + G[8 + c4] * yc[5]);
+    for (int c4 = 0; c4 < 4; c4++)
+      bc[3 + c4] = 2 * (G[c4] * yc[3] + G[4 + c4] * yc[4] + G[8 + c4] * yc[5]);
     for (int k = 0; k < nm; k++) bc[7 + k] = yc[6 + k];
   }
   for (int i = 0; i < 4; i++) {
@@ -1184,7 +1229,8 @@ static void body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const dou
   }
   if (ck != 0) {
     for (int k = 0; k < nm; k++) {
-      for (int l = 0; l < nm; l++) B[(7 + k) + (size_t)n * (7 + l)] += ck * b->Kff[k + (size_t)nm * l];
+      for (int l = 0; l < nm; l++)
+        B[(7 + k) + (size_t)n * (7 + l)] += ck * b->Kff[k + (size_t)nm * l];
     }
   }
 #undef MB
@@ -1203,7 +1249,8 @@ typedef struct side {
 } side;
 
 // -2/|p| A v~ G (3x4 row-major) into out
-static void dA_dp(const mbody *b, const double *A, const double *G, double pn, const double *v, double *out) {
+static void dA_dp(const mbody *b, const double *A, const double *G, double pn, const double *v,
+                  double *out) {
   double S[9], AS[9];
   skew3(v, S);
   mm3(A, S, AS);
@@ -1217,7 +1264,8 @@ static void dA_dp(const mbody *b, const double *A, const double *G, double pn, c
 }
 
 // e: nv local direction vectors (3 each)
-static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, const double *xg, side *s) {
+static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, const double *xg,
+                      side *s) {
   const mpoint *P = &m->p[pt];
   s->body = P->body;
   if (P->body < 0) {
@@ -1271,7 +1319,8 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, c
 
 // jac[0..n1) += sum_a v_a d[a + 3 i]  (v' d for a 3 x n derivative)
 static void vtd(const double *v, const double *d, int n, double f, double *jac) {
-  for (int i = 0; i < n; i++) jac[i] += f * (v[0] * d[3 * i] + v[1] * d[3 * i + 1] + v[2] * d[3 * i + 2]);
+  for (int i = 0; i < n; i++)
+    jac[i] += f * (v[0] * d[3 * i] + v[1] * d[3 * i + 1] + v[2] * d[3 * i + 2]);
 }
 
 // equation primitives; jac has s1->n + s2->n entries (side 1 first)
@@ -1306,33 +1355,44 @@ static double eq_dd(const side *s1, int i1, const side *s2, double *jac) {
 // the meaning of joint equation k (0-based)
 static const char *joint_eq_meaning(int kind, int k) {
   static const char *sph[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2"};
-  static const char *rev[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2", "axis z1 . x2", "axis z1 . y2"};
+  static const char *rev[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2", "axis z1 . x2",
+                              "axis z1 . y2"};
   static const char *uni[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2", "cross axes a1 . a2"};
   static const char *cyl[] = {"axis z1 . x2", "axis z1 . y2", "offset d . x1", "offset d . y1"};
-  static const char *pri[] = {"axis z1 . x2", "axis z1 . y2", "offset d . x1", "offset d . y1", "twist x1 . y2"};
-  static const char *fix[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2", "z1 . x2", "z1 . y2", "x1 . y2"};
+  static const char *pri[] = {"axis z1 . x2", "axis z1 . y2", "offset d . x1", "offset d . y1",
+                              "twist x1 . y2"};
+  static const char *fix[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2",
+                              "z1 . x2",      "z1 . y2",      "x1 . y2"};
   switch (kind) {
-  case FMBD_MBS_SPHERICAL: return k < 3 ? sph[k] : "?";
-  case FMBD_MBS_REVOLUTE: return k < 5 ? rev[k] : "?";
-  case FMBD_MBS_UNIVERSAL: return k < 4 ? uni[k] : "?";
-  case FMBD_MBS_CYLINDRICAL: return k < 4 ? cyl[k] : "?";
-  case FMBD_MBS_PRISMATIC: return k < 5 ? pri[k] : "?";
-  case FMBD_MBS_FIXED: return k < 6 ? fix[k] : "?";
-  default: return "?";
+    case FMBD_MBS_SPHERICAL:
+      return k < 3 ? sph[k] : "?";
+    case FMBD_MBS_REVOLUTE:
+      return k < 5 ? rev[k] : "?";
+    case FMBD_MBS_UNIVERSAL:
+      return k < 4 ? uni[k] : "?";
+    case FMBD_MBS_CYLINDRICAL:
+      return k < 4 ? cyl[k] : "?";
+    case FMBD_MBS_PRISMATIC:
+      return k < 5 ? pri[k] : "?";
+    case FMBD_MBS_FIXED:
+      return k < 6 ? fix[k] : "?";
+    default:
+      return "?";
   }
 }
 
 static void eq_describe(const fmbd_mbs *m, const meq *e, char *buf, size_t len) {
   if (e->kind == EQ_JOINT) {
     const mjoint *j = &m->j[e->owner];
-    snprintf(buf, len, "joint '%s' equation %d (%s %s)", j->name, e->sub + 1, joint_kind_name(j->kind),
-             joint_eq_meaning(j->kind, e->sub));
+    snprintf(buf, len, "joint '%s' equation %d (%s %s)", j->name, e->sub + 1,
+             joint_kind_name(j->kind), joint_eq_meaning(j->kind, e->sub));
   } else if (e->kind == EQ_DRIVER) {
     const mdriver *d = &m->d[e->owner];
     if (d->joint >= 0) {
       snprintf(buf, len, "driver '%s' (coordinate of joint '%s')", d->name, m->j[d->joint].name);
     } else {
-      snprintf(buf, len, "driver '%s' (coordinate %d of body '%s')", d->name, d->coord, m->b[d->body].name);
+      snprintf(buf, len, "driver '%s' (coordinate %d of body '%s')", d->name, d->coord,
+               m->b[d->body].name);
     }
   } else {
     snprintf(buf, len, "Euler-parameter normalisation of body '%s'", m->b[e->owner].name);
@@ -1389,21 +1449,34 @@ static void eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_j
       double *jac = want_jac ? q->jac : NULL;
       double v = 0;
       switch (j->kind) {
-      case FMBD_MBS_SPHERICAL: v = eq_pos(&s1, &s2, k, jac); break;
-      case FMBD_MBS_REVOLUTE: v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, k - 3, jac); break;
-      case FMBD_MBS_UNIVERSAL: v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, 3, jac); break;
-      case FMBD_MBS_CYLINDRICAL:
-      case FMBD_MBS_PRISMATIC:
-        if (k < 2) v = eq_dot(&s1, 2, &s2, k, jac);
-        else if (k < 4) v = eq_dd(&s1, k - 2, &s2, jac);
-        else v = eq_dot(&s1, 0, &s2, 1, jac);
-        break;
-      case FMBD_MBS_FIXED:
-        if (k < 3) v = eq_pos(&s1, &s2, k, jac);
-        else if (k < 5) v = eq_dot(&s1, 2, &s2, k - 3, jac);
-        else v = eq_dot(&s1, 0, &s2, 1, jac);
-        break;
-      default: break;
+        case FMBD_MBS_SPHERICAL:
+          v = eq_pos(&s1, &s2, k, jac);
+          break;
+        case FMBD_MBS_REVOLUTE:
+          v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, k - 3, jac);
+          break;
+        case FMBD_MBS_UNIVERSAL:
+          v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, 3, jac);
+          break;
+        case FMBD_MBS_CYLINDRICAL:
+        case FMBD_MBS_PRISMATIC:
+          if (k < 2)
+            v = eq_dot(&s1, 2, &s2, k, jac);
+          else if (k < 4)
+            v = eq_dd(&s1, k - 2, &s2, jac);
+          else
+            v = eq_dot(&s1, 0, &s2, 1, jac);
+          break;
+        case FMBD_MBS_FIXED:
+          if (k < 3)
+            v = eq_pos(&s1, &s2, k, jac);
+          else if (k < 5)
+            v = eq_dot(&s1, 2, &s2, k - 3, jac);
+          else
+            v = eq_dot(&s1, 0, &s2, 1, jac);
+          break;
+        default:
+          break;
       }
       q->phi = v;
     }
@@ -1482,10 +1555,17 @@ static void coord_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len) 
     const mbody *b = &m->b[ib];
     if (i >= b->off && i < b->off + b->n) {
       int k = (int)(i - b->off);
-      static const char *nm[] = {"R_x", "R_y", "R_z", "Euler parameter e0", "Euler parameter e1",
-                                 "Euler parameter e2", "Euler parameter e3"};
-      if (k < 7) snprintf(buf, len, "body '%s' coordinate %s", b->name, nm[k]);
-      else snprintf(buf, len, "body '%s' modal coordinate %d", b->name, k - 7 + 1);
+      static const char *nm[] = {"R_x",
+                                 "R_y",
+                                 "R_z",
+                                 "Euler parameter e0",
+                                 "Euler parameter e1",
+                                 "Euler parameter e2",
+                                 "Euler parameter e3"};
+      if (k < 7)
+        snprintf(buf, len, "body '%s' coordinate %s", b->name, nm[k]);
+      else
+        snprintf(buf, len, "body '%s' modal coordinate %d", b->name, k - 7 + 1);
       return;
     }
   }
@@ -1508,8 +1588,8 @@ static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len
 
 // res = body residuals (+ Phi_x' lam when add_lam), eq phi/jac, and with `matrix` the matrix
 // Ax = [cm M + cc C + ck K, Phi_x'; Phi_x, 0] (dynamics block as body_eval).
-static void eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc, double ck,
-                        bool add_lam) {
+static void eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
+                        double ck, bool add_lam) {
   if (matrix) memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
   for (int ib = 0; ib < m->nb; ib++) {
     mbody *b = &m->b[ib];
@@ -1613,7 +1693,8 @@ static int build_pattern(fmbd_mbs *m) {
   klu_l_defaults(&m->kc);
   m->kc.halt_if_singular = 1;
   m->sym = klu_l_analyze(N, m->Ap, m->Ai, &m->kc);
-  FMBD_GCHECK(m->sym, FMBD_ERR_EXTERNAL, "KLU symbolic analysis failed (status %ld)", (long)m->kc.status);
+  FMBD_GCHECK(m->sym, FMBD_ERR_EXTERNAL, "KLU symbolic analysis failed (status %ld)",
+              (long)m->kc.status);
 done:
   fmbd_free(sl);
   return rc;
@@ -1624,19 +1705,23 @@ static int factor(fmbd_mbs *m) {
   if (m->num) {
     int ok = (int)klu_l_refactor(m->Ap, m->Ai, m->Ax, m->sym, m->num, &m->kc);
     if (ok && m->kc.status == KLU_OK) ok = (int)klu_l_rcond(m->sym, m->num, &m->kc);
-    if (!ok || m->kc.status != KLU_OK || !(m->kc.rcond > 1e-13)) klu_l_free_numeric(&m->num, &m->kc);
+    if (!ok || m->kc.status != KLU_OK || !(m->kc.rcond > 1e-13))
+      klu_l_free_numeric(&m->num, &m->kc);
   }
   if (!m->num) {
     m->num = klu_l_factor(m->Ap, m->Ai, m->Ax, m->sym, &m->kc);
     if (!m->num || m->kc.status != KLU_OK) {
       char what[400];
       int64_t col = m->kc.singular_col;
-      if (col >= 0 && col < m->N) unknown_describe(m, col, what, sizeof what);
-      else snprintf(what, sizeof what, "unknown column");
+      if (col >= 0 && col < m->N)
+        unknown_describe(m, col, what, sizeof what);
+      else
+        snprintf(what, sizeof what, "unknown column");
       if (m->num) klu_l_free_numeric(&m->num, &m->kc);
       if (m->kc.status == KLU_OUT_OF_MEMORY) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory in KLU");
       FMBD_FAIL(FMBD_ERR_SINGULAR,
-                "t = %.6g s: singular iteration matrix (mass matrix or constraint Jacobian) at %s", m->t, what);
+                "t = %.6g s: singular iteration matrix (mass matrix or constraint Jacobian) at %s",
+                m->t, what);
     }
   }
   m->st.factorizations++;
@@ -1645,14 +1730,17 @@ static int factor(fmbd_mbs *m) {
 
 static int solve(fmbd_mbs *m, double *rhs) {
   int ok = (int)klu_l_solve(m->sym, m->num, m->N, 1, rhs, &m->kc);
-  FMBD_CHECK(ok && m->kc.status == KLU_OK, FMBD_ERR_EXTERNAL, "KLU solve failed (status %ld)", (long)m->kc.status);
+  FMBD_CHECK(ok && m->kc.status == KLU_OK, FMBD_ERR_EXTERNAL, "KLU solve failed (status %ld)",
+             (long)m->kc.status);
   return FMBD_OK;
 }
 
 // ============================================================================================
 // initialisation
 // ============================================================================================
-static double eq_scaled(const fmbd_mbs *m, const meq *q) { return fabs(q->phi) / q->sc; }
+static double eq_scaled(const fmbd_mbs *m, const meq *q) {
+  return fabs(q->phi) / q->sc;
+}
 
 // largest scaled residual among kept equations (index in *worst)
 static double worst_eq(const fmbd_mbs *m, int64_t *worst) {
@@ -1714,7 +1802,8 @@ static int find_redundant(fmbd_mbs *m) {
     k++;
   }
   memcpy(Q, C, sizeof(double) * (size_t)(n * nc));
-  lapack_int info = LAPACKE_dgeqp3(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)nc, Q, (lapack_int)n, jp, tau);
+  lapack_int info =
+      LAPACKE_dgeqp3(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)nc, Q, (lapack_int)n, jp, tau);
   FMBD_GCHECK(info == 0, FMBD_ERR_EXTERNAL, "LAPACK dgeqp3 failed (info %d)", (int)info);
   const double tol = 1e-8;
   int64_t kmax = nc < n ? nc : n, rank = 0;
@@ -1745,7 +1834,8 @@ static int find_redundant(fmbd_mbs *m) {
     }
   }
   if (nsel != rank) {
-    fmbd_log(FMBD_LOG_DEBUG, "redundancy: greedy rank %lld, pivoted QR rank %lld; using the pivoted QR",
+    fmbd_log(FMBD_LOG_DEBUG,
+             "redundancy: greedy rank %lld, pivoted QR rank %lld; using the pivoted QR",
              (long long)nsel, (long long)rank);
     for (int64_t c = 0; c < nc; c++) sel[c] = false;
     for (int64_t i = 0; i < rank; i++) sel[jp[i] - 1] = true;
@@ -1788,10 +1878,10 @@ static void constraint_gamma(fmbd_mbs *m, double *gam) {
   }
   if (vmax > 0) {
     double eps = 1e-5 / vmax;
-    double *xs = m->xn; // scratch
+    double *xs = m->xn;  // scratch
     memcpy(xs, m->x, sizeof(double) * (size_t)m->n);
     for (int sgn = -1; sgn <= 1; sgn += 2) {
-      double *xe = m->xdn; // scratch
+      double *xe = m->xdn;  // scratch
       for (int64_t i = 0; i < m->n; i++) xe[i] = xs[i] + sgn * eps * m->xd[i];
       eval_constraints(m, xe, m->t, true);
       for (int64_t e = 0; e < m->neq; e++) {
@@ -1834,14 +1924,18 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "fmbd_mbs_init called twice");
   FMBD_CHECK(m->nb > 0, FMBD_ERR_VALUE, "the system has no bodies");
   FMBD_CHECK(s, FMBD_ERR_VALUE, "no settings");
-  FMBD_CHECK(s->rho_inf >= 0 && s->rho_inf <= 1, FMBD_ERR_VALUE, "rho_inf %g outside [0, 1]", s->rho_inf);
-  FMBD_CHECK(isfinite(s->t_end) && s->t_end > 0, FMBD_ERR_VALUE, "t_end %g must be positive", s->t_end);
-  FMBD_CHECK(!s->fixed || (s->step > 0 && isfinite(s->step)), FMBD_ERR_VALUE, "fixed step %g must be positive",
-             s->step);
+  FMBD_CHECK(s->rho_inf >= 0 && s->rho_inf <= 1, FMBD_ERR_VALUE, "rho_inf %g outside [0, 1]",
+             s->rho_inf);
+  FMBD_CHECK(isfinite(s->t_end) && s->t_end > 0, FMBD_ERR_VALUE, "t_end %g must be positive",
+             s->t_end);
+  FMBD_CHECK(!s->fixed || (s->step > 0 && isfinite(s->step)), FMBD_ERR_VALUE,
+             "fixed step %g must be positive", s->step);
   FMBD_CHECK(s->fixed || (s->first_step > 0 && s->min_step > 0 && s->max_step >= s->min_step &&
                           s->first_step >= s->min_step && s->tolerance > 0),
-             FMBD_ERR_VALUE, "step settings: need 0 < min_step <= first_step, min_step <= max_step, tolerance > 0");
-  FMBD_CHECK(s->newton_tol > 0 && s->newton_max >= 1, FMBD_ERR_VALUE, "Newton settings: tolerance > 0, iterations >= 1");
+             FMBD_ERR_VALUE,
+             "step settings: need 0 < min_step <= first_step, min_step <= max_step, tolerance > 0");
+  FMBD_CHECK(s->newton_tol > 0 && s->newton_max >= 1, FMBD_ERR_VALUE,
+             "Newton settings: tolerance > 0, iterations >= 1");
   FMBD_CHECK(s->output_every >= 0, FMBD_ERR_VALUE, "output_every %g must be >= 0", s->output_every);
   m->set = *s;
   if (m->set.fixed && !(m->set.min_step > 0)) m->set.min_step = m->set.step * 1e-6;
@@ -1864,9 +1958,10 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   neq += m->nd + m->nb;
   m->neq = neq;
   size_t nn = (size_t)n;
-  double **arrs[] = {&m->x, &m->xd, &m->xdd, &m->a, &m->xn, &m->xdn, &m->xddn, &m->an, &m->xddp,
-                     &m->res, &m->scale, &m->nscale, &m->ascale, &m->floor_};
-  for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
+  double **arrs[] = {&m->x,  &m->xd,   &m->xdd, &m->a,     &m->xn,     &m->xdn,    &m->xddn,
+                     &m->an, &m->xddp, &m->res, &m->scale, &m->nscale, &m->ascale, &m->floor_};
+  for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++)
+    FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
   size_t mx = (size_t)m->maxn, n6 = mx - 1;
   FMBD_GALLOC(m->wk = fmbd_calloc(30 * mx, sizeof(double)));
   FMBD_GALLOC(m->bres = fmbd_calloc(mx, sizeof(double)));
@@ -1887,11 +1982,19 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
       }
       bool dotk = false;
       switch (j->kind) {
-      case FMBD_MBS_REVOLUTE: case FMBD_MBS_UNIVERSAL: case FMBD_MBS_FIXED: dotk = k >= 3; break;
-      case FMBD_MBS_CYLINDRICAL: case FMBD_MBS_PRISMATIC: dotk = k < 2 || k == 4; break;
-      default: break;
+        case FMBD_MBS_REVOLUTE:
+        case FMBD_MBS_UNIVERSAL:
+        case FMBD_MBS_FIXED:
+          dotk = k >= 3;
+          break;
+        case FMBD_MBS_CYLINDRICAL:
+        case FMBD_MBS_PRISMATIC:
+          dotk = k < 2 || k == 4;
+          break;
+        default:
+          break;
       }
-      q->sc = dotk ? 1.0 : 0; // positions: Lref, set below
+      q->sc = dotk ? 1.0 : 0;  // positions: Lref, set below
     }
   }
   for (int id = 0; id < m->nd; id++, e++) {
@@ -1907,7 +2010,7 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
       q->sc = m->j[d->joint].kind == FMBD_MBS_REVOLUTE ? 1.0 : 0;
     } else {
       q->b[0] = d->body;
-      q->sc = d->coord < 3 ? 0 : -1; // modal: set below
+      q->sc = d->coord < 3 ? 0 : -1;  // modal: set below
     }
   }
   for (int ib = 0; ib < m->nb; ib++, e++) {
@@ -1933,7 +2036,8 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
     quat_to_A(x + 3, A);
     quat_G(x + 3, G);
     mtv3(A, b->w0, wl);
-    for (int c = 0; c < 4; c++) xd[3 + c] = 0.5 * (G[c] * wl[0] + G[4 + c] * wl[1] + G[8 + c] * wl[2]);
+    for (int c = 0; c < 4; c++)
+      xd[3 + c] = 0.5 * (G[c] * wl[0] + G[4 + c] * wl[1] + G[8 + c] * wl[2]);
     if (b->nm) memcpy(xd + 7, b->qd0, sizeof(double) * (size_t)b->nm);
   }
   // --- reference length and scales ---
@@ -1957,9 +2061,13 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
     const mbody *b = &m->b[ib];
     for (int i = 0; i < b->n; i++) {
       int64_t k = b->off + i;
-      if (i < 3) m->floor_[k] = 1e-3 * m->Lref, m->nscale[k] = m->Lref;
-      else if (i < 7) m->floor_[k] = 1e-3, m->nscale[k] = 1;
-      else m->floor_[k] = MODAL_FLOOR * m->Lref * sqrt(b->m), m->nscale[k] = 1e-3 * m->Lref * sqrt(b->m);
+      if (i < 3)
+        m->floor_[k] = 1e-3 * m->Lref, m->nscale[k] = m->Lref;
+      else if (i < 7)
+        m->floor_[k] = 1e-3, m->nscale[k] = 1;
+      else
+        m->floor_[k] = MODAL_FLOOR * m->Lref * sqrt(b->m),
+        m->nscale[k] = 1e-3 * m->Lref * sqrt(b->m);
       m->scale[k] = m->floor_[k];
     }
   }
@@ -2006,11 +2114,15 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
     if (r > 1e-10) {
       char buf[512] = "?";
       if (worst >= 0) eq_describe(m, &m->eq[worst], buf, sizeof buf);
-      FMBD_GFAIL(FMBD_ERR_CONVERGE,
-                 "initial positions cannot be made consistent with the constraints: largest residual %.3g "
-                 "(scaled) at %s", r, buf);
+      FMBD_GFAIL(
+          FMBD_ERR_CONVERGE,
+          "initial positions cannot be made consistent with the constraints: largest residual %.3g "
+          "(scaled) at %s",
+          r, buf);
     }
-    if (it > 0) fmbd_log(FMBD_LOG_INFO, "initial positions projected onto the constraints (%d iterations)", it);
+    if (it > 0)
+      fmbd_log(FMBD_LOG_INFO, "initial positions projected onto the constraints (%d iterations)",
+               it);
   }
   // equations removed as redundant must hold too (dependent to first order but violated
   // means the assembly is inconsistent, e.g. two ball joints too far apart on one rod)
@@ -2021,8 +2133,10 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
     char buf[512];
     eq_describe(m, q, buf, sizeof buf);
     FMBD_GFAIL(FMBD_ERR_CONVERGE,
-               "initial positions cannot be made consistent with the constraints: the redundant %s is violated "
-               "by %.3g (scaled)", buf, eq_scaled(m, q));
+               "initial positions cannot be made consistent with the constraints: the redundant %s "
+               "is violated "
+               "by %.3g (scaled)",
+               buf, eq_scaled(m, q));
   }
   // normalise the Euler parameters exactly
   for (int ib = 0; ib < m->nb; ib++) {
@@ -2039,7 +2153,8 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
       const mbody *b = &m->b[ib];
       const int64_t *pos = m->bpos[ib];
       for (int j = 0; j < b->n; j++) {
-        for (int i = 0; i < b->n; i++) m->rhs[b->off + i] += m->Ax[pos[i + b->n * j]] * m->xd[b->off + j];
+        for (int i = 0; i < b->n; i++)
+          m->rhs[b->off + i] += m->Ax[pos[i + b->n * j]] * m->xd[b->off + j];
       }
     }
     for (e = 0; e < neq; e++) {
@@ -2062,7 +2177,7 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   // --- consistent accelerations and multipliers ---
   {
     constraint_gamma(m, gam);
-    eval_system(m, m->t, NULL, false, 1, 0, 0, false); // res = T'(v - f)
+    eval_system(m, m->t, NULL, false, 1, 0, 0, false);  // res = T'(v - f)
     for (int64_t i = 0; i < m->n; i++) m->rhs[i] = -m->res[i];
     for (e = 0; e < neq; e++) {
       const meq *q = &m->eq[e];
@@ -2095,12 +2210,14 @@ done:
 // ============================================================================================
 static void save_state(fmbd_mbs *m) {
   size_t nn = sizeof(double) * (size_t)m->n;
-  memcpy(m->xn, m->x, nn), memcpy(m->xdn, m->xd, nn), memcpy(m->xddn, m->xdd, nn), memcpy(m->an, m->a, nn);
+  memcpy(m->xn, m->x, nn), memcpy(m->xdn, m->xd, nn), memcpy(m->xddn, m->xdd, nn),
+      memcpy(m->an, m->a, nn);
   memcpy(m->lamn, m->lam, sizeof(double) * (size_t)(m->m + 1));
 }
 static void restore_state(fmbd_mbs *m) {
   size_t nn = sizeof(double) * (size_t)m->n;
-  memcpy(m->x, m->xn, nn), memcpy(m->xd, m->xdn, nn), memcpy(m->xdd, m->xddn, nn), memcpy(m->a, m->an, nn);
+  memcpy(m->x, m->xn, nn), memcpy(m->xd, m->xdn, nn), memcpy(m->xdd, m->xddn, nn),
+      memcpy(m->a, m->an, nn);
   memcpy(m->lam, m->lamn, sizeof(double) * (size_t)(m->m + 1));
 }
 
@@ -2115,9 +2232,14 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
       const mbody *b = &m->b[ib];
       if (wi < b->off || wi >= b->off + b->n) continue;
       int k = (int)(wi - b->off);
-      if (k < 3) snprintf(what, sizeof what, "body '%s' translational equation of motion (%c)", b->name, "xyz"[k]);
-      else if (k < 7) snprintf(what, sizeof what, "body '%s' rotational equation of motion (row e%d)", b->name, k - 3);
-      else snprintf(what, sizeof what, "body '%s' modal equation %d", b->name, k - 6);
+      if (k < 3)
+        snprintf(what, sizeof what, "body '%s' translational equation of motion (%c)", b->name,
+                 "xyz"[k]);
+      else if (k < 7)
+        snprintf(what, sizeof what, "body '%s' rotational equation of motion (row e%d)", b->name,
+                 k - 3);
+      else
+        snprintf(what, sizeof what, "body '%s' modal equation %d", b->name, k - 6);
     }
   }
   char dxw[300] = "?";
@@ -2127,7 +2249,8 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
 
 // One attempt of a step of size h from the saved state. Returns FMBD_OK with *conv and *err
 // (scaled local error, 0 for fixed steps) or an error code (singular matrix, KLU).
-static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fresh_out, double *err) {
+static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fresh_out,
+                   double *err) {
   const double am = m->am, af = m->af, be = m->beta, ga = m->gamma;
   const double bp = (1 - am) / (be * h * h * (1 - af)), gp = ga / (be * h);
   const double t1 = m->t + h;
@@ -2203,7 +2326,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       *conv = true;
       break;
     }
-    if (it > 0 && theta >= 1 && fresh) break; // diverging with an up-to-date matrix
+    if (it > 0 && theta >= 1 && fresh) break;  // diverging with an up-to-date matrix
     if (it > 0 && theta > THETA_REFACTOR && !matrix) m->need_factor = true;
     prev = nrm;
   }
@@ -2257,13 +2380,13 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
     double err;
     int arc = attempt(m, h, retried_fresh, &conv, &fresh, &err);
     if (arc != 0) {
-      restore_state(m); // the caller may still query (and write) the last accepted state
+      restore_state(m);  // the caller may still query (and write) the last accepted state
       return arc;
     }
     if (!conv) {
       restore_state(m);
       if (!fresh && !retried_fresh) {
-        retried_fresh = true; // the old factor was too far off: same h, fresh matrix
+        retried_fresh = true;  // the old factor was too far off: same h, fresh matrix
         continue;
       }
       m->st.rejected++;
@@ -2271,8 +2394,9 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       if (h <= hmin * (1 + 1e-9)) {
         char buf[800];
         worst_residual(m, buf, sizeof buf);
-        FMBD_FAIL(FMBD_ERR_CONVERGE, "t = %.9g s, h = %.3g s: Newton did not converge; largest residual: %s",
-                  m->t + h, h, buf);
+        FMBD_FAIL(FMBD_ERR_CONVERGE,
+                  "t = %.9g s, h = %.3g s: Newton did not converge; largest residual: %s", m->t + h,
+                  h, buf);
       }
       m->h_next = fmax(h / 4, hmin);
       m->after_reject = true;
@@ -2280,7 +2404,8 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       continue;
     }
     if (fmbd_log_level() >= FMBD_LOG_DEBUG) {
-      fmbd_log(FMBD_LOG_DEBUG, "t = %.9g h = %.3g err = %.3g%s", m->t, h, err, err > 1 ? " rejected" : "");
+      fmbd_log(FMBD_LOG_DEBUG, "t = %.9g h = %.3g err = %.3g%s", m->t, h, err,
+               err > 1 ? " rejected" : "");
     }
     if (!m->set.fixed && err > 1 && h > m->set.min_step * (1 + 1e-9)) {
       restore_state(m);
@@ -2295,7 +2420,7 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
     m->t += h;
     m->st.steps++;
     m->st.h_last = h;
-    memcpy(m->xddp, m->xddn, sizeof(double) * (size_t)m->n); // x'' of the previous step
+    memcpy(m->xddp, m->xddn, sizeof(double) * (size_t)m->n);  // x'' of the previous step
     m->h_prev = h;
     update_scales(m);
     bool hit_out = oe <= 0;
@@ -2346,9 +2471,15 @@ int fmbd_mbs_run(fmbd_mbs *m, fmbd_mbs_callback cb, void *user) {
 // ============================================================================================
 // queries
 // ============================================================================================
-double fmbd_mbs_time(const fmbd_mbs *m) { return m->t; }
-int fmbd_mbs_nbodies(const fmbd_mbs *m) { return m->nb; }
-int fmbd_mbs_body_nm(const fmbd_mbs *m, int body) { return body >= 0 && body < m->nb ? m->b[body].nm : 0; }
+double fmbd_mbs_time(const fmbd_mbs *m) {
+  return m->t;
+}
+int fmbd_mbs_nbodies(const fmbd_mbs *m) {
+  return m->nb;
+}
+int fmbd_mbs_body_nm(const fmbd_mbs *m, int body) {
+  return body >= 0 && body < m->nb ? m->b[body].nm : 0;
+}
 int fmbd_mbs_find_body(const fmbd_mbs *m, const char *name) {
   for (int i = 0; i < m->nb; i++) {
     if (strcmp(m->b[i].name, name) == 0) return i;
@@ -2363,8 +2494,11 @@ static void body_kin(const fmbd_mbs *m, const mbody *b, double *A, double *wb, d
   quat_to_A(x + 3, A);
   quat_G(x + 3, G);
   for (int a = 0; a < 3; a++) {
-    wb[a] = 2 * (G[4 * a] * xd[3] + G[4 * a + 1] * xd[4] + G[4 * a + 2] * xd[5] + G[4 * a + 3] * xd[6]);
-    if (wbd) wbd[a] = 2 * (G[4 * a] * xdd[3] + G[4 * a + 1] * xdd[4] + G[4 * a + 2] * xdd[5] + G[4 * a + 3] * xdd[6]);
+    wb[a] =
+        2 * (G[4 * a] * xd[3] + G[4 * a + 1] * xd[4] + G[4 * a + 2] * xd[5] + G[4 * a + 3] * xd[6]);
+    if (wbd)
+      wbd[a] = 2 * (G[4 * a] * xdd[3] + G[4 * a + 1] * xdd[4] + G[4 * a + 2] * xdd[5] +
+                    G[4 * a + 3] * xdd[6]);
   }
 }
 
@@ -2446,7 +2580,8 @@ void fmbd_mbs_body_velocity(const fmbd_mbs *m, int body, double v[3], double w[3
   if (w) mv3(A, wb, w);
 }
 
-int64_t fmbd_mbs_modal(const fmbd_mbs *m, int body, const double **q, const double **qd, const double **qdd) {
+int64_t fmbd_mbs_modal(const fmbd_mbs *m, int body, const double **q, const double **qd,
+                       const double **qdd) {
   const mbody *b = &m->b[body];
   if (q) *q = m->x + b->off + 7;
   if (qd) *qd = m->xd + b->off + 7;
@@ -2514,7 +2649,8 @@ void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, doub
     for (int k = 0; k < nm; k++) {
       for (int l = 0; l < nm; l++) Tq += qd[k] * b->Mff[k + (size_t)nm * l] * qd[l];
     }
-    T += 0.5 * (b->m * dot3(Rd, Rd) + dot3(o.w, Iw) + Tq) - dot3(Rd, v1) + dot3(Rd, AS) + dot3(o.w, o.Mwfqd);
+    T += 0.5 * (b->m * dot3(Rd, Rd) + dot3(o.w, Iw) + Tq) - dot3(Rd, v1) + dot3(Rd, AS) +
+         dot3(o.w, o.Mwfqd);
     double Acw[3];
     mv3(o.A, o.c, Acw);
     V -= b->m * dot3(m->g, m->x + b->off) + dot3(m->g, Acw);
@@ -2560,21 +2696,24 @@ int fmbd_mbs_joint_reaction(const fmbd_mbs *m, int joint, double F[3], double T[
   int side = j->body[0] >= 0 ? 0 : 1;
   int ib = j->body[side];
   const mbody *b = &m->b[ib];
-  double *gf = m->res; // scratch: generalized constraint force on all coordinates
+  double *gf = m->res;  // scratch: generalized constraint force on all coordinates
   fmbd_mbs *mm = (fmbd_mbs *)m;
   memset(gf, 0, sizeof(double) * (size_t)m->n);
   eval_constraints(mm, m->x, m->t, true);
   for (int64_t e = 0; e < m->neq; e++) {
     const meq *q = &m->eq[e];
     if (!q->kept) continue;
-    bool mine = (q->kind == EQ_JOINT && q->owner == joint) || (q->kind == EQ_DRIVER && m->d[q->owner].joint == joint);
+    bool mine = (q->kind == EQ_JOINT && q->owner == joint) ||
+                (q->kind == EQ_DRIVER && m->d[q->owner].joint == joint);
     if (mine) eq_jtv(m, q, -m->lam[q->row], gf);
   }
   const double *g = gf + b->off, *p = m->x + b->off + 3;
   double A[9], G[12], Nb[3], Nw[3];
   quat_to_A(p, A);
   quat_G(p, G);
-  for (int a = 0; a < 3; a++) Nb[a] = 0.5 * (G[4 * a] * g[3] + G[4 * a + 1] * g[4] + G[4 * a + 2] * g[5] + G[4 * a + 3] * g[6]);
+  for (int a = 0; a < 3; a++)
+    Nb[a] =
+        0.5 * (G[4 * a] * g[3] + G[4 * a + 1] * g[4] + G[4 * a + 2] * g[5] + G[4 * a + 3] * g[6]);
   mv3(A, Nb, Nw);
   double rp[3], d[3], dxF[3];
   fmbd_mbs_point_position(m, j->pt[side], rp);
@@ -2592,8 +2731,10 @@ int fmbd_mbs_joint_coordinate(const fmbd_mbs *m, int joint, double *value, doubl
   FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "joint coordinate before fmbd_mbs_init");
   FMBD_CHECK(joint >= 0 && joint < m->nj, FMBD_ERR_VALUE, "unknown joint %d", joint);
   const mjoint *j = &m->j[joint];
-  FMBD_CHECK(j->kind == FMBD_MBS_REVOLUTE || j->kind == FMBD_MBS_PRISMATIC || j->kind == FMBD_MBS_CYLINDRICAL,
-             FMBD_ERR_VALUE, "joint '%s' (%s) has no coordinate", j->name, joint_kind_name(j->kind));
+  FMBD_CHECK(j->kind == FMBD_MBS_REVOLUTE || j->kind == FMBD_MBS_PRISMATIC ||
+                 j->kind == FMBD_MBS_CYLINDRICAL,
+             FMBD_ERR_VALUE, "joint '%s' (%s) has no coordinate", j->name,
+             joint_kind_name(j->kind));
   fmbd_mbs *mm = (fmbd_mbs *)m;
   side s1, s2;
   joint_sides(mm, j, m->x, &s1, &s2);
@@ -2630,7 +2771,9 @@ void fmbd_mbs_constraint_residual(const fmbd_mbs *m, double *pos, double *vel) {
   if (vel) *vel = v;
 }
 
-void fmbd_mbs_get_stats(const fmbd_mbs *m, fmbd_mbs_stats *s) { *s = m->st; }
+void fmbd_mbs_get_stats(const fmbd_mbs *m, fmbd_mbs_stats *s) {
+  *s = m->st;
+}
 
 int fmbd_mbs_redundant(const fmbd_mbs *m, int k, int *joint, int *eq, const char **text) {
   FMBD_CHECK(k >= 0 && k < m->nred, FMBD_ERR_VALUE, "no redundant equation %d", k);

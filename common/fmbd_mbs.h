@@ -40,7 +40,7 @@
 //   body-frame moment equations premultiplied by 2 G'.
 //   Inertia from the invariants (BRIEF.md /ffrf, the "inertia shape integrals" of Shabana):
 //     c(q) = c0 + S1 q                                   (first moment, body frame)
-//     J(q) = J0 + XSq + XSq' + sum_kl SS_kl q_k q_l      (second moment, (XSq)_ab = sum_k XS_abk q_k)
+//     J(q) = J0 + XSq + XSq' + sum_kl SS_kl q_k q_l  (second moment; (XSq)_ab = sum_k XS_abk q_k)
 //     I(q) = tr(J) 1 - J                                  (inertia about the frame origin)
 //     M_RR = m 1,  M_Rw = -A c~,  M_Rf = A S1,  M_ww = I(q),
 //     M_wf[:,k] = int rho u x S_k = eps_abc (XS_bck + sum_l SS_bc,lk q_l),  M_ff = Mff.
@@ -104,8 +104,9 @@
 //   FMBD_ERR_CONVERGE naming the time, the step, the equation (joint or driver equation,
 //   or a body's translational / rotational / modal equation of motion) with the largest
 //   scaled residual in the last iteration and the coordinate with the largest correction
-//   (near a singular configuration the residuals are small and the corrections blow up). Fixed steps: h = step always (divided by 4 only
-//   after a Newton failure, then back to step), no error test.
+//   (near a singular configuration the residuals are small and the corrections blow up).
+//   Fixed steps: h = step always (divided by 4 only after a Newton failure, then back to
+//   step), no error test.
 // INITIAL CONDITIONS (fmbd_mbs_init): redundant constraint equations (joints and drivers) are
 //   found at the initial configuration by QR with column pivoting (LAPACK dgeqp3) of Phi_x'
 //   with unit-normalised rows (the Euler-parameter direction projected out), rank from
@@ -125,7 +126,7 @@
 // normal to it, identical on both sides at assembly (x from ref if given, else chosen),
 // d = r2 - r1:
 //   SPHERICAL   r1 = r2                                     3 equations
-//   REVOLUTE    r1 = r2, z1.x2 = 0, z1.y2 = 0               5   coordinate: angle of x2 about z1 from x1 (rad)
+//   REVOLUTE    r1 = r2, z1.x2 = 0, z1.y2 = 0               5   coordinate: angle x1 -> x2 about z1
 //   UNIVERSAL   r1 = r2, a1.a2 = 0 (axis on 1, axis2 on 2)   4
 //   CYLINDRICAL z1.x2 = 0, z1.y2 = 0, d.x1 = 0, d.y1 = 0    4   coordinate: d.z1 (m)
 //   PRISMATIC   cylindrical + x1.y2 = 0                     5   coordinate: d.z1 (m)
@@ -147,22 +148,22 @@ typedef struct fmbd_mbs fmbd_mbs;
 
 // --- functions of time -------------------------------------------------------------------
 enum fmbd_mbs_fn_kind {
-  FMBD_MBS_FN_CONSTANT = 0, ///< value
-  FMBD_MBS_FN_RAMP,         ///< v0 until t0, linear (smooth: 3s^2 - 2s^3 blend) to v1 at t1, v1 after
-  FMBD_MBS_FN_SINE,         ///< offset + amplitude sin(2 pi frequency_hz t + phase)
-  FMBD_MBS_FN_TABLE,        ///< piecewise linear through (t[i], v[i]), constant outside
-  FMBD_MBS_FN_LINEAR,       ///< v0 + rate (t - t0) for all t (a constant-speed driver)
+  FMBD_MBS_FN_CONSTANT = 0,  ///< value
+  FMBD_MBS_FN_RAMP,          ///< v0 until t0, linear (smooth: 3s^2 - 2s^3) to v1 at t1, v1 after
+  FMBD_MBS_FN_SINE,          ///< offset + amplitude sin(2 pi frequency_hz t + phase)
+  FMBD_MBS_FN_TABLE,         ///< piecewise linear through (t[i], v[i]), constant outside
+  FMBD_MBS_FN_LINEAR,        ///< v0 + rate (t - t0) for all t (a constant-speed driver)
 };
 /// A scalar function of time. Build it with the fmbd_mbs_fn_* helpers or by hand.
 typedef struct fmbd_mbs_fn {
-  int kind;                          ///< fmbd_mbs_fn_kind
-  double value;                      ///< CONSTANT
-  double t0, t1, v0, v1;             ///< RAMP (t1 > t0); LINEAR uses t0, v0
-  bool smooth;                       ///< RAMP: C1 cubic blend
-  double rate;                       ///< LINEAR: slope (unit/s)
-  double amplitude, frequency_hz, phase, offset; ///< SINE
-  int64_t n;                         ///< TABLE: points (>= 1), t strictly increasing
-  const double *t, *v;               ///< TABLE: borrowed here; the mbs copies them when added
+  int kind;                                       ///< fmbd_mbs_fn_kind
+  double value;                                   ///< CONSTANT
+  double t0, t1, v0, v1;                          ///< RAMP (t1 > t0); LINEAR uses t0, v0
+  bool smooth;                                    ///< RAMP: C1 cubic blend
+  double rate;                                    ///< LINEAR: slope (unit/s)
+  double amplitude, frequency_hz, phase, offset;  ///< SINE
+  int64_t n;                                      ///< TABLE: points (>= 1), t strictly increasing
+  const double *t, *v;  ///< TABLE: borrowed here; the mbs copies them when added
 } fmbd_mbs_fn;
 
 /// @brief f(t) and its first and second derivatives (dfdt, d2fdt2 may be NULL). Piecewise
@@ -178,27 +179,27 @@ fmbd_mbs_fn fmbd_mbs_fn_table(int64_t n, const double *t, const double *v);
 // --- bodies ------------------------------------------------------------------------------
 /// Initial state of a body (world frame).
 typedef struct fmbd_mbs_state0 {
-  double position[3];         ///< body-frame origin R
-  double rotation[9];         ///< body -> world, row-major, orthonormal (checked to 1e-6)
-  double velocity[3];         ///< of the body-frame origin
-  double angular_velocity[3]; ///< world components
+  double position[3];          ///< body-frame origin R
+  double rotation[9];          ///< body -> world, row-major, orthonormal (checked to 1e-6)
+  double velocity[3];          ///< of the body-frame origin
+  double angular_velocity[3];  ///< world components
 } fmbd_mbs_state0;
 /// @brief Identity rotation, zero position and velocities.
 fmbd_mbs_state0 fmbd_mbs_state0_default(void);
 
 /// The invariants of a modal flexible body (BRIEF.md /ffrf), in fmbd_rflex's layout.
 typedef struct fmbd_mbs_flex_data {
-  int64_t nm;                 ///< number of modes (>= 0)
-  double mass;                ///< m > 0
-  double first_moment[3];     ///< c0 = int rho x0 dV
-  double second_moment[9];    ///< J0 (symmetric)
-  const double *S1;           ///< 3 x nm: S1[a + 3k]
-  const double *XS;           ///< 3 x 3 x nm: XS[a + 3b + 9k] = int rho x0_a S_k,b
-  const double *SS;           ///< 3 x 3 x nm x nm: SS[a + 3b + 9k + 9 nm l] = int rho S_k,a S_l,b
-  const double *Mff;          ///< nm x nm (symmetric positive definite)
-  const double *Kff;          ///< nm x nm (symmetric positive semidefinite)
-  double damping_ratio;       ///< modal damping ratio zeta of every mode (0: none)
-  const double *q0, *qd0;     ///< initial modal coordinates and rates (nm each; NULL: zero)
+  int64_t nm;               ///< number of modes (>= 0)
+  double mass;              ///< m > 0
+  double first_moment[3];   ///< c0 = int rho x0 dV
+  double second_moment[9];  ///< J0 (symmetric)
+  const double *S1;         ///< 3 x nm: S1[a + 3k]
+  const double *XS;         ///< 3 x 3 x nm: XS[a + 3b + 9k] = int rho x0_a S_k,b
+  const double *SS;         ///< 3 x 3 x nm x nm: SS[a + 3b + 9k + 9 nm l] = int rho S_k,a S_l,b
+  const double *Mff;        ///< nm x nm (symmetric positive definite)
+  const double *Kff;        ///< nm x nm (symmetric positive semidefinite)
+  double damping_ratio;     ///< modal damping ratio zeta of every mode (0: none)
+  const double *q0, *qd0;   ///< initial modal coordinates and rates (nm each; NULL: zero)
 } fmbd_mbs_flex_data;
 
 /// @brief Create an empty system (no gravity).
@@ -245,14 +246,14 @@ enum fmbd_mbs_joint_kind {
   FMBD_MBS_FIXED,
 };
 typedef struct fmbd_mbs_joint_desc {
-  const char *name;     ///< unique joint name (messages)
-  int kind;             ///< fmbd_mbs_joint_kind
-  int point[2];         ///< point ids of side 1 and side 2 (different bodies)
-  double axis[3];       ///< world, initial configuration: revolute/prismatic/cylindrical axis,
-                        ///< universal: the cross axis fixed on side 1; fixed: optional (0 = z)
-  double axis2[3];      ///< universal: the cross axis fixed on side 2 (orthogonal to axis)
-  double ref[3];        ///< optional reference direction normal to axis (zero vector = chosen),
-                        ///< the zero of a revolute angle
+  const char *name;  ///< unique joint name (messages)
+  int kind;          ///< fmbd_mbs_joint_kind
+  int point[2];      ///< point ids of side 1 and side 2 (different bodies)
+  double axis[3];    ///< world, initial configuration: revolute/prismatic/cylindrical axis,
+                     ///< universal: the cross axis fixed on side 1; fixed: optional (0 = z)
+  double axis2[3];   ///< universal: the cross axis fixed on side 2 (orthogonal to axis)
+  double ref[3];     ///< optional reference direction normal to axis (zero vector = chosen),
+                     ///< the zero of a revolute angle
 } fmbd_mbs_joint_desc;
 /// @brief Add a joint. The points need not coincide now (fmbd_mbs_init assembles).
 /// @return FMBD_OK, FMBD_ERR_VALUE (unknown point, same body on both sides, zero or non
@@ -291,7 +292,7 @@ typedef struct fmbd_mbs_settings {
   double first_step;    ///< variable: first step, default 1e-6 (paper [H])
   double min_step;      ///< variable: smallest step, default 1e-12
   double max_step;      ///< variable: largest step, default 1e-2 (paper [H])
-  double tolerance;     ///< variable: local error tolerance (relative to s_i, see STEP-SIZE), default 1e-4
+  double tolerance;     ///< variable: local error tolerance (relative to s_i, STEP-SIZE), 1e-4
   double newton_tol;    ///< Newton tolerance, relative to coordinate and acceleration sizes
                         ///< (see NEWTON), default 1e-8
   int newton_max;       ///< Newton iterations per attempt, default 10
@@ -369,14 +370,14 @@ int fmbd_mbs_joint_coordinate(const fmbd_mbs *m, int joint, double *value, doubl
 void fmbd_mbs_constraint_residual(const fmbd_mbs *m, double *pos, double *vel);
 
 typedef struct fmbd_mbs_stats {
-  int64_t steps;            ///< accepted steps
-  int64_t rejected;         ///< rejected steps (error test) + Newton failures
+  int64_t steps;     ///< accepted steps
+  int64_t rejected;  ///< rejected steps (error test) + Newton failures
   int64_t newton_iterations;
-  int64_t factorizations;   ///< numeric factorizations (klu factor + refactor)
-  int64_t coordinates;      ///< size of x
-  int64_t equations;        ///< constraint equations kept (incl. normalisations)
-  int64_t redundant;        ///< constraint equations removed as redundant
-  double h_last;            ///< last accepted step (s)
+  int64_t factorizations;  ///< numeric factorizations (klu factor + refactor)
+  int64_t coordinates;     ///< size of x
+  int64_t equations;       ///< constraint equations kept (incl. normalisations)
+  int64_t redundant;       ///< constraint equations removed as redundant
+  double h_last;           ///< last accepted step (s)
 } fmbd_mbs_stats;
 void fmbd_mbs_get_stats(const fmbd_mbs *m, fmbd_mbs_stats *s);
 

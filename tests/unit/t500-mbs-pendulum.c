@@ -53,8 +53,10 @@ static int cb(fmbd_mbs *m, bool out, void *user) {
       double h00 = 2 * s * s * s - 3 * s * s + 1, h10 = s * s * s - 2 * s * s + s;
       double h01 = -2 * s * s * s + 3 * s * s, h11 = s * s * s - s * s;
       double v = h00 * r->th_prev + h10 * h * r->thd_prev + h01 * th + h11 * h * thd;
-      if (v < 0) lo = s;
-      else hi = s;
+      if (v < 0)
+        lo = s;
+      else
+        hi = s;
     }
     r->tcross[r->ncross++] = r->t_prev + 0.5 * (lo + hi) * h;
   }
@@ -68,7 +70,8 @@ static int cb(fmbd_mbs *m, bool out, void *user) {
 }
 
 // build and run; returns measured period (from the first two upward crossings) and energy error
-static int pendulum(double th0, const fmbd_mbs_settings *s, double *period, double *dE, fmbd_mbs_stats *st) {
+static int pendulum(double th0, const fmbd_mbs_settings *s, double *period, double *dE,
+                    fmbd_mbs_stats *st) {
   run r;
   memset(&r, 0, sizeof r);
   fmbd_mbs *m = NULL;
@@ -76,15 +79,17 @@ static int pendulum(double th0, const fmbd_mbs_settings *s, double *period, doub
   if (rc) return rc;
   fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
   double z[3] = {0, 0, 1};
-  fmbd_mbs_rotation_axis_angle(z, th0 - M_PI / 2, s0.rotation); // body x along the rod
+  fmbd_mbs_rotation_axis_angle(z, th0 - M_PI / 2, s0.rotation);  // body x along the rod
   double com[3] = {LEN / 2, 0, 0};
-  double Ic[9] = {MASS * RAD * RAD / 2, 0, 0, 0, MASS * LEN * LEN / 12, 0, 0, 0, MASS * LEN * LEN / 12};
+  double Ic[9] = {MASS * RAD * RAD / 2, 0, 0, 0, MASS * LEN * LEN / 12, 0, 0, 0,
+                  MASS * LEN * LEN / 12};
   int body, pg, pb, tip, j;
   double o[3] = {0, 0, 0}, xt[3] = {LEN, 0, 0};
   fmbd_mbs_joint_desc jd = {.name = "hinge", .kind = FMBD_MBS_REVOLUTE, .axis = {0, 0, 1}};
   if ((rc = fmbd_mbs_add_rigid(m, "rod", MASS, com, Ic, &s0, &body)) ||
       (rc = fmbd_mbs_add_point(m, FMBD_MBS_GROUND, o, NULL, NULL, &pg)) ||
-      (rc = fmbd_mbs_add_point(m, body, o, NULL, NULL, &pb)) || (rc = fmbd_mbs_add_point(m, body, xt, NULL, NULL, &tip)))
+      (rc = fmbd_mbs_add_point(m, body, o, NULL, NULL, &pb)) ||
+      (rc = fmbd_mbs_add_point(m, body, xt, NULL, NULL, &tip)))
     goto done;
   jd.point[0] = pg, jd.point[1] = pb;
   if ((rc = fmbd_mbs_add_joint(m, &jd, &j))) goto done;
@@ -98,7 +103,7 @@ static int pendulum(double th0, const fmbd_mbs_settings *s, double *period, doub
   r.E0 = T + V + U;
   if ((rc = fmbd_mbs_run(m, cb, &r))) goto done;
   *period = r.ncross >= 2 ? r.tcross[1] - r.tcross[0] : NAN;
-  *dE = r.dEmax / fabs(MASS * G0 * LEN / 2); // relative to m g L/2
+  *dE = r.dEmax / fabs(MASS * G0 * LEN / 2);  // relative to m g L/2
   fmbd_mbs_get_stats(m, st);
 done:
   fmbd_mbs_destroy(&m);
@@ -107,7 +112,7 @@ done:
 
 int main(void) {
   fmbd_log_init("t5", FMBD_LOG_WARN);
-  const double th0 = 2.0; // rad: large amplitude, K(k) far from pi/2
+  const double th0 = 2.0;  // rad: large amplitude, K(k) far from pi/2
   // I_O = m L^2/12 + m (L/2)^2 = m L^2/3 about the hinge (z): w0^2 = m g (L/2) / I_O
   const double w0 = sqrt(3 * G0 / (2 * LEN));
   const double Texact = 4 * ellipk(sin(th0 / 2)) / w0;
@@ -123,8 +128,8 @@ int main(void) {
   // (w h)^2 / 12 for a linear oscillator; the largest local frequency here is w0, so
   // (w0 h)^2 / 12 = 1.2e-6; allow 5e-6 (crossing interpolation is O(h^3) on top)
   double tolP = 4 * (w0 * s.step) * (w0 * s.step) / 12 + 1e-7;
-  EXPECT(fabs(P / Texact - 1) < tolP, "period %.9f s, exact %.9f s, rel. error %.3g > %.3g", P, Texact,
-         P / Texact - 1, tolP);
+  EXPECT(fabs(P / Texact - 1) < tolP, "period %.9f s, exact %.9f s, rel. error %.3g > %.3g", P,
+         Texact, P / Texact - 1, tolP);
   // --- energy error order with rho_inf = 1 ---
   double e[3];
   double hs[3] = {4e-3, 2e-3, 1e-3};
@@ -143,8 +148,9 @@ int main(void) {
   // w0 h <= 0.015)
   for (int i = 0; i < 2; i++) {
     double order = log2(e[i] / e[i + 1]);
-    EXPECT(order > 1.8 && order < 2.2, "energy error order %.3f between h = %g (%.3g) and %g (%.3g)", order, hs[i],
-           e[i], hs[i + 1], e[i + 1]);
+    EXPECT(order > 1.8 && order < 2.2,
+           "energy error order %.3f between h = %g (%.3g) and %g (%.3g)", order, hs[i], e[i],
+           hs[i + 1], e[i + 1]);
   }
   // energy error itself small: O((w0 h)^2) relative to m g L/2
   EXPECT(e[2] < 1e-4, "energy error %.3g at h = 1e-3", e[2]);
@@ -155,10 +161,14 @@ int main(void) {
   EXPECT(rc == 0, "variable-step run failed: %s", fmbd_err_get()->msg);
   // local error tolerance 1e-6 relative on positions of size 1 per step, ~1e3 steps: the period
   // is expected within about 1e-4 relative
-  EXPECT(fabs(P / Texact - 1) < 1e-4, "variable steps: period %.9f s, exact %.9f s, rel. error %.3g", P, Texact,
-         P / Texact - 1);
+  EXPECT(fabs(P / Texact - 1) < 1e-4,
+         "variable steps: period %.9f s, exact %.9f s, rel. error %.3g", P, Texact, P / Texact - 1);
   EXPECT(st.steps > 10 && st.steps < 20000, "variable steps: %lld steps", (long long)st.steps);
-  if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t500: fixed P/T-1 tested; variable: P/T-1 = %.3g, %lld steps, %lld rejected, %lld newton, %lld factor, energy err %.3g, orders e = %.3g %.3g %.3g\n", P / Texact - 1,
-          (long long)st.steps, (long long)st.rejected, (long long)st.newton_iterations, (long long)st.factorizations, dE, e[0], e[1], e[2]);
+  if (getenv("FMBD_TEST_VERBOSE"))
+    fprintf(stderr,
+            "t500: fixed P/T-1 tested; variable: P/T-1 = %.3g, %lld steps, %lld rejected, %lld "
+            "newton, %lld factor, energy err %.3g, orders e = %.3g %.3g %.3g\n",
+            P / Texact - 1, (long long)st.steps, (long long)st.rejected,
+            (long long)st.newton_iterations, (long long)st.factorizations, dE, e[0], e[1], e[2]);
   TEST_EXIT();
 }

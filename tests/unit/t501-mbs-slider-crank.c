@@ -13,7 +13,7 @@
 #include "fmbd_mbs.h"
 
 // crank radius, rod length, slider line offset (slider moves along x at y = 0, z = E)
-static const double A_ = 0.1, L_ = 0.3, E_ = 0.05, W_ = 2 * M_PI; // crank speed rad/s
+static const double A_ = 0.1, L_ = 0.3, E_ = 0.05, W_ = 2 * M_PI;  // crank speed rad/s
 
 typedef struct ctx {
   int slider_pt, crank_joint;
@@ -60,8 +60,10 @@ static int build(fmbd_mbs **out, ctx *c) {
   for (int i = 0; i < 3; i++) ey[i] -= k * ex[i];
   double ny = sqrt(ey[0] * ey[0] + ey[1] * ey[1] + ey[2] * ey[2]);
   for (int i = 0; i < 3; i++) ey[i] /= ny;
-  double ez[3] = {ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2], ex[0] * ey[1] - ex[1] * ey[0]};
-  fmbd_mbs_state0 sc = fmbd_mbs_state0_default(), sr = fmbd_mbs_state0_default(), ss = fmbd_mbs_state0_default();
+  double ez[3] = {ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2],
+                  ex[0] * ey[1] - ex[1] * ey[0]};
+  fmbd_mbs_state0 sc = fmbd_mbs_state0_default(), sr = fmbd_mbs_state0_default(),
+                  ss = fmbd_mbs_state0_default();
   for (int i = 0; i < 3; i++) {
     sr.rotation[3 * i + 0] = ex[i], sr.rotation[3 * i + 1] = ey[i], sr.rotation[3 * i + 2] = ez[i];
   }
@@ -81,19 +83,22 @@ static int build(fmbd_mbs **out, ctx *c) {
       (rc = fmbd_mbs_add_rigid(m, "slider", 0.3, cs, Is, &ss, &slider)) ||
       (rc = fmbd_mbs_add_point(m, FMBD_MBS_GROUND, O, NULL, NULL, &pO)) ||
       (rc = fmbd_mbs_add_point(m, crank, O, NULL, NULL, &pOc)) ||
-      (rc = fmbd_mbs_add_point_world(m, crank, P0, &pPc)) || (rc = fmbd_mbs_add_point(m, rod, z3, NULL, NULL, &pPr)) ||
+      (rc = fmbd_mbs_add_point_world(m, crank, P0, &pPc)) ||
+      (rc = fmbd_mbs_add_point(m, rod, z3, NULL, NULL, &pPr)) ||
       (rc = fmbd_mbs_add_point(m, rod, Lx, NULL, NULL, &pSr)) ||
       (rc = fmbd_mbs_add_point(m, slider, z3, NULL, NULL, &pSs)) ||
       (rc = fmbd_mbs_add_point(m, FMBD_MBS_GROUND, S0, NULL, NULL, &pSg)))
     goto fail;
-  fmbd_mbs_joint_desc j1 = {.name = "crank_hinge", .kind = FMBD_MBS_REVOLUTE, .point = {pO, pOc}, .axis = {1, 0, 0}};
+  fmbd_mbs_joint_desc j1 = {
+      .name = "crank_hinge", .kind = FMBD_MBS_REVOLUTE, .point = {pO, pOc}, .axis = {1, 0, 0}};
   fmbd_mbs_joint_desc j2 = {.name = "crank_pin", .kind = FMBD_MBS_SPHERICAL, .point = {pPc, pPr}};
   // universal: cross axis on the rod normal to the rod and to world y; on the slider world y
   double a1[3] = {ez[0], ez[1], ez[2]};
   fmbd_mbs_joint_desc j3 = {.name = "rod_slider", .kind = FMBD_MBS_UNIVERSAL, .point = {pSr, pSs}};
   memcpy(j3.axis, a1, sizeof a1);
   j3.axis2[0] = ey[0], j3.axis2[1] = ey[1], j3.axis2[2] = ey[2];
-  fmbd_mbs_joint_desc j4 = {.name = "slide", .kind = FMBD_MBS_PRISMATIC, .point = {pSg, pSs}, .axis = {1, 0, 0}};
+  fmbd_mbs_joint_desc j4 = {
+      .name = "slide", .kind = FMBD_MBS_PRISMATIC, .point = {pSg, pSs}, .axis = {1, 0, 0}};
   int jc;
   if ((rc = fmbd_mbs_add_joint(m, &j1, &jc)) || (rc = fmbd_mbs_add_joint(m, &j2, NULL)) ||
       (rc = fmbd_mbs_add_joint(m, &j3, NULL)) || (rc = fmbd_mbs_add_joint(m, &j4, NULL)))
@@ -121,40 +126,49 @@ int main(void) {
     if (rc) break;
     fmbd_mbs_settings s;
     fmbd_mbs_settings_defaults(&s);
-    s.t_end = 1.0; // one crank revolution
-    if (!variable) s.fixed = true, s.step = 1e-3;
-    else s.tolerance = 1e-5;
+    s.t_end = 1.0;  // one crank revolution
+    if (!variable)
+      s.fixed = true, s.step = 1e-3;
+    else
+      s.tolerance = 1e-5;
     rc = fmbd_mbs_init(m, &s);
     EXPECT(rc == 0, "init: %s", fmbd_err_get()->msg);
     fmbd_mbs_stats st;
     fmbd_mbs_get_stats(m, &st);
     // 18 coordinates of 3 bodies + 3 normalisations; 17 joint equations + 1 driver: no redundancy
     EXPECT(st.redundant == 0, "redundant equations reported: %lld", (long long)st.redundant);
-    EXPECT(st.coordinates == 21 && st.equations == 21, "coordinates %lld equations %lld", (long long)st.coordinates,
-           (long long)st.equations);
+    EXPECT(st.coordinates == 21 && st.equations == 21, "coordinates %lld equations %lld",
+           (long long)st.coordinates, (long long)st.equations);
     if (rc == 0) rc = fmbd_mbs_run(m, cb, &c);
     EXPECT(rc == 0, "run: %s", fmbd_err_get()->msg);
     fmbd_mbs_get_stats(m, &st);
     // the mechanism has no free degree of freedom: the slider position follows from the
     // constraints at every step, so it matches the closed form to the Newton tolerance
     // (1e-10 relative to L_ref ~ 0.3 m, amplified by the conditioning of the closure): 1e-8 m
-    EXPECT(c.max_ds < 1e-8, "%s steps: slider position error %.3g m", variable ? "variable" : "fixed", c.max_ds);
-    EXPECT(c.max_phi < 1e-8, "%s steps: constraint residual %.3g", variable ? "variable" : "fixed", c.max_phi);
+    EXPECT(c.max_ds < 1e-8, "%s steps: slider position error %.3g m",
+           variable ? "variable" : "fixed", c.max_ds);
+    EXPECT(c.max_phi < 1e-8, "%s steps: constraint residual %.3g", variable ? "variable" : "fixed",
+           c.max_phi);
     // velocities of the index-3 scheme are second-order accurate: (w h)^2 = 4e-5 relative to
     // the slider speed scale a w = 0.63 m/s for h = 1e-3; allow 5e-4 m/s with fixed steps. The
     // velocity constraints are not enforced by the index-3 scheme: their residual is of the
     // same order; with variable steps up to max_step = 1e-2, (w h)^2 a w = 2.5e-3 m/s bounds it
     double vb = variable ? 2.5e-3 : 5e-4;
-    EXPECT(c.max_dv < vb, "%s steps: slider velocity error %.3g m/s", variable ? "variable" : "fixed", c.max_dv);
-    EXPECT(c.max_vphi < vb, "%s steps: velocity constraint residual %.3g", variable ? "variable" : "fixed",
-           c.max_vphi);
+    EXPECT(c.max_dv < vb, "%s steps: slider velocity error %.3g m/s",
+           variable ? "variable" : "fixed", c.max_dv);
+    EXPECT(c.max_vphi < vb, "%s steps: velocity constraint residual %.3g",
+           variable ? "variable" : "fixed", c.max_vphi);
     double th, thd;
     fmbd_mbs_joint_coordinate(m, c.crank_joint, &th, &thd);
     EXPECT(fabs(th - remainder(W_ * s.t_end, 2 * M_PI)) < 1e-8 && fabs(thd - W_) < 1e-3 * W_,
            "crank angle %.9f rate %.6f", th, thd);
-    if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t501 %s: ds %.3g dv %.3g phi %.3g vphi %.3g steps %lld rej %lld newton %lld fact %lld\n",
-            variable ? "variable" : "fixed", c.max_ds, c.max_dv, c.max_phi, c.max_vphi, (long long)st.steps,
-            (long long)st.rejected, (long long)st.newton_iterations, (long long)st.factorizations);
+    if (getenv("FMBD_TEST_VERBOSE"))
+      fprintf(
+          stderr,
+          "t501 %s: ds %.3g dv %.3g phi %.3g vphi %.3g steps %lld rej %lld newton %lld fact %lld\n",
+          variable ? "variable" : "fixed", c.max_ds, c.max_dv, c.max_phi, c.max_vphi,
+          (long long)st.steps, (long long)st.rejected, (long long)st.newton_iterations,
+          (long long)st.factorizations);
     fmbd_mbs_destroy(&m);
   }
   TEST_EXIT();

@@ -17,23 +17,23 @@
 
 // steel beam along x, square 20 mm section
 static const double LEN = 1.0, EE = 2.1e11, RHO = 7800, HS = 0.02;
-#define NE 8                // elements; nodes 0..NE, node 0 clamped
-#define NT (3 * NE)         // free translations (ux uy uz per free node)
-#define NR (2 * NE)         // free rotations (th_y th_z), condensed
+#define NE 8         // elements; nodes 0..NE, node 0 clamped
+#define NT (3 * NE)  // free translations (ux uy uz per free node)
+#define NR (2 * NE)  // free rotations (th_y th_z), condensed
 
 typedef struct beam {
-  double Kc[NT * NT];       // condensed stiffness on the translations (col-major)
-  double mass[NE + 1];      // lumped node masses
+  double Kc[NT * NT];   // condensed stiffness on the translations (col-major)
+  double mass[NE + 1];  // lumped node masses
   double x[NE + 1];
-  double w2[NT];            // eigenvalues, ascending
-  double Phi[NT * NT];      // mass-normalised modes (col-major)
+  double w2[NT];        // eigenvalues, ascending
+  double Phi[NT * NT];  // mass-normalised modes (col-major)
 } beam;
 
 // element stiffness of a 2-node Euler-Bernoulli beam in one plane, dofs (v1, t1, v2, t2)
 static void eb(double EI, double l, double k[16]) {
   double c = EI / (l * l * l);
-  double v[16] = {12, 6 * l, -12, 6 * l, 6 * l, 4 * l * l, -6 * l, 2 * l * l,
-                  -12, -6 * l, 12, -6 * l, 6 * l, 2 * l * l, -6 * l, 4 * l * l};
+  double v[16] = {12,  6 * l,  -12, 6 * l,  6 * l, 4 * l * l, -6 * l, 2 * l * l,
+                  -12, -6 * l, 12,  -6 * l, 6 * l, 2 * l * l, -6 * l, 4 * l * l};
   for (int i = 0; i < 16; i++) k[i] = c * v[i];
 }
 
@@ -55,11 +55,11 @@ static int build_beam(beam *B) {
     for (int s = 0; s < 2; s++) {
       int node = nd[s];
       bool fr = node > 0;
-      dof[0][s] = fr ? 3 * (node - 1) + 0 : -1;                     // ux
-      dof[1][2 * s] = fr ? 3 * (node - 1) + 1 : -1;                 // uy
-      dof[1][2 * s + 1] = fr ? NT + 2 * (node - 1) + 1 : -1;        // th_z
-      dof[2][2 * s] = fr ? 3 * (node - 1) + 2 : -1;                 // uz
-      dof[2][2 * s + 1] = fr ? NT + 2 * (node - 1) + 0 : -1;        // -th_y
+      dof[0][s] = fr ? 3 * (node - 1) + 0 : -1;               // ux
+      dof[1][2 * s] = fr ? 3 * (node - 1) + 1 : -1;           // uy
+      dof[1][2 * s + 1] = fr ? NT + 2 * (node - 1) + 1 : -1;  // th_z
+      dof[2][2 * s] = fr ? 3 * (node - 1) + 2 : -1;           // uz
+      dof[2][2 * s + 1] = fr ? NT + 2 * (node - 1) + 0 : -1;  // -th_y
     }
     int ax[2] = {dof[0][0], dof[0][1]};
     double kax[4] = {ka, -ka, -ka, ka};
@@ -79,7 +79,7 @@ static int build_beam(beam *B) {
       for (int j = 0; j < NR; j++) Krr[i + NR * j] = K[(NT + i) + n * (NT + j)];
     for (int i = 0; i < NR; i++)
       for (int j = 0; j < NT; j++) X[i + NR * j] = K[(NT + i) + n * j];
-    rc = fmbd_dense_lu_solve(NR, Krr, NT, X, NR); // X = Krr^-1 Krt
+    rc = fmbd_dense_lu_solve(NR, Krr, NT, X, NR);  // X = Krr^-1 Krt
   }
   if (!rc) {
     for (int i = 0; i < NT; i++)
@@ -94,7 +94,8 @@ static int build_beam(beam *B) {
     }
     // eigenproblem Kc phi = w2 M phi
     double *Ms = fmbd_calloc(NT * NT, sizeof(double));
-    if (!Ms) rc = FMBD_ERR_NOMEM;
+    if (!Ms)
+      rc = FMBD_ERR_NOMEM;
     else {
       for (int i = 1; i <= NE; i++)
         for (int a = 0; a < 3; a++) Ms[(3 * (i - 1) + a) * (NT + 1)] = B->mass[i];
@@ -142,12 +143,20 @@ static void invariants(const beam *B, int nm, inv *v) {
 }
 
 // cantilever system: body frame at the clamp, fixed joint to ground, tip point
-static int build_sys(const beam *B, const inv *v, double zeta, const double *q0, double P, fmbd_mbs **out, int *tip) {
+static int build_sys(const beam *B, const inv *v, double zeta, const double *q0, double P,
+                     fmbd_mbs **out, int *tip) {
   fmbd_mbs *m = NULL;
   int rc = fmbd_mbs_create(&m);
   if (rc) return rc;
-  fmbd_mbs_flex_data d = {.nm = v->nm, .mass = v->mass, .S1 = v->S1, .XS = v->XS, .SS = v->SS,
-                          .Mff = v->Mff, .Kff = v->Kff, .damping_ratio = zeta, .q0 = q0};
+  fmbd_mbs_flex_data d = {.nm = v->nm,
+                          .mass = v->mass,
+                          .S1 = v->S1,
+                          .XS = v->XS,
+                          .SS = v->SS,
+                          .Mff = v->Mff,
+                          .Kff = v->Kff,
+                          .damping_ratio = zeta,
+                          .q0 = q0};
   memcpy(d.first_moment, v->c, sizeof v->c);
   memcpy(d.second_moment, v->J, sizeof v->J);
   fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
@@ -158,14 +167,16 @@ static int build_sys(const beam *B, const inv *v, double zeta, const double *q0,
     for (int a = 0; a < 3; a++) T[a + 3 * k] = B->Phi[NT * k + 3 * (NE - 1) + a];
   if ((rc = fmbd_mbs_add_flex(m, "beam", &d, &s0, &body)) ||
       (rc = fmbd_mbs_add_point(m, FMBD_MBS_GROUND, o, NULL, NULL, &pg)) ||
-      (rc = fmbd_mbs_add_point(m, body, o, NULL, NULL, &pb)) || (rc = fmbd_mbs_add_point(m, body, xt, T, NULL, &pt)))
+      (rc = fmbd_mbs_add_point(m, body, o, NULL, NULL, &pb)) ||
+      (rc = fmbd_mbs_add_point(m, body, xt, T, NULL, &pt)))
     goto fail;
   fmbd_mbs_joint_desc jd = {.name = "clamp", .kind = FMBD_MBS_FIXED, .point = {pg, pb}};
   if ((rc = fmbd_mbs_add_joint(m, &jd, NULL))) goto fail;
   if (P != 0) {
     double dir[3] = {0, -1, 0};
     fmbd_mbs_fn f = fmbd_mbs_fn_constant(P);
-    if ((rc = fmbd_mbs_add_load(m, "tip_load", FMBD_MBS_FORCE, pt, false, dir, &f, NULL))) goto fail;
+    if ((rc = fmbd_mbs_add_load(m, "tip_load", FMBD_MBS_FORCE, pt, false, dir, &f, NULL)))
+      goto fail;
   }
   *out = m, *tip = pt;
   return 0;
@@ -184,8 +195,9 @@ static int osc_cb(fmbd_mbs *m, bool out, void *u) {
   osc *o = u;
   double x[3], t = fmbd_mbs_time(m);
   fmbd_mbs_point_position(m, o->tip, x);
-  double y = x[1] * o->d[0] + x[2] * o->d[1]; // tip displacement along the mode
-  if (o->yp < 0 && y >= 0 && o->n < 16) o->tc[o->n++] = o->tp + (t - o->tp) * (-o->yp) / (y - o->yp);
+  double y = x[1] * o->d[0] + x[2] * o->d[1];  // tip displacement along the mode
+  if (o->yp < 0 && y >= 0 && o->n < 16)
+    o->tc[o->n++] = o->tp + (t - o->tp) * (-o->yp) / (y - o->yp);
   o->yp = y, o->tp = t;
   (void)out;
   return 0;
@@ -199,14 +211,15 @@ int main(void) {
   EXPECT(rc == 0, "beam: %s", fmbd_err_get()->msg);
   if (rc) TEST_EXIT();
   const double P = 10, EI = EE * HS * HS * HS * HS / 12;
-  const double d_exact = P * LEN * LEN * LEN / (3 * EI); // EB cubic elements: nodally exact
+  const double d_exact = P * LEN * LEN * LEN / (3 * EI);  // EB cubic elements: nodally exact
   // FE static solution (condensed) at the tip: Kc u = f
   double Kc[NT * NT], f[NT] = {0};
   memcpy(Kc, B.Kc, sizeof Kc);
   f[3 * (NE - 1) + 1] = -P;
   rc = fmbd_dense_lu_solve(NT, Kc, 1, f, NT);
   double d_fe = -f[3 * (NE - 1) + 1];
-  EXPECT(rc == 0 && fabs(d_fe / d_exact - 1) < 1e-10, "FE static tip %.9g, P L^3/3EI %.9g", d_fe, d_exact);
+  EXPECT(rc == 0 && fabs(d_fe / d_exact - 1) < 1e-10, "FE static tip %.9g, P L^3/3EI %.9g", d_fe,
+         d_exact);
   // --- static deflection by damped dynamics, with nm modes ---
   int nms[3] = {2, 8, NT};
   double dsim[3];
@@ -236,18 +249,22 @@ int main(void) {
     }
     // the simulated equilibrium is the modal static solution up to the decayed transient and
     // the Newton tolerance: 1e-7 relative
-    EXPECT(fabs(dsim[c] / dm - 1) < 1e-7, "nm = %d: simulated tip deflection %.9g, modal static %.9g", nm, dsim[c], dm);
+    EXPECT(fabs(dsim[c] / dm - 1) < 1e-7,
+           "nm = %d: simulated tip deflection %.9g, modal static %.9g", nm, dsim[c], dm);
     // clamp reaction, reported on side 1 (ground) = minus the force and moment on the beam:
     // the beam needs +P y and +P L z at the clamp to balance the tip load -P y at (L, 0, 0)
     double F[3], Tq[3];
     rc = fmbd_mbs_joint_reaction(m, 0, F, Tq);
     EXPECT(rc == 0 && fabs(F[1] + P) < 1e-6 * P && fabs(F[0]) + fabs(F[2]) < 1e-6 * P &&
                fabs(Tq[2] + P * LEN) < 1e-6 * P * LEN && fabs(Tq[0]) + fabs(Tq[1]) < 1e-6 * P * LEN,
-           "nm = %d: clamp reaction F = (%g %g %g), T = (%g %g %g)", nm, F[0], F[1], F[2], Tq[0], Tq[1], Tq[2]);
+           "nm = %d: clamp reaction F = (%g %g %g), T = (%g %g %g)", nm, F[0], F[1], F[2], Tq[0],
+           Tq[1], Tq[2]);
     fmbd_mbs_stats st;
     fmbd_mbs_get_stats(m, &st);
-    if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t502: nm %d tip %.9g m (FE %.9g) steps %lld rej %lld newton %lld\n", nm, dsim[c], d_fe,
-            (long long)st.steps, (long long)st.rejected, (long long)st.newton_iterations);
+    if (getenv("FMBD_TEST_VERBOSE"))
+      fprintf(stderr, "t502: nm %d tip %.9g m (FE %.9g) steps %lld rej %lld newton %lld\n", nm,
+              dsim[c], d_fe, (long long)st.steps, (long long)st.rejected,
+              (long long)st.newton_iterations);
     fmbd_mbs_destroy(&m);
   }
   // modal truncation: with all NT modes the FE static solution is reproduced (1e-7 as above);
@@ -255,7 +272,8 @@ int main(void) {
   // deflection: < 1e-3; with 2 modes (first pair) ~ 3 %; errors decrease with modes
   EXPECT(fabs(dsim[2] / d_fe - 1) < 1e-7, "all modes: %.9g vs FE %.9g", dsim[2], d_fe);
   EXPECT(fabs(dsim[1] / d_fe - 1) < 1e-3, "8 modes: %.9g vs FE %.9g", dsim[1], d_fe);
-  EXPECT(fabs(dsim[0] / d_fe - 1) > fabs(dsim[1] / d_fe - 1), "truncation error does not decrease with modes");
+  EXPECT(fabs(dsim[0] / d_fe - 1) > fabs(dsim[1] / d_fe - 1),
+         "truncation error does not decrease with modes");
   // --- free oscillation at the first modal frequency ---
   {
     int nm = 8;
@@ -282,8 +300,10 @@ int main(void) {
     EXPECT(rc == 0, "free oscillation run: %s", fmbd_err_get()->msg);
     // rho_inf = 1: relative period error ~ (w1 h)^2 / 12 = 2.3e-6; allow 1e-5
     double Tm = o.n >= 3 ? (o.tc[2] - o.tc[0]) / 2 : NAN;
-    EXPECT(fabs(Tm / T1 - 1) < 1e-5, "period %.9g s, first mode %.9g s (%d crossings)", Tm, T1, o.n);
-    if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t502: period %.9g vs %.9g (f1 = %.4f Hz)\n", Tm, T1, 1 / T1);
+    EXPECT(fabs(Tm / T1 - 1) < 1e-5, "period %.9g s, first mode %.9g s (%d crossings)", Tm, T1,
+           o.n);
+    if (getenv("FMBD_TEST_VERBOSE"))
+      fprintf(stderr, "t502: period %.9g vs %.9g (f1 = %.4f Hz)\n", Tm, T1, 1 / T1);
     fmbd_mbs_destroy(&m);
   }
   TEST_EXIT();

@@ -18,10 +18,10 @@
 #define NN (3 * NS)
 #define ND (3 * NN)
 #define NMODES 6
-static const double DX = 0.25, RR = 0.08, EA = 2e6, MN = 0.2; // m, m, N, kg per node
+static const double DX = 0.25, RR = 0.08, EA = 2e6, MN = 0.2;  // m, m, N, kg per node
 
 typedef struct truss {
-  double X[ND];       // node positions (body frame)
+  double X[ND];  // node positions (body frame)
   double w2[ND];
   double Phi[ND * ND];
 } truss;
@@ -46,7 +46,8 @@ static int build_truss(truss *T) {
       int n = 3 * s + j;
       // stations slightly twisted so that the body has no symmetry plane
       double ang = 2 * M_PI * j / 3 + 0.15 * s;
-      T->X[3 * n] = s * DX, T->X[3 * n + 1] = RR * cos(ang), T->X[3 * n + 2] = RR * sin(ang) * (1 + 0.1 * j);
+      T->X[3 * n] = s * DX, T->X[3 * n + 1] = RR * cos(ang),
+               T->X[3 * n + 2] = RR * sin(ang) * (1 + 0.1 * j);
     }
   double *K = fmbd_calloc(ND * ND, sizeof(double)), *M = fmbd_calloc(ND * ND, sizeof(double));
   if (!K || !M) {
@@ -70,7 +71,8 @@ static int build_truss(truss *T) {
 }
 
 typedef struct inv {
-  double S1[3 * NMODES], XS[9 * NMODES], SS[9 * NMODES * NMODES], Mff[NMODES * NMODES], Kff[NMODES * NMODES];
+  double S1[3 * NMODES], XS[9 * NMODES], SS[9 * NMODES * NMODES], Mff[NMODES * NMODES],
+      Kff[NMODES * NMODES];
   double J[9], c[3], mass;
 } inv;
 
@@ -107,7 +109,8 @@ typedef struct drift {
   double L0[3], H0[3], E0, dL, dH, dE;
 } drift;
 static double dist3(const double *a, const double *b) {
-  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
 }
 static int cb(fmbd_mbs *m, bool out, void *u) {
   drift *d = u;
@@ -121,13 +124,20 @@ static int cb(fmbd_mbs *m, bool out, void *u) {
   return 0;
 }
 
-static int run(const inv *v, double h, double rho, drift *d, double *Lmag, double *Hmag, double *E0, double *qmax) {
+static int run(const inv *v, double h, double rho, drift *d, double *Lmag, double *Hmag, double *E0,
+               double *qmax) {
   fmbd_mbs *m = NULL;
   int rc = fmbd_mbs_create(&m);
   if (rc) return rc;
-  double qd0[NMODES] = {0.02, -0.01, 0.015, 0.0, 0.01, -0.02}; // modal rates (m sqrt(kg) / s)
-  fmbd_mbs_flex_data fd = {.nm = NMODES, .mass = v->mass, .S1 = v->S1, .XS = v->XS, .SS = v->SS,
-                           .Mff = v->Mff, .Kff = v->Kff, .qd0 = qd0};
+  double qd0[NMODES] = {0.02, -0.01, 0.015, 0.0, 0.01, -0.02};  // modal rates (m sqrt(kg) / s)
+  fmbd_mbs_flex_data fd = {.nm = NMODES,
+                           .mass = v->mass,
+                           .S1 = v->S1,
+                           .XS = v->XS,
+                           .SS = v->SS,
+                           .Mff = v->Mff,
+                           .Kff = v->Kff,
+                           .qd0 = qd0};
   memcpy(fd.first_moment, v->c, sizeof v->c);
   memcpy(fd.second_moment, v->J, sizeof v->J);
   fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
@@ -176,21 +186,26 @@ int main(void) {
   for (int i = 0; i < 3; i++) {
     rc = run(&V, hs[i], 1.0, &d[i], &Lm, &Hm, &E0, &qmax);
     EXPECT(rc == 0, "run h = %g: %s", hs[i], fmbd_err_get()->msg);
-    if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t503: h %g dL/L %.3g dH/H %.3g dE/E %.3g qmax %.3g (w1 h = %.3f)\n", hs[i], d[i].dL / Lm,
-            d[i].dH / Hm, d[i].dE / E0, qmax, sqrt(T.w2[6]) * hs[i]);
+    if (getenv("FMBD_TEST_VERBOSE"))
+      fprintf(stderr, "t503: h %g dL/L %.3g dH/H %.3g dE/E %.3g qmax %.3g (w1 h = %.3f)\n", hs[i],
+              d[i].dL / Lm, d[i].dH / Hm, d[i].dE / E0, qmax, sqrt(T.w2[6]) * hs[i]);
   }
   // the body deforms: spin and the initial modal rates give modal amplitudes ~1e-4
-  EXPECT(qmax > 1e-5, "modal coordinates stay at %.3g: the test would not exercise the flexible terms", qmax);
+  EXPECT(qmax > 1e-5,
+         "modal coordinates stay at %.3g: the test would not exercise the flexible terms", qmax);
   // generalized alpha conserves momentum only to its accuracy: the discrete velocities are
   // second-order accurate, so the drift shrinks like h^2; measured orders in [1.8, 2.3]
   // (rho_inf = 1; the Newton tolerance bounds the acceleration error, fmbd_mbs.h NEWTON)
   for (int i = 0; i < 2; i++) {
     double oL = log2(d[i].dL / d[i + 1].dL), oH = log2(d[i].dH / d[i + 1].dH);
-    EXPECT(oL > 1.8 && oL < 2.3, "linear momentum drift order %.3f (h %g -> %g)", oL, hs[i], hs[i + 1]);
-    EXPECT(oH > 1.8 && oH < 2.3, "angular momentum drift order %.3f (h %g -> %g)", oH, hs[i], hs[i + 1]);
+    EXPECT(oL > 1.8 && oL < 2.3, "linear momentum drift order %.3f (h %g -> %g)", oL, hs[i],
+           hs[i + 1]);
+    EXPECT(oH > 1.8 && oH < 2.3, "angular momentum drift order %.3f (h %g -> %g)", oH, hs[i],
+           hs[i + 1]);
   }
   // and at h = 1e-3 (w1 h ~ 0.3 for the first flexible mode, spin 4.6 rad/s): relative
   // drift below 1e-4 (measured ~1e-5 and smaller)
-  EXPECT(d[2].dL / Lm < 1e-4 && d[2].dH / Hm < 1e-4, "momentum drift %.3g %.3g", d[2].dL / Lm, d[2].dH / Hm);
+  EXPECT(d[2].dL / Lm < 1e-4 && d[2].dH / Hm < 1e-4, "momentum drift %.3g %.3g", d[2].dL / Lm,
+         d[2].dH / Hm);
   TEST_EXIT();
 }

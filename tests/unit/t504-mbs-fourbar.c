@@ -23,7 +23,7 @@ static void frame_along(const double *a, const double *b, fmbd_mbs_state0 *s, do
 }
 
 int main(void) {
-  fmbd_log_init("t504", FMBD_LOG_ERROR); // the WARN naming the redundant equations is expected
+  fmbd_log_init("t504", FMBD_LOG_ERROR);  // the WARN naming the redundant equations is expected
   // ground pivots A, D; crank AB; coupler BC; rocker DC (lengths 0.15, 0.35, 0.3)
   const double A[3] = {0, 0, 0}, D[3] = {0.4, 0, 0}, lab = 0.15, lbc = 0.35, ldc = 0.3;
   double B[3] = {lab * cos(M_PI / 3), lab * sin(M_PI / 3), 0};
@@ -46,14 +46,18 @@ int main(void) {
   }
   // joints (side 1, side 2): A ground-crank, B crank-coupler, C coupler-rocker, D rocker-ground
   const double *at[4] = {A, B, C, D};
-  int side[4][2] = {{FMBD_MBS_GROUND, body[0]}, {body[0], body[1]}, {body[1], body[2]}, {body[2], FMBD_MBS_GROUND}};
+  int side[4][2] = {{FMBD_MBS_GROUND, body[0]},
+                    {body[0], body[1]},
+                    {body[1], body[2]},
+                    {body[2], FMBD_MBS_GROUND}};
   const char *jn[4] = {"A", "B", "C", "D"};
   int jid[4];
   for (int j = 0; j < 4 && !rc; j++) {
     int p1, p2;
     rc = fmbd_mbs_add_point_world(m, side[j][0], at[j], &p1);
     if (!rc) rc = fmbd_mbs_add_point_world(m, side[j][1], at[j], &p2);
-    fmbd_mbs_joint_desc jd = {.name = jn[j], .kind = FMBD_MBS_REVOLUTE, .point = {p1, p2}, .axis = {0, 0, 1}};
+    fmbd_mbs_joint_desc jd = {
+        .name = jn[j], .kind = FMBD_MBS_REVOLUTE, .point = {p1, p2}, .axis = {0, 0, 1}};
     if (!rc) rc = fmbd_mbs_add_joint(m, &jd, &jid[j]);
   }
   EXPECT(rc == 0, "build: %s", fmbd_err_get()->msg);
@@ -73,8 +77,10 @@ int main(void) {
     const char *text;
     fmbd_mbs_redundant(m, k, &j, &eq, &text);
     // the loop is closed by joint D (added last): its z translation and two tilt equations
-    EXPECT(j == jid[3] && eq >= 3 && eq <= 5, "redundant %d: joint %d equation %d (%s)", k, j, eq, text);
-    EXPECT(text && strstr(text, "joint 'D'"), "redundant equation not named: %s", text ? text : "(null)");
+    EXPECT(j == jid[3] && eq >= 3 && eq <= 5, "redundant %d: joint %d equation %d (%s)", k, j, eq,
+           text);
+    EXPECT(text && strstr(text, "joint 'D'"), "redundant equation not named: %s",
+           text ? text : "(null)");
   }
   double th0 = 0, th1 = 0, pos = 1, vel = 1;
   if (!rc) {

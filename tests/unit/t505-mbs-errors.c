@@ -76,7 +76,8 @@ static void bad_assembly(void) {
   const char *msg = fmbd_err_get()->msg;
   EXPECT(rc == FMBD_ERR_CONVERGE, "expected FMBD_ERR_CONVERGE, got %d (%s)", rc, msg);
   if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t505: %s\n", msg);
-  EXPECT(strstr(msg, "initial positions") && (strstr(msg, "joint 'left'") || strstr(msg, "joint 'right'")),
+  EXPECT(strstr(msg, "initial positions") &&
+             (strstr(msg, "joint 'left'") || strstr(msg, "joint 'right'")),
          "message: %s", msg);
   fmbd_mbs_destroy(&m);
 }
@@ -87,36 +88,47 @@ static void bad_inputs(void) {
   fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
   int b, p1, p2, pg;
   double o[3] = {0, 0, 0}, I2[9] = {1, 0, 0, 0, -1, 0, 0, 0, 1};
-  EXPECT(fmbd_mbs_add_rigid(m, "neg", -1, COM, INERTIA, &s0, NULL) == FMBD_ERR_VALUE, "negative mass accepted");
-  EXPECT(fmbd_mbs_add_rigid(m, "badI", 1, COM, I2, &s0, NULL) == FMBD_ERR_VALUE, "indefinite inertia accepted");
+  EXPECT(fmbd_mbs_add_rigid(m, "neg", -1, COM, INERTIA, &s0, NULL) == FMBD_ERR_VALUE,
+         "negative mass accepted");
+  EXPECT(fmbd_mbs_add_rigid(m, "badI", 1, COM, I2, &s0, NULL) == FMBD_ERR_VALUE,
+         "indefinite inertia accepted");
   fmbd_mbs_state0 sb = s0;
   sb.rotation[0] = 2;
-  EXPECT(fmbd_mbs_add_rigid(m, "badR", 1, COM, INERTIA, &sb, NULL) == FMBD_ERR_VALUE, "non-orthonormal rotation accepted");
+  EXPECT(fmbd_mbs_add_rigid(m, "badR", 1, COM, INERTIA, &sb, NULL) == FMBD_ERR_VALUE,
+         "non-orthonormal rotation accepted");
   EXPECT(fmbd_mbs_add_rigid(m, "rod", 1, COM, INERTIA, &s0, &b) == 0, "good body refused");
-  EXPECT(fmbd_mbs_add_rigid(m, "rod", 1, COM, INERTIA, &s0, NULL) == FMBD_ERR_VALUE, "duplicate name accepted");
+  EXPECT(fmbd_mbs_add_rigid(m, "rod", 1, COM, INERTIA, &s0, NULL) == FMBD_ERR_VALUE,
+         "duplicate name accepted");
   fmbd_mbs_add_point(m, b, o, NULL, NULL, &p1);
   fmbd_mbs_add_point(m, b, COM, NULL, NULL, &p2);
   fmbd_mbs_add_point(m, FMBD_MBS_GROUND, o, NULL, NULL, &pg);
-  EXPECT(fmbd_mbs_add_point(m, 7, o, NULL, NULL, NULL) == FMBD_ERR_VALUE, "point on unknown body accepted");
+  EXPECT(fmbd_mbs_add_point(m, 7, o, NULL, NULL, NULL) == FMBD_ERR_VALUE,
+         "point on unknown body accepted");
   fmbd_mbs_joint_desc same = {.name = "same", .kind = FMBD_MBS_SPHERICAL, .point = {p1, p2}};
   EXPECT(fmbd_mbs_add_joint(m, &same, NULL) == FMBD_ERR_VALUE, "joint within one body accepted");
   fmbd_mbs_joint_desc noaxis = {.name = "noaxis", .kind = FMBD_MBS_REVOLUTE, .point = {pg, p1}};
   EXPECT(fmbd_mbs_add_joint(m, &noaxis, NULL) == FMBD_ERR_VALUE, "revolute without axis accepted");
-  fmbd_mbs_joint_desc uni = {.name = "uni", .kind = FMBD_MBS_UNIVERSAL, .point = {pg, p1}, .axis = {0, 0, 1},
+  fmbd_mbs_joint_desc uni = {.name = "uni",
+                             .kind = FMBD_MBS_UNIVERSAL,
+                             .point = {pg, p1},
+                             .axis = {0, 0, 1},
                              .axis2 = {0, 1, 1}};
   EXPECT(fmbd_mbs_add_joint(m, &uni, NULL) == FMBD_ERR_VALUE, "non-orthogonal universal accepted");
   fmbd_mbs_joint_desc sph = {.name = "sph", .kind = FMBD_MBS_SPHERICAL, .point = {pg, p1}};
   int js;
   EXPECT(fmbd_mbs_add_joint(m, &sph, &js) == 0, "good joint refused: %s", fmbd_err_get()->msg);
   fmbd_mbs_fn f = fmbd_mbs_fn_constant(0);
-  EXPECT(fmbd_mbs_add_driver_joint(m, "drv", js, &f, NULL) == FMBD_ERR_VALUE, "driver on a spherical joint accepted");
-  EXPECT(fmbd_mbs_add_driver_body(m, "drv", b, 5, &f, NULL) == FMBD_ERR_VALUE, "modal driver on a rigid body accepted");
+  EXPECT(fmbd_mbs_add_driver_joint(m, "drv", js, &f, NULL) == FMBD_ERR_VALUE,
+         "driver on a spherical joint accepted");
+  EXPECT(fmbd_mbs_add_driver_body(m, "drv", b, 5, &f, NULL) == FMBD_ERR_VALUE,
+         "modal driver on a rigid body accepted");
   double t[2] = {1, 0.5}, v[2] = {0, 1};
   fmbd_mbs_fn tab = fmbd_mbs_fn_table(2, t, v);
   double dir[3] = {1, 0, 0};
   EXPECT(fmbd_mbs_add_load(m, "ld", FMBD_MBS_FORCE, p1, false, dir, &tab, NULL) == FMBD_ERR_VALUE,
          "decreasing table accepted");
-  EXPECT(fmbd_mbs_add_load(m, "ld", FMBD_MBS_FORCE, pg, false, dir, &f, NULL) == FMBD_ERR_VALUE, "load on ground accepted");
+  EXPECT(fmbd_mbs_add_load(m, "ld", FMBD_MBS_FORCE, pg, false, dir, &f, NULL) == FMBD_ERR_VALUE,
+         "load on ground accepted");
   fmbd_mbs_settings s;
   fmbd_mbs_settings_defaults(&s);
   s.rho_inf = 1.5;
@@ -125,9 +137,16 @@ static void bad_inputs(void) {
   // a flexible body whose modal mass matrix is not positive definite
   fmbd_mbs_create(&m);
   double S1[3] = {0}, XS[9] = {0}, SS[9] = {0}, Mff[1] = {-1}, Kff[1] = {1};
-  fmbd_mbs_flex_data d = {.nm = 1, .mass = 1, .second_moment = {1, 0, 0, 0, 1, 0, 0, 0, 1}, .S1 = S1, .XS = XS,
-                          .SS = SS, .Mff = Mff, .Kff = Kff};
-  EXPECT(fmbd_mbs_add_flex(m, "flex", &d, &s0, NULL) == FMBD_ERR_SINGULAR, "indefinite Mff accepted");
+  fmbd_mbs_flex_data d = {.nm = 1,
+                          .mass = 1,
+                          .second_moment = {1, 0, 0, 0, 1, 0, 0, 0, 1},
+                          .S1 = S1,
+                          .XS = XS,
+                          .SS = SS,
+                          .Mff = Mff,
+                          .Kff = Kff};
+  EXPECT(fmbd_mbs_add_flex(m, "flex", &d, &s0, NULL) == FMBD_ERR_SINGULAR,
+         "indefinite Mff accepted");
   fmbd_mbs_destroy(&m);
   // all mass on the x axis and no joint: no inertia about x, singular iteration matrix; the
   // message names the body
@@ -141,8 +160,8 @@ static void bad_inputs(void) {
   fmbd_mbs_settings s2;
   fmbd_mbs_settings_defaults(&s2);
   if (!rc) rc = fmbd_mbs_init(m, &s2);
-  EXPECT(rc == FMBD_ERR_SINGULAR && strstr(fmbd_err_get()->msg, "body 'line'"), "mass on a line: %d %s", rc,
-         fmbd_err_get()->msg);
+  EXPECT(rc == FMBD_ERR_SINGULAR && strstr(fmbd_err_get()->msg, "body 'line'"),
+         "mass on a line: %d %s", rc, fmbd_err_get()->msg);
   if (getenv("FMBD_TEST_VERBOSE")) fprintf(stderr, "t505: %s\n", fmbd_err_get()->msg);
   fmbd_mbs_destroy(&m);
 }
@@ -152,12 +171,14 @@ static void functions(void) {
   fmbd_mbs_fn r = fmbd_mbs_fn_ramp(1, 2, 3, 6, true);
   double d1, d2;
   double v = fmbd_mbs_fn_eval(&r, 2, &d1, &d2);
-  EXPECT(fabs(v - 4) < 1e-15 && fabs(d1 - 3) < 1e-15 && fabs(d2) < 1e-15, "smooth ramp mid: %g %g %g", v, d1, d2);
+  EXPECT(fabs(v - 4) < 1e-15 && fabs(d1 - 3) < 1e-15 && fabs(d2) < 1e-15,
+         "smooth ramp mid: %g %g %g", v, d1, d2);
   v = fmbd_mbs_fn_eval(&r, 0, &d1, &d2);
   EXPECT(v == 2 && d1 == 0, "ramp before: %g %g", v, d1);
   fmbd_mbs_fn sn = fmbd_mbs_fn_sine(1, 2, 0.5, 0);
-  v = fmbd_mbs_fn_eval(&sn, 0.5, &d1, &d2); // sin(pi/2) = 1
-  EXPECT(fabs(v - 3) < 1e-14 && fabs(d1) < 1e-14 && fabs(d2 + 2 * M_PI * M_PI) < 1e-12, "sine: %g %g %g", v, d1, d2);
+  v = fmbd_mbs_fn_eval(&sn, 0.5, &d1, &d2);  // sin(pi/2) = 1
+  EXPECT(fabs(v - 3) < 1e-14 && fabs(d1) < 1e-14 && fabs(d2 + 2 * M_PI * M_PI) < 1e-12,
+         "sine: %g %g %g", v, d1, d2);
   double t[3] = {0, 1, 3}, vv[3] = {0, 2, 0};
   fmbd_mbs_fn tb = fmbd_mbs_fn_table(3, t, vv);
   v = fmbd_mbs_fn_eval(&tb, 2, &d1, NULL);
@@ -186,8 +207,8 @@ static int build_small(void) {
       !(rc = fmbd_mbs_add_point(m, FMBD_MBS_GROUND, o, NULL, NULL, &pg))) {
     jd.point[0] = pg, jd.point[1] = p1;
     int j;
-    if (!(rc = fmbd_mbs_add_joint(m, &jd, &j)) && !(rc = fmbd_mbs_add_driver_joint(m, "drive", j, &f, NULL)) &&
-        !(rc = fmbd_mbs_init(m, &s)))
+    if (!(rc = fmbd_mbs_add_joint(m, &jd, &j)) &&
+        !(rc = fmbd_mbs_add_driver_joint(m, "drive", j, &f, NULL)) && !(rc = fmbd_mbs_init(m, &s)))
       rc = fmbd_mbs_run(m, NULL, NULL);
   }
   fmbd_mbs_destroy(&m);
@@ -202,8 +223,8 @@ static void alloc_failures(void) {
     fmbd_alloc_fail_after(k);
     rc = build_small();
     fmbd_alloc_fail_after(-1);
-    EXPECT(rc == 0 || rc == FMBD_ERR_NOMEM, "allocation %lld failing gave %d (%s)", (long long)k, rc,
-           fmbd_err_get()->msg);
+    EXPECT(rc == 0 || rc == FMBD_ERR_NOMEM, "allocation %lld failing gave %d (%s)", (long long)k,
+           rc, fmbd_err_get()->msg);
   }
 }
 

@@ -8,7 +8,6 @@
 // The module's internals are static; this test compiles common/fmbd_mbs.c into itself (the
 // library's copy is then not linked) to reach body_eval and eval_constraints.
 #include "../../common/fmbd_mbs.c"
-
 #include "check.h"
 
 static double urand(unsigned *s) {
@@ -17,7 +16,8 @@ static double urand(unsigned *s) {
 }
 
 // a flexible body with invariants of nm random modes over a cloud of point masses
-static int add_random_flex(fmbd_mbs *m, const char *name, int nm, unsigned seed, const double *pos, int *id) {
+static int add_random_flex(fmbd_mbs *m, const char *name, int nm, unsigned seed, const double *pos,
+                           int *id) {
   enum { NP = 12 };
   double X[3 * NP], Ph[3 * NP * 8], mass = 0, c[3] = {0}, J[9] = {0};
   double S1[3 * 8] = {0}, XS[9 * 8] = {0}, SS[9 * 8 * 8] = {0}, Mff[64] = {0}, Kff[64] = {0};
@@ -46,7 +46,13 @@ static int add_random_flex(fmbd_mbs *m, const char *name, int nm, unsigned seed,
     }
   }
   for (int k = 0; k < nm; k++) Kff[k + nm * k] = 100 * (k + 1);
-  fmbd_mbs_flex_data d = {.nm = nm, .mass = mass, .S1 = S1, .XS = XS, .SS = SS, .Mff = Mff, .Kff = Kff,
+  fmbd_mbs_flex_data d = {.nm = nm,
+                          .mass = mass,
+                          .S1 = S1,
+                          .XS = XS,
+                          .SS = SS,
+                          .Mff = Mff,
+                          .Kff = Kff,
                           .damping_ratio = 0.02};
   memcpy(d.first_moment, c, sizeof c);
   memcpy(d.second_moment, J, sizeof J);
@@ -81,12 +87,15 @@ int main(void) {
   rc = rc ? rc : fmbd_mbs_add_point(m, b0, xa, T, R, &pa);
   for (int i = 0; i < 3 * nm; i++) T[i] = urand(&seed), R[i] = urand(&seed);
   rc = rc ? rc : fmbd_mbs_add_point(m, b1, xb, T, R, &pb);
-  int kinds[6] = {FMBD_MBS_SPHERICAL, FMBD_MBS_REVOLUTE, FMBD_MBS_UNIVERSAL, FMBD_MBS_PRISMATIC, FMBD_MBS_CYLINDRICAL,
-                  FMBD_MBS_FIXED};
+  int kinds[6] = {FMBD_MBS_SPHERICAL, FMBD_MBS_REVOLUTE,    FMBD_MBS_UNIVERSAL,
+                  FMBD_MBS_PRISMATIC, FMBD_MBS_CYLINDRICAL, FMBD_MBS_FIXED};
   const char *names[6] = {"sph", "rev", "uni", "pri", "cyl", "fix"};
   int jid[6];
   for (int k = 0; k < 6 && !rc; k++) {
-    fmbd_mbs_joint_desc jd = {.name = names[k], .kind = kinds[k], .point = {pa, pb}, .axis = {0.2, 0.3, 0.93},
+    fmbd_mbs_joint_desc jd = {.name = names[k],
+                              .kind = kinds[k],
+                              .point = {pa, pb},
+                              .axis = {0.2, 0.3, 0.93},
                               .ref = {1, 0, 0}};
     // universal: cross axes orthogonal
     jd.axis2[0] = jd.axis[1], jd.axis2[1] = -jd.axis[0], jd.axis2[2] = 0;
@@ -102,9 +111,11 @@ int main(void) {
   // which over-constrain these two bodies) ---
   int64_t n = 0;
   m->maxn = 7;
-  for (int ib = 0; ib < m->nb; ib++) m->b[ib].off = n, n += m->b[ib].n, m->maxn = m->b[ib].n > m->maxn ? m->b[ib].n : m->maxn;
+  for (int ib = 0; ib < m->nb; ib++)
+    m->b[ib].off = n, n += m->b[ib].n, m->maxn = m->b[ib].n > m->maxn ? m->b[ib].n : m->maxn;
   m->n = n;
-  double *x = fmbd_calloc((size_t)n, 8), *xd = fmbd_calloc((size_t)n, 8), *xdd = fmbd_calloc((size_t)n, 8);
+  double *x = fmbd_calloc((size_t)n, 8), *xd = fmbd_calloc((size_t)n, 8),
+         *xdd = fmbd_calloc((size_t)n, 8);
   double *r0 = fmbd_calloc((size_t)n, 8), *r1 = fmbd_calloc((size_t)n, 8);
   size_t mx = (size_t)m->maxn, n6 = mx - 1;
   m->wk = fmbd_calloc(30 * mx, 8);
@@ -139,7 +150,8 @@ int main(void) {
       double err = 0;
       for (int i = 0; i < nb * nb; i++) err = fmax(err, fabs(B[i] - Bfd[i]));
       // central differences of a quadratic (exact up to round-off ~1e-10 relative)
-      EXPECT(err < 1e-6 * fmax(1, maxabs(Bfd, nb * nb)), "body %d %s: max |analytic - FD| %.3g (scale %.3g)", ib,
+      EXPECT(err < 1e-6 * fmax(1, maxabs(Bfd, nb * nb)),
+             "body %d %s: max |analytic - FD| %.3g (scale %.3g)", ib,
              which == 0 ? "mass matrix" : "velocity tangent", err, maxabs(Bfd, nb * nb));
     }
   }
@@ -151,7 +163,8 @@ int main(void) {
   m->eq = fmbd_calloc((size_t)neq, sizeof(meq));
   int64_t e = 0;
   for (int ij = 0; ij < m->nj; ij++)
-    for (int k = 0; k < m->j[ij].neq; k++, e++) m->eq[e].kind = EQ_JOINT, m->eq[e].owner = ij, m->eq[e].sub = k;
+    for (int k = 0; k < m->j[ij].neq; k++, e++)
+      m->eq[e].kind = EQ_JOINT, m->eq[e].owner = ij, m->eq[e].sub = k;
   for (int id = 0; id < m->nd; id++, e++) m->eq[e].kind = EQ_DRIVER, m->eq[e].owner = id;
   for (int ib = 0; ib < m->nb; ib++, e++) m->eq[e].kind = EQ_NORM, m->eq[e].owner = ib;
   for (e = 0; e < neq; e++) {
@@ -197,7 +210,8 @@ int main(void) {
     // the Jacobians use A(p/|p|) at |p| = 1 exactly; FD error O(h^2) ~ 1e-12 relative
     EXPECT(err < 1e-7 * fmax(1, sc), "%s: max |analytic - FD| %.3g (scale %.3g)", buf, err, sc);
   }
-  fmbd_free(x), fmbd_free(xd), fmbd_free(xdd), fmbd_free(r0), fmbd_free(r1), fmbd_free(B), fmbd_free(Bfd);
+  fmbd_free(x), fmbd_free(xd), fmbd_free(xdd), fmbd_free(r0), fmbd_free(r1), fmbd_free(B),
+      fmbd_free(Bfd);
   fmbd_free(phi0), fmbd_free(jfd);
   fmbd_mbs_destroy(&m);
   TEST_EXIT();
