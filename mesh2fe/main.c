@@ -497,10 +497,21 @@ int main(int argc, char **argv) {
   // --- write ---
   t0 = fmbd_wall_s();
   c0 = fmbd_cpu_s();
-  FMBD_GCALL(fmbd_h5_create(outname, "fmbd-fe", "1.0", &out));
-  FMBD_GCALL(fmbd_h5_add_input(out, a.input, NULL));
-  FMBD_GCALL(fmbd_fe_write(out, body));
-  FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
+  fmbd_progress("writing %s", strcmp(outname, "-") ? outname : "(stdout)");
+  rc = fmbd_h5_create(outname, "fmbd-fe", "1.0", &out);
+  if (!rc) {
+    rc = fmbd_h5_add_input(out, a.input, NULL);
+  }
+  if (!rc) {
+    rc = fmbd_fe_write(out, body);
+  }
+  if (!rc) {
+    rc = fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s());
+  }
+  fmbd_progress(NULL);
+  if (rc) {
+    goto done;
+  }
   fmbd_log(FMBD_LOG_INFO, "writing %.3f s wall, %.3f s cpu", fmbd_wall_s() - t0,
            fmbd_cpu_s() - c0);
   {
