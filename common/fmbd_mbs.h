@@ -133,6 +133,12 @@
 //   FIXED       r1 = r2, z1.x2 = 0, z1.y2 = 0, x1.y2 = 0    6
 // Equation names in messages: "joint 'J' equation k (meaning)", k from 1.
 //
+// LIMITS. Linear floating-frame model: no geometric (centrifugal) stiffening of the modes, so
+// fast-spinning slender bodies are too soft; the rotation of a flexible attachment point is
+// the linearised modal rotation. Index 3: velocity constraints hold only to O(h^2).
+// Redundancy is decided once, at the initial configuration, with dense factorisations of
+// the n x m Jacobian (O(n m^2): fine for a few hundred bodies). KLU allocates outside
+// fmbd_malloc (the allocation countdown of the tests does not reach it).
 // Not in this module: file I/O, stress recovery (from fmbd_mbs_modal and the body's modal
 // stress), outputs at points other than those added here.
 #ifndef FMBD_MBS_H
