@@ -24,7 +24,7 @@
 #   dofs     nnz(K)  CSR MB | gmsh mesh | .msh read | assembly cpu (wall) | max RSS     | scipy cpu, RSS
 #   105684   8.27 M   254   |   2.6 s   |  0.2 s    |  1.0 s (1.6 s)      | 348 MB 1.37x | 6.0 s, 1.2 GB
 #   946464  78.2 M   2402   |  26.6 s   |  3.5 s    | 12.1 s (25.9 s)     | 2.78 GB 1.15x | 53.4 s, 5.6 GB
-# mesh2fe assembles in 0.17-0.23 of scipy's CPU time with half (100 k) to a fifth (1 M) of its
+# mesh2fe assembles in 0.17-0.23 of scipy's CPU time with a third (100 k) to a half (1 M) of its
 # memory; K and M agree with scipy's to 5e-11 of max|K|. The 1 M-dof assembly is 12 s of CPU
 # against the 10 s aim; the memory aim (< 2.5x CSR) is met.
 set -u
