@@ -107,6 +107,20 @@ h5ls good.fe.h5/mesh/groups | grep -q edge || bad "good.msh: group edge missing"
 # --order 2 on a tet4 .msh: mid-edge nodes added (5 nodes + 9 edges)
 "$EXE" good.msh --order 2 -o good2.fe.h5 -q || bad "good.msh --order 2: exit $?"
 h5ls good2.fe.h5/mesh/nodes | grep -q '{14, 3}' || bad "good.msh --order 2: $(h5ls good2.fe.h5/mesh/nodes)"
+# the group "edge" (nodes 1-2) gains the mid-edge node of its edge
+h5ls good2.fe.h5/mesh/groups/edge | grep -q '{3}' || bad "good.msh --order 2: group edge: $(h5ls good2.fe.h5/mesh/groups/edge)"
+# --order 1 on a tet10 .msh keeps the corners only (the end groups lose their mid-edge nodes)
+printf 'Merge "%s";\nMesh.MeshSizeMax = 0.01;\n' "$GEO/rod.geo" >rod10.geo
+if gmsh -3 -order 2 rod10.geo -o rod10.msh >gmsh.log 2>&1; then
+  "$EXE" rod10.msh -o r10.fe.h5 -v 2>err10.txt || bad "rod10.msh: exit $?"
+  "$EXE" rod10.msh --order 1 -o r4.fe.h5 -v 2>err4.txt || bad "rod10.msh --order 1: exit $?"
+  n10=$(sed -n 's/.*msh: \([0-9]*\) nodes, \([0-9]*\) tet10.*/\2/p' err10.txt)
+  n4=$(sed -n 's/.*msh: \([0-9]*\) nodes, \([0-9]*\) tet4.*/\2/p' err4.txt)
+  [ -n "$n10" ] && [ "$n10" = "$n4" ] || bad "rod10.msh: tet10 count '$n10' vs tet4 count '$n4'"
+  h5ls r4.fe.h5/mesh/elements | grep -q 'tet4 ' || bad "rod10.msh --order 1: no tet4"
+else
+  bad "gmsh -3 -order 2 failed: $(tail -3 gmsh.log)"
+fi
 # standard output when -o is absent and stdout is not a terminal; the summary names (stdout)
 "$EXE" "$GEO/rodbeam.geo" --circle 0.015 --clamp end0 >beam.h5 2>err.txt || bad "rodbeam.geo > file: exit $? ($(cat err.txt))"
 grep -q '^mesh2fe: (stdout): 21 nodes, 20 beam2, 0 interfaces, 120 dofs' err.txt || bad "rodbeam summary: $(cat err.txt)"
