@@ -334,9 +334,7 @@ static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts 
     int64_t nev = o->nmodes + extra;
     if (lmax <= 0.0 && nev > n) nev = n;
     fmbd_eig_result_free(&er);
-    double t0 = fmbd_wall_s();
     FMBD_GCALL(modes(K, M, NULL, o, nev, lmax, true, &er));
-    (void)t0;
     int64_t nrig = 0;
     double mk = er.nev > 0 ? fabs(er.lambda[0]) : 0.0;
     for (int64_t k = 1; k < er.nev; k++) {
@@ -410,7 +408,6 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   fmbd_csr *Ks = NULL, *Kc = NULL, *Kb = NULL, *Ms = NULL, *Mc = NULL, *Mb = NULL;
   fmbd_chol *F = NULL;
   fmbd_eig_result er = {0};
-  double *tmp = NULL;
   char *mark = NULL;
   int64_t *perm = NULL;
   *out = NULL;
@@ -544,7 +541,6 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     int64_t nr0 = nb;
     FMBD_GALLOC(cb->Kr = alloc_f64(nr0 * nr0));
     FMBD_GALLOC(cb->Mr = alloc_f64(nr0 * nr0));
-    FMBD_GALLOC(tmp = alloc_f64(nb * nb));
     memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
     memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
     for (int64_t i = 0; i < nb; i++) {
@@ -659,7 +655,6 @@ done:
   fmbd_csr_destroy(&Mb);
   fmbd_chol_destroy(&F);
   fmbd_eig_result_free(&er);
-  fmbd_free(tmp);
   fmbd_free(mark);
   fmbd_free(perm);
   return rc;

@@ -395,7 +395,6 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   int64_t nreq = bound ? o.nev : o.nev + (o.nev / 10 > 3 ? o.nev / 10 : 3);
   int64_t ncv_extra = 0;
   int failed = 0;
-  int64_t last_conv = 0;
   double tol = o.tol;
   for (;;) {
     if (nreq > n - 2) nreq = n - 2;
@@ -410,7 +409,6 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     res->n_restarts += r.restarts;
     FMBD_GCALL(sort_normalise(M, &r));
     res->t_lanczos_s += fmbd_wall_s() - t1;
-    last_conv = r.nconv;
     // fewer converged than needed: more vectors
     int64_t need = bound ? 1 : want;
     if (r.nconv < need) {
@@ -539,13 +537,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     r.lam = r.X = NULL;
     break;
   }
-  (void)last_conv;
 done:
-  if (own) {
-    fmbd_chol_stats st;
-    fmbd_chol_get_stats(own, &st);
-    (void)st;
-  }
   fmbd_chol_destroy(&own);
   fmbd_chol_destroy(&ldl);
   run_out_free(&r);
