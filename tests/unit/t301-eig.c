@@ -95,7 +95,7 @@ static double morth_err(const fmbd_csr *M, int64_t n, int64_t k, const double *X
 int main(void) {
   // --- held bar, by count, sparse path ------------------------------------------------------
   {
-    const int N = 3001;
+    const int N = 1001;
     const int64_t n = N - 1;
     const double h = 1.0 / N;
     fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h), *M = tridiag(n, 4 * h / 6, h / 6, 4 * h / 6);
@@ -161,7 +161,7 @@ int main(void) {
 
   // --- free bar: rigid mode at 0, negative shift strategy ------------------------------------
   {
-    const int N = 2000;
+    const int N = 800;
     const int64_t n = N + 1;
     const double h = 1.0 / N;
     fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 1.0 / h), *M = tridiag(n, 4 * h / 6, h / 6, 2 * h / 6);
@@ -191,12 +191,12 @@ int main(void) {
 
   // --- square membrane: repeated pairs must all come out --------------------------------------
   {
-    const int N = 41;
+    const int N = 26;
     const int64_t m = N - 1;
     const double h = 1.0 / N;
     fmbd_csr *K1 = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h), *M1 = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
     fmbd_csr *K = kron_sum(K1, M1, 1.0), *M = kron_sum(M1, M1, 0.0);
-    int64_t n = m * m;  // 1600 > dense_max: Lanczos
+    int64_t n = m * m;  // 625 > dense_max: Lanczos
     double *ex = malloc((size_t)(m * m) * sizeof(double));
     for (int i = 0; i < m; i++)
       for (int j = 0; j < m; j++) ex[i * m + j] = lam1d(i + 1, h) + lam1d(j + 1, h);
