@@ -3,7 +3,8 @@
 #   unit tests   build/tests/tNNN-*          (C, silent when right, nonzero exit on failure)
 #   cli tests    tests/cli/*.sh              (programs on tiny inputs, expected errors)
 #   py tests     tests/py/test_*.py          (against scipy / closed form / CalculiX)
-# Environment: BUILD (build dir), PYTHON (/usr/bin/python3), TESTS (glob filter, optional).
+# Environment: BUILD (build dir), PYTHON (/usr/bin/python3), TESTS (glob filter, optional),
+# VALGRIND=1 (unit tests under valgrind memcheck).
 set -u
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -30,9 +31,15 @@ run() {  # name, command...
     tail -n 20 "$LOG/$name.log" | sed 's/^/      | /'
   fi
 }
+# VALGRIND=1 (make check VALGRIND=1): the unit tests run under memcheck; any error or
+# definite leak fails them (OpenMP/OpenBLAS thread stacks show as "possibly lost": not errors)
+VG=()
+if [ "${VALGRIND:-0}" = 1 ]; then
+  VG=(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite)
+fi
 for t in "$BUILD"/tests/t*; do
   [ -f "$t" ] && [ -x "$t" ] || continue  # not tests/tools/ (tool objects)
-  run "unit/$(basename "$t")" "$t"
+  run "unit/$(basename "$t")" "${VG[@]}" "$t"
 done
 for t in tests/cli/*.sh; do
   [ -f "$t" ] || continue
