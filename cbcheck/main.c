@@ -589,7 +589,6 @@ static int plot_estimates(const char *prefix, const table *t, bool exact, int64_
   p.ylabel = "relative eigenvalue error";
   p.ylog = true;
   p.ymax = 1;  // errors above 100 % say nothing: clipped
-  p.legend = 4;
   fmbd_svg_series s[5] = {
       {"upper (kappa_n)", t->nflex, x, t->upper, "#d62728", FMBD_SVG_TRIANGLE, FMBD_SVG_DASHED},
       {"upper (kappa_Nd+1)", t->nflex, x, t->unext, "#ff7f0e", FMBD_SVG_DIAMOND, FMBD_SVG_DOTTED},

@@ -18,7 +18,7 @@ void fmbd_svg_plot_defaults(fmbd_svg_plot *p) {
   p->xmin = p->xmax = p->ymin = p->ymax = NAN;
   p->width_px = 720;
   p->height_px = 480;
-  p->legend = 1;
+  p->legend = 5;
 }
 
 // one axis: data range -> pixel map, with ticks
@@ -325,8 +325,33 @@ int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries, const 
     }
     lw += 50;
     double lh = 18.0 * nl + 8;
-    double lx = (p->legend == 2 || p->legend == 4) ? left + 10 : right - lw - 10;
-    double ly = (p->legend >= 3) ? bottom - lh - 10 : top + 10;
+    int corner = p->legend;
+    if (corner < 1 || corner > 4) {
+      // automatic: the corner whose legend box would cover the fewest data points
+      int best = 1;
+      int64_t fewest = -1;
+      for (int cand = 1; cand <= 4; cand++) {
+        double cx = (cand == 2 || cand == 4) ? left + 10 : right - lw - 10;
+        double cy = (cand >= 3) ? bottom - lh - 10 : top + 10;
+        int64_t covered = 0;
+        for (int k = 0; k < nseries; k++) {
+          for (int64_t i = 0; i < s[k].n; i++) {
+            if (!drawable(&ax, s[k].x[i]) || !drawable(&ay, s[k].y[i])) {
+              continue;
+            }
+            double px = amap(&ax, s[k].x[i]), py = amap(&ay, s[k].y[i]);
+            covered += px >= cx - 4 && px <= cx + lw + 4 && py >= cy - 4 && py <= cy + lh + 4;
+          }
+        }
+        if (fewest < 0 || covered < fewest) {
+          fewest = covered;
+          best = cand;
+        }
+      }
+      corner = best;
+    }
+    double lx = (corner == 2 || corner == 4) ? left + 10 : right - lw - 10;
+    double ly = (corner >= 3) ? bottom - lh - 10 : top + 10;
     fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"white\" "
                 "fill-opacity=\"0.85\" stroke=\"#999999\"/>\n", lx, ly, lw, lh);
     int row = 0;

@@ -41,10 +41,12 @@ typedef struct fmbd_svg_plot {
   double xmin, xmax;        ///< axis range; NaN (default): from the data, rounded outward
   double ymin, ymax;
   int width_px, height_px;  ///< image size (default 720 x 480)
-  int legend;               ///< 0 none, 1 top right (default), 2 top left, 3 bottom right, 4 bottom left
+  int legend;               ///< 0 none, 1 top right, 2 top left, 3 bottom right, 4 bottom left,
+                            ///< 5 (default) the corner covering the fewest data points
 } fmbd_svg_plot;
 
-/// @brief Defaults: no titles, linear axes, automatic ranges, 720 x 480, legend top right.
+/// @brief Defaults: no titles, linear axes, automatic ranges, 720 x 480, legend in the corner
+/// that covers the fewest data points.
 void fmbd_svg_plot_defaults(fmbd_svg_plot *p);
 
 /// @brief Write the plot to path (atomically through "<path>.part").
