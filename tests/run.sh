@@ -14,6 +14,7 @@ export BUILD PYTHON ROOT
 export PATH="$ROOT/$BUILD/bin:$ROOT/$BUILD/tools:$PATH"
 export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1}
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$ROOT/tests/lsan.supp:print_suppressions=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 # scipy/h5py in the same process as ASan would need preloading; python tests only drive programs
 LOG=$ROOT/$BUILD/test-logs

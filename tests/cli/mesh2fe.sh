@@ -12,10 +12,8 @@ T="$ROOT/$BUILD/test-tmp/mesh2fe"
 rm -rf "$T" && mkdir -p "$T" && cd "$T" || exit 1
 fail=0
 bad() { echo "FAIL: $*"; fail=1; }
-# Under `make check SANITIZE=1`, LeakSanitizer reports gmsh's and OpenCASCADE's own leaks
-# (meshGFace, Standard_MMgrRaw: inside the libraries, not in our code): suppress those modules
-printf 'leak:libgmsh.so\nleak:libTK\n' >lsan.supp
-export LSAN_OPTIONS="suppressions=$T/lsan.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+# Under `make check SANITIZE=1`, gmsh's and OpenCASCADE's own leaks are suppressed by
+# tests/lsan.supp (tests/run.sh)
 
 # expect STATUS 'PATTERN...' -- ARGS: run mesh2fe ARGS -o out.fe.h5, check the exit status,
 # that stderr starts with "mesh2fe: error:" and contains every PATTERN (fixed strings), and that

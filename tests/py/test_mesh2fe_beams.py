@@ -32,17 +32,6 @@ G = E / (2 * (1 + NU))
 fails = []
 
 
-def lsan_suppress(tmp):
-    """Under `make check SANITIZE=1` mesh2fe runs with LeakSanitizer, which reports gmsh's and
-    OpenCASCADE's own leaks (inside those libraries): suppress those modules for the runs here."""
-    os.makedirs(tmp, exist_ok=True)
-    supp = os.path.join(tmp, "lsan.supp")
-    with open(supp, "w") as o:
-        o.write("leak:libgmsh.so\nleak:libTK\n")
-    old = os.environ.get("LSAN_OPTIONS")
-    os.environ["LSAN_OPTIONS"] = "suppressions=%s:print_suppressions=0" % supp + (":" + old if old else "")
-
-
 def check(ok, what):
     print(("ok    " if ok else "FAIL  ") + what)
     if not ok:
@@ -168,7 +157,6 @@ def rel(a, b):
 def main():
     os.makedirs(TMP, exist_ok=True)
     os.chdir(TMP)
-    lsan_suppress(TMP)
     tim_c = timoshenko("clamped", 3)
     tim_f = timoshenko("free", 3)
     print("Euler-Bernoulli cantilever: %s Hz" % ", ".join("%.2f" % (b * b * EB) for b in BETA_CANT))

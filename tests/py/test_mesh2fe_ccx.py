@@ -32,17 +32,6 @@ NMODES = 10
 TOL = 5e-4
 
 
-def lsan_suppress(tmp):
-    """Under `make check SANITIZE=1` mesh2fe runs with LeakSanitizer, which reports gmsh's and
-    OpenCASCADE's own leaks (inside those libraries): suppress those modules for the runs here."""
-    os.makedirs(tmp, exist_ok=True)
-    supp = os.path.join(tmp, "lsan.supp")
-    with open(supp, "w") as o:
-        o.write("leak:libgmsh.so\nleak:libTK\n")
-    old = os.environ.get("LSAN_OPTIONS")
-    os.environ["LSAN_OPTIONS"] = "suppressions=%s:print_suppressions=0" % supp + (":" + old if old else "")
-
-
 def csr(g):
     return sp.csr_matrix((g["data"][()], g["indices"][()], g["indptr"][()]),
                          shape=tuple(g.attrs["shape"]))
@@ -92,7 +81,6 @@ def main():
         return 1
     shutil.rmtree(TMP, ignore_errors=True)
     os.makedirs(TMP)
-    lsan_suppress(TMP)
     exe = os.path.join(ROOT, BUILD, "bin", "mesh2fe")
     fe = os.path.join(TMP, "rod.fe.h5")
     r = subprocess.run([exe, os.path.join(ROOT, "examples", "geometry", "rod.geo"), "--size", "0.0075",

@@ -27,17 +27,6 @@ TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_mesh2fe_cgal")
 fails = []
 
 
-def lsan_suppress(tmp):
-    """Under `make check SANITIZE=1` mesh2fe runs with LeakSanitizer, which reports gmsh's and
-    OpenCASCADE's own leaks (inside those libraries): suppress those modules for the runs here."""
-    os.makedirs(tmp, exist_ok=True)
-    supp = os.path.join(tmp, "lsan.supp")
-    with open(supp, "w") as o:
-        o.write("leak:libgmsh.so\nleak:libTK\n")
-    old = os.environ.get("LSAN_OPTIONS")
-    os.environ["LSAN_OPTIONS"] = "suppressions=%s:print_suppressions=0" % supp + (":" + old if old else "")
-
-
 def check(ok, what):
     print(("ok    " if ok else "FAIL  ") + what)
     if not ok:
@@ -66,7 +55,6 @@ def freqs(K, M, k):
 def main():
     os.makedirs(TMP, exist_ok=True)
     os.chdir(TMP)
-    lsan_suppress(TMP)
     # ---- 1. the faceted rod ----
     N, L, R, size = 24, 0.3, 0.015, 0.006
     v_exact = L * N / 2 * R**2 * math.sin(2 * math.pi / N)
