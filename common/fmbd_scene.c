@@ -337,67 +337,6 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
   return 0;
 }
 
-double fmbd_scene_fn_eval(const fmbd_scene_fn *f, double t, double *d1, double *d2) {
-  double v = 0, a = 0, b = 0;
-  switch (f->kind) {
-    case FMBD_FN_CONSTANT: v = f->value; break;
-    case FMBD_FN_LINEAR:
-      v = f->v0 + f->rate * (t - f->t0);
-      a = f->rate;
-      break;
-    case FMBD_FN_RAMP: {
-      double T = f->t1 - f->t0, dv = f->v1 - f->v0;
-      if (t < f->t0) {
-        v = f->v0;
-      } else if (t >= f->t1) {
-        v = f->v1;
-      } else {
-        double s = (t - f->t0) / T;
-        if (f->smooth) {
-          v = f->v0 + dv * s * s * (3 - 2 * s);
-          a = dv * 6 * s * (1 - s) / T;
-          b = dv * (6 - 12 * s) / (T * T);
-        } else {
-          v = f->v0 + dv * s;
-          a = dv / T;
-        }
-      }
-      break;
-    }
-    case FMBD_FN_SINE: {
-      double w = 2 * M_PI * f->frequency_hz, ph = w * t + f->phase;
-      v = f->offset + f->amplitude * sin(ph);
-      a = f->amplitude * w * cos(ph);
-      b = -f->amplitude * w * w * sin(ph);
-      break;
-    }
-    case FMBD_FN_TABLE: {
-      int64_t n = f->n;
-      if (t <= f->t[0]) {
-        v = f->v[0];
-      } else if (t >= f->t[n - 1]) {
-        v = f->v[n - 1];
-      } else {
-        int64_t lo = 0, hi = n - 1;  // t[lo] <= t < t[hi]
-        while (hi - lo > 1) {
-          int64_t mid = (lo + hi) / 2;
-          if (f->t[mid] <= t) {
-            lo = mid;
-          } else {
-            hi = mid;
-          }
-        }
-        a = (f->v[hi] - f->v[lo]) / (f->t[hi] - f->t[lo]);
-        v = f->v[lo] + a * (t - f->t[lo]);
-      }
-      break;
-    }
-  }
-  if (d1) *d1 = a;
-  if (d2) *d2 = b;
-  return v;
-}
-
 // --- names -------------------------------------------------------------------------------
 static const char *const joint_names[] = {"spherical", "revolute", "universal",
                                           "prismatic", "cylindrical", "fixed", NULL};

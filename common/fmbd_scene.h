@@ -17,6 +17,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "fmbd_mbs.h"
+
 /// Where an item starts in the scene file (1-based, as editors count).
 typedef struct fmbd_scene_loc {
   int line, column;
@@ -41,9 +43,9 @@ typedef struct fmbd_scene_fn {
   double *t, *v;            ///< table points (owned)
 } fmbd_scene_fn;
 
-/// @brief Value of f at time t, and its first and second time derivatives (either may be
-/// NULL). Piecewise functions have one-sided derivatives (the right one at a kink).
-double fmbd_scene_fn_eval(const fmbd_scene_fn *f, double t, double *dfdt, double *d2fdt2);
+/// @brief The same function as the multibody core's fmbd_mbs_fn (table points borrowed from
+/// f), evaluated with fmbd_mbs_fn_eval: the one implementation of the time functions.
+fmbd_mbs_fn fmbd_scene_fn_to_mbs(const fmbd_scene_fn *f);
 
 enum fmbd_scene_body_kind { FMBD_SCENE_RIGID = 0, FMBD_SCENE_FLEXIBLE };
 
@@ -221,7 +223,6 @@ void fmbd_scene_context(const fmbd_scene *s, fmbd_scene_loc loc);
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text);
 
 // --- the scene as a multibody system (fmbd_scene_build.c) ----------------------------------
-#include "fmbd_mbs.h"
 #include "fmbd_modal.h"
 
 /// A scene turned into an fmbd_mbs system, with what the outputs need to be evaluated.

@@ -35,7 +35,7 @@ void fmbd_scene_settings(const fmbd_scene *s, fmbd_mbs_settings *set) {
   set->reactions = s->nreactions > 0;
 }
 
-static fmbd_mbs_fn to_mbs_fn(const fmbd_scene_fn *f) {
+fmbd_mbs_fn fmbd_scene_fn_to_mbs(const fmbd_scene_fn *f) {
   switch (f->kind) {
     case FMBD_FN_RAMP: return fmbd_mbs_fn_ramp(f->t0, f->v0, f->t1, f->v1, f->smooth);
     case FMBD_FN_SINE: return fmbd_mbs_fn_sine(f->offset, f->amplitude, f->frequency_hz, f->phase);
@@ -522,7 +522,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
   // --- drivers ---
   for (int k = 0; k < s->ndrivers; k++) {
     const fmbd_scene_driver *d = &s->drivers[k];
-    fmbd_mbs_fn fn = to_mbs_fn(&d->fn);
+    fmbd_mbs_fn fn = fmbd_scene_fn_to_mbs(&d->fn);
     if (d->joint >= 0) {
       rc = fmbd_mbs_add_driver_joint(m->mbs, d->name, m->joint_id[d->joint], &fn, NULL);
     } else {
@@ -537,7 +537,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
     snprintf(what, sizeof what, "load '%s'", l->name);
     int pid;
     FMBD_GCALL(add_point(m, s, l->body, &l->at, NULL, l->loc, what, &pid, NULL));
-    fmbd_mbs_fn fn = to_mbs_fn(&l->fn);
+    fmbd_mbs_fn fn = fmbd_scene_fn_to_mbs(&l->fn);
     rc = fmbd_mbs_add_load(m->mbs, l->name, l->kind == FMBD_LOAD_TORQUE ? FMBD_MBS_TORQUE : FMBD_MBS_FORCE, pid,
                            l->body_frame, l->direction, &fn, NULL);
     if (rc) SFAIL(s, l->loc, rc, "%s: %s", what, fmbd_err_get()->msg);
