@@ -102,19 +102,23 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   iparam[6] = 3;            // mode 3: shift-invert, generalized
   int64_t solves = 0;
   double sigma = fmbd_chol_sigma(F);
-  // one BLAS thread for the single-vector solves (see fmbd_blas_set_threads), restored below
-  threads = fmbd_blas_set_threads(1);
+  // one BLAS thread for the single-vector solves (see fmbd_blas_set_threads); ARPACK's own
+  // orthogonalisation (dgemv on n x ncv) keeps the caller's threads
+  threads = fmbd_blas_set_threads(0);
   for (;;) {
     dsaupd_c(&ido, "G", (a_int)n, "LM", (a_int)nreq, tol, resid, (a_int)ncv, v, (a_int)n,
              iparam, ipntr, workd, workl, lworkl, &info);
     double *x = workd + ipntr[0] - 1, *y = workd + ipntr[1] - 1;
-    if (ido == -1) {
-      fmbd_csr_matvec(M, x, y);  // y = (K - sigma M)^-1 M x
-      FMBD_GCALL(fmbd_chol_solve(F, 1, y, n));
-      solves++;
-    } else if (ido == 1) {
-      memcpy(y, workd + ipntr[2] - 1, (size_t)n * sizeof(double));  // M x given
-      FMBD_GCALL(fmbd_chol_solve(F, 1, y, n));
+    if (ido == -1 || ido == 1) {
+      if (ido == -1) {
+        fmbd_csr_matvec(M, x, y);  // y = (K - sigma M)^-1 M x
+      } else {
+        memcpy(y, workd + ipntr[2] - 1, (size_t)n * sizeof(double));  // M x given
+      }
+      if (threads > 1) fmbd_blas_set_threads(1);
+      rc = fmbd_chol_solve(F, 1, y, n);
+      if (threads > 1) fmbd_blas_set_threads(threads);
+      FMBD_GCALL(rc);
       solves++;
     } else if (ido == 2) {
       fmbd_csr_matvec(M, x, y);
@@ -125,8 +129,6 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
       o->progress(o->progress_ctx, "Lanczos", solves0 + solves, nreq);
     }
   }
-  fmbd_blas_set_threads(threads);
-  threads = -1;
   out->solves = solves;
   out->restarts = iparam[2];
   if (info < 0) {
@@ -155,7 +157,6 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   out->lam = d;
   d = NULL;
 done:
-  if (threads > 0) fmbd_blas_set_threads(threads);
   if (rc != 0) run_out_free(out);
   fmbd_free(resid);
   fmbd_free(v);
