@@ -82,6 +82,44 @@ rigid_fixed = re.sub(r"  first_step: .*\n  max_step: .*\n  tolerance: .*\n( +#.*
 st = run("quadrigidf", rigid_fixed)
 if st: row("rigid only, fixed 1e-3", st, 7)
 
+# --- error against run time: node A's RMS error over 0..2 s against the fine reference, for
+# the 30-mode body, variable steps at several tolerances and fixed steps of several sizes; a
+# table and the picture error-vs-time.svg (log-log, CPU time of the integration alone)
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+sweep = {"variable step (tolerance)": [], "fixed step (h)": []}
+base = flex.replace("%BODY%", body % 30)
+for tol in (1e-1, 1e-2, 1e-3, 1e-4):
+    st = run(f"sweep_tol{tol:g}", re.sub(r"  tolerance: .*\n", f"  tolerance: {tol:g}\n", base),
+             ["--t-end", "2", "--reference", "ref30.run.h5"])
+    if st: sweep["variable step (tolerance)"].append((st["run_cpu_time_s"], st["rms_A"], f"{tol:g}"))
+for h in (4e-3, 2e-3, 1e-3, 5e-4):
+    st = run(f"sweep_h{h:g}", re.sub(r"  step: 1e-3\n", f"  step: {h:g}\n", fixed.replace("%BODY%", body % 30)),
+             ["--t-end", "2", "--reference", "ref30.run.h5"])
+    if st: sweep["fixed step (h)"].append((st["run_cpu_time_s"], st["rms_A"], f"{h:g}"))
+print()
+print("error against run time, 30 modes, 0..2 s (reference: fixed 1e-4 s, newton_tol 1e-10):")
+print(f"  {'setting':28s} {'cpu_s':>8s} {'rms_A_m':>10s}")
+fig, ax = plt.subplots(figsize=(7.2, 4.8))
+for (label, pts), mk in zip(sweep.items(), ("o-", "s--")):
+    for cpu, err, what in pts:
+        print(f"  {label.split()[0] + ' ' + what:28s} {cpu:8.3f} {err:10.2e}")
+    if pts:
+        ax.loglog([q[0] for q in pts], [q[1] for q in pts], mk, label=label)
+        for cpu, err, what in pts:
+            ax.annotate(what, (cpu, err), textcoords="offset points", xytext=(4, 4), fontsize=8)
+ax.axvline(2.0, color="grey", lw=0.8, ls=":")
+ax.text(2.0, ax.get_ylim()[0], " real time", color="grey", fontsize=8, va="bottom")
+ax.set_xlabel("CPU time of the integration for 2 s simulated (s)")
+ax.set_ylabel("RMS error of node A (m)")
+ax.set_title("Quadruple pendulum, flexible link with 30 modes: error against run time")
+ax.grid(True, which="both", alpha=0.3)
+ax.legend()
+svg = os.path.join(os.environ.get("BENCH_OUT", "."), "fmbd-run-error-vs-time.svg")
+fig.savefig(svg)
+print(f"  picture: {svg}")
+
 # --- the peer: planar rigid chain in minimal coordinates (angles from the downward vertical)
 # link i: joint-to-joint length l = 0.4, centre of mass c = 0.2 from its joint, mass m,
 # inertia about the centre I = m (3 r^2 + L^2)/12 (solid cylinder, L = 0.3, r = 0.015)
