@@ -102,22 +102,12 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
     }                                                                    \
     val = argv[++i];                                                     \
   } while (0)
-    if (!strcmp(arg, "-h") || !strcmp(arg, "--help")) {
-      fputs(usage_text, stdout);
-      fputs("\n", stdout);
-      fputs(fmbd_cli_exit_help(), stdout);
+    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
+    if (common == FMBD_CLI_DONE) {
       *done = true;
       return 0;
-    } else if (!strcmp(arg, "-V") || !strcmp(arg, "--version")) {
-      printf("cbcheck %s\n", fmbd_version());
-      *done = true;
-      return 0;
-    } else if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) {
-      a->quiet++;
-    } else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) {
-      a->verbose++;
-    } else if (!strcmp(arg, "-vv")) {
-      a->verbose += 2;
+    } else if (common == FMBD_CLI_TAKEN) {
+      continue;
     } else if (!strcmp(arg, "-o")) {
       NEED_VALUE();
       a->output = val;

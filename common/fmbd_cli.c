@@ -239,3 +239,26 @@ const char *fmbd_cli_exit_help(void) {
          "  1  failure on the data (missing, bad or foreign input, no convergence, write error)\n"
          "  2  usage error (unknown option, bad option value, missing argument)\n";
 }
+
+int fmbd_cli_common_option(const char *arg, const char *help_text, int *quiet, int *verbose) {
+  if (!strcmp(arg, "-h") || !strcmp(arg, "--help")) {
+    fputs(help_text, stdout);
+    fputs("\n", stdout);
+    fputs(fmbd_cli_exit_help(), stdout);
+    return FMBD_CLI_DONE;
+  }
+  if (!strcmp(arg, "-V") || !strcmp(arg, "--version")) {
+    printf("%s %s\n", fmbd_log_prog(), fmbd_version());
+    return FMBD_CLI_DONE;
+  }
+  if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) {
+    ++*quiet;
+  } else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) {
+    ++*verbose;
+  } else if (!strcmp(arg, "-vv")) {
+    *verbose += 2;
+  } else {
+    return FMBD_CLI_OTHER;
+  }
+  return FMBD_CLI_TAKEN;
+}

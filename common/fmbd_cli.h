@@ -46,4 +46,13 @@ void fmbd_cli_summary(const char *fmt, ...) __attribute__((format(printf, 1, 2))
 /// @brief Text listing exit statuses, for the end of --help.
 const char *fmbd_cli_exit_help(void);
 
+/// What fmbd_cli_common_option did with an argument.
+enum fmbd_cli_common { FMBD_CLI_OTHER = 0, FMBD_CLI_TAKEN = 1, FMBD_CLI_DONE = 2 };
+/// @brief The options every program shares, in one place: -h/--help prints help_text, a blank
+/// line and fmbd_cli_exit_help() on standard output; -V/--version prints "prog VERSION";
+/// -q/--quiet, -v/--verbose and -vv are counted into *quiet and *verbose.
+/// @return FMBD_CLI_DONE after help or version (the program exits 0), FMBD_CLI_TAKEN for
+/// -q/-v/-vv, FMBD_CLI_OTHER for any other argument (the program's own options).
+int fmbd_cli_common_option(const char *arg, const char *help_text, int *quiet, int *verbose);
+
 #endif

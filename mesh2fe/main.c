@@ -63,12 +63,6 @@ static const char *usage_text =
     "Example:\n"
     "  mesh2fe examples/geometry/rod.geo --size 0.005 --interface end0 --interface end1\n";
 
-static void print_help(void) {
-  fputs(usage_text, stdout);
-  fputs("\n", stdout);
-  fputs(fmbd_cli_exit_help(), stdout);
-}
-
 // --- the CGAL mesher as the fmbd_surface_mesher of fmbd_mesh_read ------------------------------
 static int cgal_mesher(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri, double size,
                        int64_t *nn, double **nodes, int64_t *nt, int64_t **tet) {
@@ -251,20 +245,12 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
       val = argv[++i];                                                                   \
     }                                                                                    \
   } while (0)
-    if (!strcmp(arg, "-h") || !strcmp(arg, "--help")) {
-      print_help();
+    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
+    if (common == FMBD_CLI_DONE) {
       *done = true;
       return 0;
-    } else if (!strcmp(arg, "-V") || !strcmp(arg, "--version")) {
-      printf("mesh2fe %s\n", fmbd_version());
-      *done = true;
-      return 0;
-    } else if (!strcmp(arg, "-q") || !strcmp(arg, "--quiet")) {
-      a->quiet++;
-    } else if (!strcmp(arg, "-v") || !strcmp(arg, "--verbose")) {
-      a->verbose++;
-    } else if (!strcmp(arg, "-vv")) {
-      a->verbose += 2;
+    } else if (common == FMBD_CLI_TAKEN) {
+      continue;
     } else if (!strcmp(arg, "-o") || !strcmp(arg, "--output")) {
       NEED_VALUE();
       a->output = val;
