@@ -239,5 +239,14 @@ int main(void) {
   test_command_line();
   test_reports();
   fmbd_cli_finish(0);
+  // the shared options: counted, and anything else left to the program
+  {
+    int q = 0, v = 0;
+    EXPECT(fmbd_cli_common_option("-q", "", &q, &v) == FMBD_CLI_TAKEN && q == 1, "-q");
+    EXPECT(fmbd_cli_common_option("--verbose", "", &q, &v) == FMBD_CLI_TAKEN && v == 1, "--verbose");
+    EXPECT(fmbd_cli_common_option("-vv", "", &q, &v) == FMBD_CLI_TAKEN && v == 3, "-vv");
+    EXPECT(fmbd_cli_common_option("--modes", "", &q, &v) == FMBD_CLI_OTHER && q == 1 && v == 3, "other");
+    EXPECT(fmbd_cli_common_option("-vvv", "", &q, &v) == FMBD_CLI_OTHER, "-vvv is not ours");
+  }
   TEST_EXIT();
 }
