@@ -83,14 +83,8 @@ void fmbd_fe_tet_shape(int nn, const double xi[3], double *N, double *dN) {
   }
 }
 
-// Jacobian J[k][j] = d x_j / d xi_k at a point; returns det; Jinv = J^-1 (row-major)
-static double jacobian(int nn, const double *xyz, const double *dN, double J[9], double Jinv[9]) {
-  memset(J, 0, 9 * sizeof(double));
-  for (int a = 0; a < nn; a++) {
-    for (int k = 0; k < 3; k++) {
-      for (int j = 0; j < 3; j++) J[k * 3 + j] += dN[a * 3 + k] * xyz[a * 3 + j];
-    }
-  }
+// det J of a row-major 3x3 matrix; Jinv = J^-1 when Jinv is given and det != 0
+static double inv3(const double J[9], double Jinv[9]) {
   double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
                J[2] * (J[3] * J[7] - J[4] * J[6]);
   if (Jinv && det != 0.0) {
@@ -105,6 +99,17 @@ static double jacobian(int nn, const double *xyz, const double *dN, double J[9],
     Jinv[8] = (J[0] * J[4] - J[1] * J[3]) / det;
   }
   return det;
+}
+
+// Jacobian J[k][j] = d x_j / d xi_k at a point; returns det; Jinv = J^-1 (row-major)
+static double jacobian(int nn, const double *xyz, const double *dN, double J[9], double Jinv[9]) {
+  memset(J, 0, 9 * sizeof(double));
+  for (int a = 0; a < nn; a++) {
+    for (int k = 0; k < 3; k++) {
+      for (int j = 0; j < 3; j++) J[k * 3 + j] += dN[a * 3 + k] * xyz[a * 3 + j];
+    }
+  }
+  return inv3(J, Jinv);
 }
 
 // Scale for the degeneracy test: largest corner-to-corner distance cubed
@@ -233,19 +238,9 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
     for (int k = 0; k < 3; k++) {
       for (int j = 0; j < 3; j++) J[k * 3 + j] = xyz[3 * (k + 1) + j] - xyz[j];
     }
-    double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
-                 J[2] * (J[3] * J[7] - J[4] * J[6]);
+    double det = inv3(J, Jinv);
     const double centroid[3] = {0.25, 0.25, 0.25};
     FMBD_CALL(check_det(det, h3, elem, nn, "every point (straight element)", centroid));
-    Jinv[0] = (J[4] * J[8] - J[5] * J[7]) / det;
-    Jinv[1] = (J[2] * J[7] - J[1] * J[8]) / det;
-    Jinv[2] = (J[1] * J[5] - J[2] * J[4]) / det;
-    Jinv[3] = (J[5] * J[6] - J[3] * J[8]) / det;
-    Jinv[4] = (J[0] * J[8] - J[2] * J[6]) / det;
-    Jinv[5] = (J[2] * J[3] - J[0] * J[5]) / det;
-    Jinv[6] = (J[3] * J[7] - J[4] * J[6]) / det;
-    Jinv[7] = (J[1] * J[6] - J[0] * J[7]) / det;
-    Jinv[8] = (J[0] * J[4] - J[1] * J[3]) / det;
     if (Ke) { // degree 0 (tet4, 1 point) or 2 (tet10, 4 points): exact
       const int r = nn == 4 ? 0 : 1;
       FMBD_CALL(fmbd_fe_tet_rule(nn == 4 ? 1 : 2, &np, &pts, &w));
