@@ -58,6 +58,38 @@ def t0_matrix(cb, ndof):
     return T
 
 
+EPS = np.finfo(float).eps
+
+
+def closed_form_error(T, A, Ar, nd):
+    """Closed-form reduced matrix Ar against T' A T, in units of its round-off bound.
+
+    The reference T' A T is a product whose terms cancel heavily (the condensed stiffness
+    Kb + Kc' Psi is many orders below |Kc| |Psi|, the beam's element stiffnesses reach 1e13),
+    and the closed form rests on Phi' Ms Phi = I, Phi' Ks Phi = Lambda, Ks Psi = -Kc, which the
+    eigensolver and the backward-stable solves meet to round-off of the same terms. Both sides
+    therefore err by at most about n eps max(|T|' |A| |T|) over each block (Higham, Accuracy
+    and Stability of Numerical Algorithms, section 3.5, normwise; n the inner dimension).
+    The earlier tolerance, 1e-10 of max |Ar|, depended on that cancellation, which varies with
+    the CPU's summation order: it failed at 1.3e-10 on one machine. Returns the largest ratio
+    error / bound over the blocks (ff, fc, cc; round-off keeps it <= 1 on any machine, 0.005
+    measured) and the smallest ratio max |Ar_block| / bound: the factor by which an error the
+    size of the block itself, what a wrong formula gives, would exceed the bound."""
+    n = T.shape[0]
+    E = np.abs(T.T @ A @ T - Ar)
+    S = np.abs(T).T @ np.abs(A) @ np.abs(T)
+    f, c = slice(0, nd), slice(nd, T.shape[1])
+    worst, margin = 0.0, np.inf
+    for x, y in ((f, f), (f, c), (c, c)):
+        if E[x, y].size == 0:
+            continue
+        bound = n * EPS * S[x, y].max()
+        worst = max(worst, E[x, y].max() / bound)
+        if np.abs(Ar[x, y]).max() > 0:
+            margin = min(margin, np.abs(Ar[x, y]).max() / bound)
+    return worst, margin
+
+
 # --- 1. free-free beam with two interfaces (THEORY.md section 8's beam), ARPACK path -----------
 beam = fegen.beam(n_el=200, length=0.3, radius=0.015, E=100e9, nu=0.285, rho=7850,
                   interfaces={"end0": [0], "end1": [200]})
@@ -102,10 +134,11 @@ for nd in (4, 8, 16):
     # closed form vs T0' M T0, T0' K T0 (relative to the largest entry): round-off only
     T = t0_matrix(cb, n)
     Mr, Kr = cb["reduced/M"], cb["reduced/K"]
-    em = np.abs(T.T @ Md @ T - Mr).max() / np.abs(Mr).max()
-    ek = np.abs(T.T @ Kd @ T - Kr).max() / np.abs(Kr).max()
-    check(em < 1e-10 and ek < 1e-10, "beam Nd=%d: closed form vs T0'MT0 %.2e, T0'KT0 %.2e (< 1e-10)"
-          % (nd, em, ek))
+    em, mm = closed_form_error(T, Md, Mr, nd)
+    ek, mk = closed_form_error(T, Kd, Kr, nd)
+    check(em <= 1 and ek <= 1 and mm > 1e3 and mk > 1e3,
+          "beam Nd=%d: closed form vs T0'MT0 %.1e, T0'KT0 %.1e of the round-off bound (<= 1; a "
+          "wrong block would show %.0e, %.0e)" % (nd, em, ek, mm, mk))
     # A, solves, Phi'A as documented
     A = Ms @ Psi + Mc
     ea = np.abs(cb["cb/A"] - A).max() / np.abs(A).max()
@@ -223,12 +256,12 @@ check(len(cb["cb/boundary_dofs"]) == 6 + 27, "lattice --boundary x1: %d boundary
       % len(cb["cb/boundary_dofs"]))
 T = t0_matrix(cb, Kl.shape[0])
 Mr, Kr = cb["reduced/M"], cb["reduced/K"]
-em = np.abs(T.T @ Ml.toarray() @ T - Mr).max() / np.abs(Mr).max()
-ek = np.abs(T.T @ Kl.toarray() @ T - Kr).max() / np.abs(Kr).max()
+em, _ = closed_form_error(T, Ml.toarray(), Mr, 12)
+ek, _ = closed_form_error(T, Kl.toarray(), Kr, 12)
 chil = sl.eigh(Kl.toarray(), Ml.toarray(), eigvals_only=True)
 chib = cb["reduced/eigenvalues"]
-check(em < 1e-10 and ek < 1e-10 and np.all(chib[6:] >= chil[6:len(chib)] * (1 - 1e-9)),
-      "lattice (lumped): closed form %.1e / %.1e, reduced >= full" % (em, ek))
+check(em <= 1 and ek <= 1 and np.all(chib[6:] >= chil[6:len(chib)] * (1 - 1e-9)),
+      "lattice (lumped): closed form %.1e / %.1e of the round-off bound, reduced >= full" % (em, ek))
 
 # --- 5. a 3-D frame (L-shaped, rotated beam elements), interfaces at both feet and the corner --
 frame = fegen.beam(n_el=40, radius=0.01, path=[(0, 0, 0), (0.3, 0, 0), (0.3, 0.2, 0.1)],
@@ -243,14 +276,14 @@ s, b = cb["cb/interior_dofs"], cb["cb/boundary_dofs"]
 Kfd, Mfd = Kf.toarray(), Mf.toarray()
 kref = sl.eigh(Kfd[np.ix_(s, s)], Mfd[np.ix_(s, s)], eigvals_only=True)
 T = t0_matrix(cb, Kf.shape[0])
-em = np.abs(T.T @ Mfd @ T - cb["reduced/M"]).max() / np.abs(cb["reduced/M"]).max()
-ek = np.abs(T.T @ Kfd @ T - cb["reduced/K"]).max() / np.abs(cb["reduced/K"]).max()
+em, _ = closed_form_error(T, Mfd, cb["reduced/M"], 15)
+ek, _ = closed_form_error(T, Kfd, cb["reduced/K"], 15)
 chif = sl.eigh(Kfd, Mfd, eigvals_only=True)
 chib = cb["reduced/eigenvalues"]
 ok = (np.all(np.abs(cb["cb/kappa"] - kref[:15]) <= 1e-9 * kref[:15] + 100 * 2.2e-16 * kref[-1])
-      and em < 1e-10 and ek < 1e-10 and np.all(chib[6:] >= chif[6:len(chib)] * (1 - 1e-9))
+      and em <= 1 and ek <= 1 and np.all(chib[6:] >= chif[6:len(chib)] * (1 - 1e-9))
       and len(b) == 18 and cb["attrs"]["n_rigid"] == 6)
-check(ok, "3-D frame, 3 interfaces (18 boundary dofs): kappa vs scipy, closed form %.1e / %.1e, "
+check(ok, "3-D frame, 3 interfaces (18 boundary dofs): kappa vs scipy, closed form %.1e / %.1e of round-off, "
       "reduced >= full, 6 rigid" % (em, ek))
 
 print("\n%d failure(s)" % len(failures))
