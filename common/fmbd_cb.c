@@ -203,10 +203,16 @@ int fmbd_cb_update_reduced(fmbd_cb *cb, double rigid_rtol) {
   }
   FMBD_GCALL(rc);
   // rigid-body modes: chibar below rigid_rtol of the first fixed-interface eigenvalue (a
-  // flexible scale of the body); without modes, of the largest diagonal ratio of K_/M_
+  // flexible scale of the body); without modes, 1e-3 rigid_rtol of the largest diagonal ratio
+  // K_ii / M_ii of the boundary block before condensation (cb->rigid_scale: an upper scale of
+  // the body's eigenvalues; the condensed K_ of one interface is all round-off, eps times it,
+  // so its own diagonal cannot serve), else of the condensed block's diagonal ratio
   double scale = 0.0;
   if (nd > 0) {
     scale = cb->kappa[0];
+  } else if (cb->rigid_scale > 0.0) {
+    scale = cb->rigid_scale;
+    rigid_rtol *= 1e-3;
   } else {
     for (int64_t i = 0; i < nr; i++) {
       if (Mr[i + i * nr] > 0.0) scale = fmax(scale, Kr[i + i * nr] / Mr[i + i * nr]);
@@ -546,6 +552,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     for (int64_t i = 0; i < nb; i++) {
       for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++) cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
       for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++) cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
+      // eigenvalue scale of the body for rigid-mode detection without modes (before the
+      // condensation, whose round-off is about eps times these entries)
+      double kii = fmbd_csr_get(Kb, i, i), mii = fmbd_csr_get(Mb, i, i);
+      if (mii > 0.0 && kii / mii > cb->rigid_scale) cb->rigid_scale = kii / mii;
     }
     csr_tmult(Kc, nb, cb->Psi, ns, cb->Kr, nb);
     csr_tmult(Mc, nb, cb->Psi, ns, cb->Mr, nb);

@@ -87,6 +87,8 @@ typedef struct fmbd_cb {
   double sturm_shift;      ///< Sturm check of the modes (NAN if none / dense)
   int64_t sturm_count;     ///< eigenvalues below sturm_shift (-1 if none)
   double max_residual;     ///< largest relative residual of the modes
+  double rigid_scale;      ///< max Kb_ii / Mb_ii before condensation (0 unknown): rigid-mode
+                           ///< scale when nd = 0 (not stored in the file)
   char *fe_file;           ///< name of the fe file (owned, may be NULL)
   char fe_sha256[65];      ///< its SHA-256 ("" if unknown)
   fmbd_cb_timing time;     ///< cost of the reduction (not stored in the file)

@@ -99,5 +99,28 @@ else
   bad "cbcheck not built: the pipe example of fe2cb.1 cannot run"
 fi
 
+# --modes 0 on a free body: the Guyan reduction of one interface is rigid motion only, its
+# reduced eigenvalues round-off; all six must be flagged rigid (they were not: cbcheck then
+# reported six "flexible" 0 Hz modes); with two interfaces six rigid and six flexible
+fe2cb good.fe.h5 --modes 0 --boundary end0 -o m0.cb.h5 -q 2> m0.err || bad "--modes 0: $(cat m0.err)"
+mesh2fe rod.geo --size 0.015 --interface end0 -o rod1.fe.h5 -q || bad "mesh2fe rod1"
+fe2cb rod1.fe.h5 --modes 0 -o rod1.cb.h5 -q 2> m0.err || bad "--modes 0 rod1: $(cat m0.err)"
+"$PYTHON" - <<'PY' || bad "--modes 0: rigid-body modes not flagged"
+import h5py, sys
+ok = True
+with h5py.File("rod1.cb.h5") as f:
+    r = f["reduced/rigid"][()]
+    ok &= bool(r.all()) and len(r) == 6 and int(f["cb"].attrs["n_rigid"]) == 6
+with h5py.File("m0.cb.h5") as f:
+    r, fr = f["reduced/rigid"][()], f["reduced/frequency_hz"][()]
+    # good.fe.h5: free beam, boundary end0 + end1 = 12 dofs: 6 rigid, 6 flexible above 1 Hz
+    ok &= int(r.sum()) == 6 and bool(r[:6].all()) and bool((fr[6:] > 1.0).all())
+sys.exit(0 if ok else 1)
+PY
+if command -v cbcheck > /dev/null; then
+  cbcheck rod1.cb.h5 > m0.out 2>&1 || bad "cbcheck on a --modes 0 body: $(cat m0.out)"
+  grep -q "6 rigid-body modes" m0.out || bad "cbcheck on a --modes 0 body: not 6 rigid ($(cat m0.out))"
+fi
+
 [ $fail -eq 0 ] && echo "fe2cb.sh: all passed"
 exit $fail
