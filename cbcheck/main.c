@@ -738,6 +738,11 @@ int main(int argc, char **argv) {
   if (want_rflex) {
     static const char *const strip[] = {".cb.h5", ".h5", NULL};
     FMBD_GCALL(fmbd_cli_output_name(a.input, a.output, strip, ".rflex.h5", &outname));
+    FMBD_GCALL(fmbd_cli_check_not_input(outname, a.fe));
+  }
+  if (a.csv) {
+    FMBD_GCALL(fmbd_cli_check_not_input(a.csv, a.input));
+    FMBD_GCALL(fmbd_cli_check_not_input(a.csv, a.fe));
   }
   if ((outname && !strcmp(outname, "-")) || (a.csv && !strcmp(a.csv, "-"))) {
     rep = stderr;

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "fmbd_alloc.h"
@@ -100,6 +101,24 @@ static bool ends_with(const char *s, const char *end) {
   return m <= n && !strcmp(s + n - m, end);
 }
 
+bool fmbd_cli_same_file(const char *a, const char *b) {
+  struct stat sa, sb;
+  if (!a || !b || !strcmp(a, "-") || !strcmp(b, "-")) return false;
+  if (stat(a, &sa) != 0 || stat(b, &sb) != 0) return false;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+int fmbd_cli_check_not_input(const char *output, const char *input) {
+  if (!fmbd_cli_same_file(output, input)) return FMBD_OK;
+  fmbd_err_context("", "");
+  if (!strcmp(output, input)) {
+    FMBD_FAIL(FMBD_ERR_USAGE, "the output '%s' is an input of this run: refusing to overwrite it",
+              output);
+  }
+  FMBD_FAIL(FMBD_ERR_USAGE, "the output '%s' is the input '%s' (the same file): refusing to "
+            "overwrite it", output, input);
+}
+
 int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
                          const char *suffix, char **out) {
   *out = NULL;
@@ -111,6 +130,7 @@ int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const
     name = "-";
   }
   if (name) {
+    FMBD_CALL(fmbd_cli_check_not_input(name, input));
     *out = fmbd_strdup(name);
     FMBD_CHECK(*out, FMBD_ERR_NOMEM, "out of memory");
     return FMBD_OK;

@@ -24,10 +24,19 @@ void fmbd_cli_set_verbosity(int quiet, int verbose);
 /// "-" if standard output is not a terminal, else the input name with its ending replaced:
 /// the longest of `strip` (NULL-terminated list, e.g. {".fe.h5", ".h5", NULL}) that ends the
 /// input is cut (else the last ".ext"), then `suffix` appended ("rod.geo" -> "rod.fe.h5").
-/// Input "-" with no -o and a terminal: usage error; so is a derived name equal to the input.
+/// Input "-" with no -o and a terminal: usage error; so is a derived name equal to the input,
+/// and so is an -o that names the input file itself (fmbd_cli_check_not_input).
 /// @param[out] out caller frees with fmbd_free
 int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
                          const char *suffix, char **out);
+
+/// @brief True when a and b name the same existing file (same device and inode: also through
+/// another path, a hard or a symbolic link). "-" (a stream) is never the same file.
+bool fmbd_cli_same_file(const char *a, const char *b);
+/// @brief FMBD_ERR_USAGE when the output name is the same file as an input: every program calls
+/// it (through fmbd_cli_output_name for its main input, directly for others such as --fe or
+/// --reference) so that -o can never overwrite what the run reads.
+int fmbd_cli_check_not_input(const char *output, const char *input);
 
 /// @brief Parse numbers of options; on failure FMBD_ERR_USAGE (recorded, not printed) naming
 /// the option: "option --size: 'abc' is not a finite number". The whole text must be used.

@@ -469,6 +469,7 @@ int main(int argc, char **argv) {
     goto done;
   }
   FMBD_GCALL(fmbd_cli_output_name(scene_file, opt_o, strip, ".run.h5", &out_name));
+  FMBD_GCALL(fmbd_cli_check_not_input(out_name, ref));
 
   // --- the reference run, checked before the work ------------------------------------------
   if (ref) {
@@ -496,6 +497,7 @@ int main(int argc, char **argv) {
   }
 
   // --- the run file -------------------------------------------------------------------------
+  for (int i = 0; i < m->ninputs; i++) FMBD_GCALL(fmbd_cli_check_not_input(out_name, m->input_name[i]));
   r.s = s;
   r.m = m;
   r.keep_hist = plot || ref;
