@@ -236,17 +236,48 @@ static void interp(const double *tt, const double *v, int64_t n, int w, double t
 // RMS error of each point output against a reference run (THEORY.md section 7, eq. [C17]),
 // at this run's output instants within the reference's time span, the reference linearly
 // interpolated there. Written to /reference and printed.
+// A reference must be a complete run whose /time is finite and strictly increasing with two
+// instants at least: an interrupted run (complete = 0), a constant or a non-monotone time
+// would give errors against nothing or against the wrong instants. *rt (nr values) is returned
+// when rt is not NULL.
+static int check_reference(fmbd_h5 *g, const char *ref_name, double **rt, int64_t *nr) {
+  int rc = FMBD_OK;
+  double *t = NULL;
+  FMBD_GCALL(fmbd_h5_check_format(g, "fmbd-run", 1));
+  int64_t complete = 0;
+  fmbd_err_context(ref_name, "/stats");
+  FMBD_GCALL(fmbd_h5_read_attr_i64(g, "/stats", "complete", 1, &complete));
+  FMBD_GCHECK(complete == 1, FMBD_ERR_FORMAT, "attribute complete = %lld: the reference is an "
+              "interrupted run (a valid prefix only); give a complete run", (long long)complete);
+  int64_t dt[1] = {-1};
+  FMBD_GCALL(fmbd_h5_read_f64(g, "/time", 1, dt, &t));
+  fmbd_err_context(ref_name, "/time");
+  FMBD_GCHECK(dt[0] >= 2, FMBD_ERR_FORMAT, "the reference run has %lld instants (2 at least)",
+              (long long)dt[0]);
+  for (int64_t i = 0; i < dt[0]; i++) {
+    FMBD_GCHECK(isfinite(t[i]), FMBD_ERR_FORMAT, "instant %lld is not finite", (long long)i);
+    FMBD_GCHECK(i == 0 || t[i] > t[i - 1], FMBD_ERR_FORMAT, "not strictly increasing at "
+                "instant %lld (%.17g after %.17g)", (long long)i, t[i], t[i - 1]);
+  }
+  fmbd_err_context("", "");
+  *nr = dt[0];
+  if (rt) {
+    *rt = t;
+    t = NULL;
+  }
+done:
+  fmbd_free(t);
+  return rc;
+}
+
 static int compare_reference(run *r, const char *ref_name) {
   int rc = 0;
   fmbd_h5 *g = NULL;
   double *rt = NULL, *rv = NULL;
   char *fmt = NULL;
+  int64_t nr = 0;
   FMBD_GCALL(fmbd_h5_open(ref_name, &g));
-  FMBD_GCALL(fmbd_h5_check_format(g, "fmbd-run", 1));
-  int64_t dt[1] = {-1};
-  FMBD_GCALL(fmbd_h5_read_f64(g, "/time", 1, dt, &rt));
-  int64_t nr = dt[0];
-  FMBD_GCHECK(nr >= 2, FMBD_ERR_FORMAT, "/time: the reference run has %lld instants (2 at least)", (long long)nr);
+  FMBD_GCALL(check_reference(g, ref_name, &rt, &nr));
   FMBD_GCALL(fmbd_h5_make_group(r->f, "/reference"));
   FMBD_GCALL(fmbd_h5_write_attr_str(r->f, "/reference", "file", ref_name));
   FMBD_GCALL(fmbd_h5_write_attr_str(r->f, "/reference", "sha256", fmbd_h5_sha256(g)));
@@ -474,8 +505,9 @@ int main(int argc, char **argv) {
   // --- the reference run, checked before the work ------------------------------------------
   if (ref) {
     fmbd_h5 *g = NULL;
+    int64_t nr = 0;
     rc = fmbd_h5_open(ref, &g);
-    if (!rc) rc = fmbd_h5_check_format(g, "fmbd-run", 1);
+    if (!rc) rc = check_reference(g, ref, NULL, &nr);
     fmbd_h5_close(&g);
     if (rc) goto done;
   }

@@ -135,6 +135,27 @@ ex=$ROOT/examples
   fmbd-run "$ex/scenes/pendulum.yaml" -o coarse.run.h5 --reference pendulum.run.h5 2>ref.err &&
   grep -q "bob: RMS position error 0.0000e+00 m" ref.err ) || { echo "man page examples failed"; fail=1; }
 
+# --- a reference must be a complete run with a finite, strictly increasing /time ------------
+if [ -f man/pendulum.run.h5 ]; then
+  "$PY" - <<'PYEOF' || { echo "reference fixtures failed"; fail=1; }
+import shutil, h5py, numpy as np
+for name in ("incomplete", "constant", "backwards"):
+    shutil.copy("man/pendulum.run.h5", name + ".run.h5")
+with h5py.File("incomplete.run.h5", "r+") as f:
+    f["stats"].attrs["complete"] = np.int64(0)
+with h5py.File("constant.run.h5", "r+") as f:
+    f["time"][...] = 0.5
+with h5py.File("backwards.run.h5", "r+") as f:
+    t = f["time"][()]
+    t[7] = t[3]
+    f["time"][...] = t
+PYEOF
+  pend=$ex/scenes/pendulum.yaml
+  expect ref-incomplete 1 "^fmbd-run: error: incomplete.run.h5:/stats: attribute complete = 0: the reference is an interrupted run" -- fmbd-run "$pend" -o out.run.h5 --reference incomplete.run.h5
+  expect ref-constant 1 "^fmbd-run: error: constant.run.h5:/time: not strictly increasing at instant 1" -- fmbd-run "$pend" -o out.run.h5 --reference constant.run.h5
+  expect ref-backwards 1 "^fmbd-run: error: backwards.run.h5:/time: not strictly increasing at instant 7" -- fmbd-run "$pend" -o out.run.h5 --reference backwards.run.h5
+fi
+
 # --- flexible bodies: need a reduced body from the toolchain ------------------------------
 if mesh2fe "$ROOT/examples/geometry/rodbeam.geo" --circle 0.015 --interface end0 --interface end1 -o rod.fe.h5 -q 2>mesh.err &&
   fe2cb rod.fe.h5 --modes 10 -o rod.cb.h5 -q 2>cb.err &&
