@@ -230,13 +230,19 @@ static char *path_beside(const char *ref, const char *name) {
   return p;
 }
 
-// Open and check the fe file. required: failure is an error; else a warning and fe = NULL.
+// Open and check the fe file. required (always when --fe names it): failure is an error; else a
+// warning and fe = NULL.
 static int load_fe(run *r, bool required, const char *why) {
   int rc = FMBD_OK;
   fmbd_h5 *f = NULL;
   char *cand = NULL;
   if (r->fe) {
     return FMBD_OK;
+  }
+  if (r->a->fe && !r->a->plain && !required) {
+    // a file the user named must be usable: never a warning and a silent fallback
+    required = true;
+    why = "it was given with --fe";
   }
   if ((r->fe_tried || r->a->plain) && !required) {
     return FMBD_OK;
@@ -276,6 +282,8 @@ static int load_fe(run *r, bool required, const char *why) {
     FMBD_GFAIL(FMBD_ERR_IO, "source fe file %s (attribute fe_file%s) cannot be read: %s", cand,
                r->a->fe ? ", or --fe" : "", why);
   }
+  fmbd_err_context(cand, "");
+  FMBD_GCALL(fmbd_h5_check_format(f, "fmbd-fe", 1));  // the kind first: a cb file is not "changed"
   const char *sha = fmbd_h5_sha256(f);
   if (r->cb->fe_sha256[0] && strcmp(sha, r->cb->fe_sha256) != 0) {
     if (!required) {
@@ -289,7 +297,6 @@ static int load_fe(run *r, bool required, const char *why) {
                "fe_sha256 %.12s... (%s)", cand, sha, r->cb->fe_sha256, why);
   }
   fmbd_err_context(cand, "");
-  FMBD_GCALL(fmbd_h5_check_format(f, "fmbd-fe", 1));
   FMBD_GCALL(fmbd_fe_read(f, &r->fe));
   if (!r->fe->K || !r->fe->M || r->fe->ndof != r->cb->ndof) {
     fmbd_err_context(cand, "/K");

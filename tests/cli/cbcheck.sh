@@ -94,6 +94,14 @@ expect 1 "cbcheck: error" "beam.cb.h5:/cb" "changed" "SHA-256" -- cbcheck beam.c
 noout bad.rflex.h5
 expect 1 "changed" -- cbcheck beam.cb.h5 --exact --fe ../stiffer.fe.h5
 cd ..
+# an explicit --fe that cannot be read, is of another kind or changed is an error, not a warning
+# with a quiet fallback to the cb file alone (even when nothing else needs the fe file)
+printf 'not hdf5\n' > text.fe.h5
+expect 1 "cbcheck: error" "nothere.fe.h5" "given with --fe" -- cbcheck beam.cb.h5 --fe nothere.fe.h5 --tol 1e-2 --range 2 -o bad.rflex.h5
+noout bad.rflex.h5
+expect 1 "cbcheck: error" "text.fe.h5" -- cbcheck beam.cb.h5 --fe text.fe.h5
+expect 1 "cbcheck: error" "beam.cb.h5" "fmbd-cb" -- cbcheck beam.cb.h5 --fe beam.cb.h5
+expect 1 "cbcheck: error" "stiffer.fe.h5" "changed" -- cbcheck beam.cb.h5 --fe stiffer.fe.h5
 # not a cb file, missing file, usage
 expect 1 "cbcheck: error" "beam.fe.h5" "fmbd-fe" -- cbcheck beam.fe.h5
 expect 1 "cbcheck: error" "nothere.cb.h5" -- cbcheck nothere.cb.h5
