@@ -1,7 +1,7 @@
 // common/fmbd_cb.c: Craig-Bampton (and normal-mode) reduction of one FE body, the fmbd-cb file
 // SPDX-License-Identifier: MIT
 //
-// Equations: THEORY.md section 1 (Han et al. 2020 [H10-H22]); the closed form of the reduced
+// Equations: docs/THEORY.md section 1 (Han et al. 2020 [H10-H22]); the closed form of the reduced
 // matrices follows from T0 = [Phi Psi; 0 I] with Ks Phi = Ms Phi Lambda, Phi' Ms Phi = I and
 // Ks Psi = -Kc: T0' K T0 = [Lambda, Phi'(Ks Psi + Kc); ., Psi' Ks Psi + 2 sym(Psi' Kc) + Kb]
 // = [Lambda 0; 0 Kb + Kc' Psi], and T0' M T0 = [I, Phi'(Ms Psi + Mc); ., Mb_].

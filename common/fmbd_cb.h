@@ -1,7 +1,7 @@
 // common/fmbd_cb.h: Craig-Bampton (and normal-mode) reduction of one FE body, the fmbd-cb file
 // SPDX-License-Identifier: MIT
 //
-// THEORY.md section 1 ([H10-H22]). The body's active dofs are split into interior s and
+// docs/THEORY.md section 1 ([H10-H22]). The body's active dofs are split into interior s and
 // boundary b (every active dof of the interface nodes, plus the nodes of extra groups):
 //   fixed-interface modes   Ks phi = kappa Ms phi, Phi' Ms Phi = I, ascending  (fmbd_eig)
 //   constraint modes        Psi = -Ks^-1 Kc  (one multi-rhs solve with the factor of Ks)

@@ -599,7 +599,7 @@ done:
 }
 
 // OpenBLAS's thread count, found at run time (libblas.so.3 is whatever update-alternatives
-// selects: TOOLCHAIN.md 3c); nothing happens with another BLAS
+// selects: docs/TOOLCHAIN.md section 3c); nothing happens with another BLAS
 int fmbd_blas_set_threads(int n) {
   static int looked = 0;
   static void (*set)(int) = NULL;

@@ -16,7 +16,7 @@
 //   number of eigenvalues of A x = lambda B x below sigma (the Sturm-sequence check). Numeric
 //   factorisation written here (left-looking supernodal, BLAS-3) on CHOLMOD's supernodal
 //   symbolic analysis: CHOLMOD's own LDL' is simplicial only, 10-20 times slower than its
-//   supernodal LL' on 3-D meshes (TOOLCHAIN.md 3e), and stores a row index per entry.
+//   supernodal LL' on 3-D meshes (docs/TOOLCHAIN.md section 3e), and stores a row index per entry.
 // - FMBD_CHOL_LDLT_SIMPLICIAL: the same count with CHOLMOD's simplicial LDL'
 //   (c.supernodal = CHOLMOD_SIMPLICIAL, c.final_ll = 0): the reference of the tests.
 //

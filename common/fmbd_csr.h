@@ -1,7 +1,7 @@
 // common/fmbd_csr.h: compressed sparse row matrices (0-based, int64 indices)
 // SPDX-License-Identifier: MIT
 //
-// The storage of DESIGN.md: symmetric matrices are stored in full (both triangles), rows
+// The storage of docs/DESIGN.md: symmetric matrices are stored in full (both triangles), rows
 // sorted by column. The struct is public: its arrays are owned by the matrix and released
 // by fmbd_csr_destroy.
 #ifndef FMBD_CSR_H

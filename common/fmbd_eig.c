@@ -300,7 +300,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
                (long long)o.nev, (long long)n);
   }
   if (o.nev < 1) o.nev = 20;
-  FMBD_CHECK(o.tol > 0.0, FMBD_ERR_VALUE, "ARPACK tol must be positive (TOOLCHAIN.md gotcha 11)");
+  FMBD_CHECK(o.tol > 0.0, FMBD_ERR_VALUE, "ARPACK tol must be positive (docs/TOOLCHAIN.md gotcha 11)");
   FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
 
   // --- small problems: dense LAPACK, complete by construction ---------------------------------
@@ -349,7 +349,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     goto done;
   }
 
-  // --- the factor and its shift (THEORY.md section 8) -------------------------------------------
+  // --- the factor and its shift (docs/THEORY.md section 8) -------------------------------------------
   fmbd_chol *op = F;
   if (o.free_body || !F) {
     double t0 = fmbd_wall_s();

@@ -7,15 +7,15 @@
 // M-normalised (X' M X = I), and guarantees that none was skipped:
 //
 // - Shift-invert Lanczos (ARPACK dsaupd/dseupd, mode 3, bmat 'G', which "LM", explicit tol:
-//   TOOLCHAIN.md gotcha 11) on OP = (K - sigma M)^-1 M with one CHOLMOD factor.
-// - Shift strategy (THEORY.md section 8): if K is positive definite (a held body: CB interior)
+//   docs/TOOLCHAIN.md gotcha 11) on OP = (K - sigma M)^-1 M with one CHOLMOD factor.
+// - Shift strategy (docs/THEORY.md section 8): if K is positive definite (a held body: CB interior)
 //   sigma = 0 and the caller's factor of K is reused. A body that may have rigid-body modes
 //   (free_body) gets a NEGATIVE shift scaled to its spectrum: a cheap first pass (12 pairs,
 //   loose tol) at sigma0 = -1e-6 max_i(K_ii/M_ii) estimates the first flexible eigenvalue
 //   lambda_f (the lowest one above 1e-6 of the largest found); the real pass uses
 //   sigma = -lambda_f / 2, so rigid (0) and flexible eigenvalues map to operator eigenvalues
 //   of the same order and K - sigma M is as well conditioned as it can be. A shift at -10
-//   against lambda_f = 4e7 loses modes (THEORY.md 8): this is what the strategy avoids.
+//   against lambda_f = 4e7 loses modes (docs/THEORY.md section 8): this is what the strategy avoids.
 // - Every pair is checked by its residual ||K x - lambda M x|| / max(||K x||, |sigma| ||M x||)
 //   (the second term keeps rigid-body pairs, K x ~ 0, meaningful).
 // - Sturm check: an LDL' factorisation of K - s M (no pivoting; supernodal, fmbd_chol) counts

@@ -1,4 +1,4 @@
-// common/fmbd_est.c: a posteriori relative eigenvalue error estimates (THEORY.md section 2)
+// common/fmbd_est.c: a posteriori relative eigenvalue error estimates (docs/THEORY.md section 2)
 // SPDX-License-Identifier: MIT
 #include "fmbd_est.h"
 
@@ -391,7 +391,7 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
       continue;
     }
     double x = quad(nb, e->Xb, b), g = quad(nb, e->Gb, b);
-    // kappa_n: n counts the rigid-body modes (THEORY.md section 8); kappa_n must be among the
+    // kappa_n: n counts the rigid-body modes (docs/THEORY.md section 8); kappa_n must be among the
     // dominant eigenvalues [H37] (n <= nd), so modes beyond nd take kappa_nd, the largest
     // dominant one (smaller than kappa_(nd+1): a larger, conservative estimate)
     double kn = n < nd ? e->kappa[n] : (nd > 0 ? e->kappa[nd - 1] : knext);

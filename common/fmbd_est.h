@@ -1,8 +1,8 @@
 // common/fmbd_est.h: a posteriori relative eigenvalue error estimates of a Craig-Bampton body
-// and the boundary-block algebra they need (THEORY.md section 2, Han et al. 2020 [H24-H45])
+// and the boundary-block algebra they need (docs/THEORY.md section 2, Han et al. 2020 [H24-H45])
 // SPDX-License-Identifier: MIT
 //
-// Notation (THEORY.md section 1): interior dofs s (ns), boundary dofs b (nb); fixed-interface
+// Notation (docs/THEORY.md section 1): interior dofs s (ns), boundary dofs b (nb); fixed-interface
 // modes Phi (Ms-normalised), eigenvalues kappa ascending; the "pool" holds the npool lowest
 // modes known (computed by fe2cb, possibly extended); the reduced body uses the nd <= npool
 // lowest. A = Ms Psi + Mc (lumped mass: Mc = 0), p_k = phi_k' A (row k of PhitA, 1 x nb).
@@ -16,7 +16,7 @@
 // ROUND-OFF. A' Ks^-1 A is dominated by the lowest modes; Xb is what is left after they are
 // subtracted, so the plain formula loses log10(|A' Ks^-1 A| / |Xb|) digits on top of the
 // error of the solves Ks^-1 A (relative error up to eps * cond(Ks)). On a slender beam
-// (THEORY.md section 8: cond(Ks) ~ 4e11, ratio ~ 3e5) this destroyed every digit of the
+// (docs/THEORY.md section 8: cond(Ks) ~ 4e11, ratio ~ 3e5) this destroyed every digit of the
 // bending modes' estimates when Ks^-1 A came from dense LAPACK solves (Gb is worse: ratio
 // squared); with CHOLMOD's solves of fe2cb the loss measured 1.7e-6 there. fmbd_est_base_projected computes
 // the same Xb, Gb without the cancellation when the FE matrices Ks, Ms are at hand: with
@@ -33,7 +33,7 @@
 //   second order         = chibar x + chibar^2 g                         [H36]
 //   upper, kappa_n       = (chibar + chibar^2 / kappa_n) x              [H42], kappa_n the
 //                          n-th fixed-interface eigenvalue (n counts the rigid-body modes, as
-//                          THEORY.md section 8's table does); kappa_n must be among the
+//                          docs/THEORY.md section 8's table does); kappa_n must be among the
 //                          dominant eigenvalues [H37], so for n > nd: kappa_nd
 //   upper, kappa_(nd+1)  = (chibar + chibar^2 / kappa_(nd+1)) x        (tighter, still above
 //                          [H36] since Phi_r Lambda_r^-2 Phi_r' <= Frs / kappa_(nd+1) [H38])
@@ -42,7 +42,7 @@
 // Rigid-body modes (chibar ~ 0) get 0 and are flagged. Clusters get consistent values: each
 // member gets the cluster's largest upper and second-order estimates and the cluster's
 // smallest lower estimate (so that the bracket stays conservative), independent of the
-// arbitrary basis inside the cluster (THEORY.md section 8). A cluster is a run of consecutive
+// arbitrary basis inside the cluster (docs/THEORY.md section 8). A cluster is a run of consecutive
 // flexible modes each within cluster_rtol of the previous one (repeated eigenvalues), or whose
 // uncertainty interval [chibar / (1 + upper), chibar] reaches the previous eigenvalue: the full
 // body's eigenvalues of such modes may come in another order than the reduced ones, so the
@@ -133,7 +133,7 @@ int64_t fmbd_est_nb(const fmbd_est *e);
 const double *fmbd_est_xb(const fmbd_est *e);
 const double *fmbd_est_gb(const fmbd_est *e);
 
-/// @brief Build the reduced matrices for the current nd (THEORY.md section 1, closed form)
+/// @brief Build the reduced matrices for the current nd (docs/THEORY.md section 1, closed form)
 /// M_ = [I, PhitA_d; PhitA_d', Mbb], K_ = diag(kappa_d, Kbb), and solve K_ Xi = chibar M_ Xi
 /// (dense, LAPACK dsygvd).
 /// @param[out] chibar (nd+nb) ascending (caller allocates)
@@ -158,7 +158,7 @@ void fmbd_est_set_kappa_next(fmbd_est *e, double kappa_next);
 /// @param[out] Xi (nd+nb)^2 eigenvectors if not NULL (caller allocates)
 int fmbd_est_run(fmbd_est *e, fmbd_est_modes *m, double *Xi);
 
-// --- iterative selection (THEORY.md section 3, the paper's Figure 1) ------------------------
+// --- iterative selection (docs/THEORY.md section 3, the paper's Figure 1) ------------------------
 /// Which estimate drives the selection.
 enum fmbd_est_which {
   FMBD_EST_UPPER = 0,      ///< upper, kappa_n (the paper's [H42]; the default)

@@ -15,7 +15,7 @@
 //   orientation vector in the local x-z plane.
 // Isotropic linear elasticity (E, nu), density rho.
 //
-// Dof numbering (DESIGN.md): node-major; a node on solid elements only carries 3 translations,
+// Dof numbering (docs/DESIGN.md): node-major; a node on solid elements only carries 3 translations,
 // a node on a beam and every interface node carry 3 translations and 3 rotations
 // (direction 0..2 = ux uy uz, 3..5 = rx ry rz). Dofs removed by clamps and by ties are not active.
 #ifndef FMBD_FE_H

@@ -1,4 +1,4 @@
-// common/fmbd_fe_io.c: the fmbd-fe file objects (DESIGN.md, BRIEF table; docs/FORMAT.md):
+// common/fmbd_fe_io.c: the fmbd-fe file objects (docs/DESIGN.md; docs/FORMAT.md):
 // writing, reading with validation, and copying the description into downstream files
 // SPDX-License-Identifier: MIT
 #include <stdio.h>

@@ -1,7 +1,7 @@
 // common/fmbd_h5.h: HDF5 files of the toolchain: reading, atomic writing, stdin/stdout images
 // SPDX-License-Identifier: MIT
 //
-// Conventions (DESIGN.md, docs/FORMAT.md):
+// Conventions (docs/DESIGN.md, docs/FORMAT.md):
 // - root attributes format, format_version ("MAJOR.MINOR"), creator, command_line, inputs
 //   ((n, 2) strings: name, SHA-256 hex), wall_time_s, cpu_time_s;
 // - dense arrays row-major with the shape h5py shows; those of 8192 values or more chunked

@@ -21,7 +21,7 @@
 //   S1[a + 3k], XS[a + 3b + 9k], SS[a + 3b + 9k + 9 nm l], Mff/Kff[k + nm l],
 //   point modal translation / rotation T[a + 3k] (3 x nm).
 //
-// EQUATIONS (THEORY.md sections 4, 5; Shabana, Dynamics of Multibody Systems, 3rd ed. 2005,
+// EQUATIONS (docs/THEORY.md sections 4, 5; Shabana, Dynamics of Multibody Systems, 3rd ed. 2005,
 // ch. 5 (floating frame) and ch. 7; Nikravesh, Computer-Aided Analysis of Mechanical
 // Systems, 1988, ch. 6 (Euler parameters)).
 //   Coordinates of body i: x_i = [R (3); p (4); q (nm)]: R the body-frame origin (world), p a
@@ -38,7 +38,7 @@
 //   wb = 2 G(p) p' with G = [-e, -e~ + e0 I] (G p = 0, G G' = I, G(p') p' = 0), so
 //   wb' = 2 G p''. Virtual rotation d(pi) = 2 G dp, hence the rotational equations are the
 //   body-frame moment equations premultiplied by 2 G'.
-//   Inertia from the invariants (BRIEF.md /ffrf, the "inertia shape integrals" of Shabana):
+//   Inertia from the invariants (docs/THEORY.md section 9, the "inertia shape integrals" of Shabana):
 //     c(q) = c0 + S1 q                                   (first moment, body frame)
 //     J(q) = J0 + XSq + XSq' + sum_kl SS_kl q_k q_l  (second moment; (XSq)_ab = sum_k XS_abk q_k)
 //     I(q) = tr(J) 1 - J                                  (inertia about the frame origin)
@@ -193,7 +193,7 @@ typedef struct fmbd_mbs_state0 {
 /// @brief Identity rotation, zero position and velocities.
 fmbd_mbs_state0 fmbd_mbs_state0_default(void);
 
-/// The invariants of a modal flexible body (BRIEF.md /ffrf), in fmbd_rflex's layout.
+/// The invariants of a modal flexible body (docs/THEORY.md section 9), in fmbd_rflex's layout.
 typedef struct fmbd_mbs_flex_data {
   int64_t nm;               ///< number of modes (>= 0)
   double mass;              ///< m > 0

@@ -1,7 +1,7 @@
 // common/fmbd_mesh.c: geometry and mesh input (gmsh C API; CGAL through a callback)
 // SPDX-License-Identifier: MIT
 //
-// gmsh 4.8 C API notes (TOOLCHAIN.md 3a, gotcha 7): gmshInitialize has no `run` argument
+// gmsh 4.8 C API notes (docs/TOOLCHAIN.md section 3a, gotcha 7): gmshInitialize has no `run` argument
 // before 4.9; every returned array is released with gmshFree; node and element tags need not
 // be contiguous, so node tags are mapped to indices (a dense table when the tags are dense, a
 // sorted table with binary search otherwise).

@@ -204,7 +204,7 @@ int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
       }
     }
   }
-  // --- FFRF invariants (BRIEF.md /ffrf): lumped nodal masses m_p ---
+  // --- FFRF invariants (docs/THEORY.md section 9): lumped nodal masses m_p ---
   r->mass = b->mass;
   for (int a = 0; a < 3; a++) {
     r->first_moment[a] = b->mass * b->center_of_mass[a];

@@ -2,10 +2,10 @@
 // inertia invariants, modal stress; written by cbcheck, read by fmbd-run
 // SPDX-License-Identifier: MIT
 //
-// A `fmbd_rflex` holds the NM flexible modes kept by the secondary reduction (THEORY.md
+// A `fmbd_rflex` holds the NM flexible modes kept by the secondary reduction (docs/THEORY.md
 // section 3, [H46-H50]): p = PhiT aF, qF = T0 PhiT aF, modal mass I, modal stiffness
 // diag(chibar_1..chibar_NM); rigid-body modes are excluded. Plus what the floating-frame
-// equations need (THEORY.md section 4): the inertia invariants of BRIEF.md's `/ffrf` table,
+// equations need (docs/THEORY.md section 4): the inertia invariants of docs/THEORY.md section 9,
 // evaluated with the lumped nodal masses /mesh/node_mass (Adams-style invariants).
 //
 // MEMORY LAYOUT (all arrays owned by the struct, released by fmbd_rflex_destroy):
@@ -63,7 +63,7 @@ typedef struct fmbd_rflex {
   fmbd_csr *expand;      ///< (6 nnodes) x ndof: row 6p+d = component d of node p (/expand)
   int ninterfaces;
   fmbd_rflex_interface *interfaces; ///< ninterfaces entries, sorted by name
-  // --- FFRF inertia invariants (BRIEF.md /ffrf table) ---
+  // --- FFRF inertia invariants (docs/THEORY.md section 9) ---
   double mass;             ///< m = int rho dV (from /body)
   double first_moment[3];  ///< c = int rho x0 dV = m * centre of mass
   double second_moment[9]; ///< J[a + 3b] = int rho x0_a x0_b dV (inertia = tr(J) I - J)

@@ -264,7 +264,7 @@ void fmbd_scene_model_destroy(fmbd_scene_model **m);
 /// @brief A flexible body from a .cb.h5 (format fmbd-cb): the flexible eigenvectors of the
 /// reduced problem (/reduced/eigenvectors without /reduced/rigid), expanded to the FE dofs
 /// (qF = [Phi Psi; 0 I] Xi, mass-normalised), and its inertia invariants from the lumped
-/// nodal masses (BRIEF.md /ffrf: Adams-style). Modal stress is not available from a cb file.
+/// nodal masses (docs/THEORY.md section 9: Adams-style). Modal stress is not available from a cb file.
 /// @param[out] out caller destroys with fmbd_rflex_destroy
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out);
 

@@ -1,7 +1,7 @@
 // fe2cb/main.c: FE body (BODY.fe.h5) -> Craig-Bampton reduced body (BODY.cb.h5)
 // SPDX-License-Identifier: MIT
 //
-// A thin command line over common/fmbd_cb (THEORY.md section 1): read the body, partition,
+// A thin command line over common/fmbd_cb (docs/THEORY.md section 1): read the body, partition,
 // reduce, write. See docs/man/fe2cb.1.
 #include <math.h>
 #include <stdio.h>

@@ -233,7 +233,7 @@ static void interp(const double *tt, const double *v, int64_t n, int w, double t
   for (int i = 0; i < w; i++) out[i] = (1 - a) * v[lo * w + i] + a * v[hi * w + i];
 }
 
-// RMS error of each point output against a reference run (THEORY.md section 7, eq. [C17]),
+// RMS error of each point output against a reference run (docs/THEORY.md section 7, eq. [C17]),
 // at this run's output instants within the reference's time span, the reference linearly
 // interpolated there. Written to /reference and printed.
 // A reference must be a complete run whose /time is finite and strictly increasing with two
@@ -410,7 +410,7 @@ static void usage(void) {
       "  -o, --output RUN.h5     the run file (default: SCENE with .run.h5, or standard output\n"
       "                          when it is not a terminal; '-' = standard output)\n"
       "      --reference REF     RMS error of every point output against the run file REF\n"
-      "                          (THEORY.md section 7), written to /reference and printed\n"
+      "                          (docs/THEORY.md section 7), written to /reference and printed\n"
       "      --plot PREFIX       SVG plots PREFIX<output>-position.svg and -trajectory.svg\n"
       "      --t-end T           end the run at T seconds instead of the scene's t_end\n"
       "      --body-dir DIR      body files (and the fe/cb files of -M rules) in DIR instead of\n"

@@ -5,7 +5,7 @@
 // "Polyhedral domain with features" example: the closed surface becomes a polyhedron, its
 // sharp edges (dihedral angle beyond crit->feature_angle_deg) are protected by balls so that
 // edges and corners of the input survive, then make_mesh_3 refines the Delaunay tetrahedra
-// to the criteria. Named parameters use the 5.5 `params::x = v` syntax (TOOLCHAIN.md
+// to the criteria. Named parameters use the 5.5 `params::x = v` syntax (docs/TOOLCHAIN.md
 // gotcha 15). No exception leaves this file.
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>

@@ -2,7 +2,7 @@
 # tests/py/fegen.py: fmbd-fe files of simple bodies, written with h5py/numpy/scipy
 # SPDX-License-Identifier: MIT
 #
-# An independent writer of the fmbd-fe format (docs/FORMAT.md, BRIEF "fmbd-fe file") for tests
+# An independent writer of the fmbd-fe format (docs/FORMAT.md, section fmbd-fe) for tests
 # of fe2cb and cbcheck that must not depend on mesh2fe: a 3-D Euler-Bernoulli beam or frame
 # (6 dofs per node; consistent mass, translational rho*A and torsional rho*J, no section rotary
 # inertia: the convention of common/fmbd_fe.h) and a 3-D spring-mass lattice (3 dofs per node,
@@ -364,7 +364,7 @@ def read_cb(path):
 
 def write_ccx_deck(fe, path, nfreq, clamp_groups):
     """A CalculiX deck of the tet10 mesh of an fmbd-fe file, the tied nodes of an interface
-    clamped (TOOLCHAIN.md 3g)."""
+    clamped (docs/TOOLCHAIN.md section 3g)."""
     with h5py.File(fe, "r") as f:
         xyz = f["/mesh/nodes"][()]
         tet = f["/mesh/elements/tet10"][()]

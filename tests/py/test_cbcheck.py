@@ -2,7 +2,7 @@
 # tests/py/test_cbcheck.py: cbcheck's estimates, bounds, selection and reduced body
 # SPDX-License-Identifier: MIT
 #
-# 1. THEORY.md section 8's worked example (free-free beam, 200 Euler-Bernoulli elements, one
+# 1. docs/THEORY.md section 8's worked example (free-free beam, 200 Euler-Bernoulli elements, one
 #    6-dof end interface, Nd = 20): cbcheck reproduces the table's lower, upper (kappa_(Nd+1)),
 #    upper (kappa_n) and second-order values.
 # 2. The papers' quadruple-pendulum body (tet10 cylinder 0.3 x 0.015 m, E 100 GPa, nu 0.285,
@@ -70,7 +70,7 @@ def read_fe_km(path):
         return csr(f["K"]), csr(f["M"])
 
 
-# --- 1. THEORY.md section 8 ------------------------------------------------------------------
+# --- 1. docs/THEORY.md section 8 ------------------------------------------------------------------
 with open(os.path.join(TMP, "beam.geo"), "w") as f:
     f.write("Point(1) = {0, 0, 0, 0.01}; Point(2) = {0.3, 0, 0, 0.01};\nLine(1) = {1, 2};\n"
             "Transfinite Curve{1} = 201;\nPhysical Curve(\"rod\") = {1};\nPhysical Point(\"end\") = {2};\n")
@@ -79,7 +79,7 @@ run("mesh2fe", "beam.geo", "--circle", "0.015", "--E", "100e9", "--nu", "0.285",
 run("fe2cb", "beam.fe.h5", "--modes", "20", "-o", "beam.cb.h5", "-q")
 run("cbcheck", "beam.cb.h5", "--exact", "--range", "16", "--csv", "beam.csv", "-q")
 t = read_csv("beam.csv")
-# THEORY.md section 8: mode -> (f Hz, exact, lower, second, upper kappa_(Nd+1), upper kappa_n);
+# docs/THEORY.md section 8: mode -> (f Hz, exact, lower, second, upper kappa_(Nd+1), upper kappa_n);
 # the table's frequencies are the full model's (chi), cbcheck's are the reduced chibar.
 table = {1: ("1059.1", "1.322e-4", "1.320e-4", "1.323e-4", "1.324e-4", "1.49e-4"),
          3: ("2919.4", "6.972e-4", "6.892e-4", "7.035e-4", "7.043e-4", "8.79e-4"),
@@ -101,15 +101,15 @@ for mode, row in table.items():
     for name, val, got in (("f", row[0], fex), ("exact", row[1], t["exact"][j]), ("lower", row[2], t["lower"][j]),
                            ("upper_next", row[4], t["upper_kappa_next"][j]), ("upper", row[5], t["upper"][j])):
         rel = abs(got / float(val) - 1)
-        check(rel <= tol_digits(val), "beam mode %d %s: %.5g, THEORY.md %s (rel %.1e)" % (mode, name, got, val, rel))
-    # second order: THEORY.md notes the pairs' values depend on the basis inside the pair
+        check(rel <= tol_digits(val), "beam mode %d %s: %.5g, docs/THEORY.md %s (rel %.1e)" % (mode, name, got, val, rel))
+    # second order: docs/THEORY.md notes the pairs' values depend on the basis inside the pair
     # (modes 1, 3 are pairs); cbcheck reports the cluster maximum, so compare single modes only
     if mode in (5, 8, 12):
         rel = abs(t["second_order"][j] / float(row[3]) - 1)
-        check(rel <= tol_digits(row[3]), "beam mode %d second: %.5g, THEORY.md %s" % (mode, t["second_order"][j], row[3]))
-n, up, lo = rates(t, "beam (THEORY.md 8)")
-check(up == n and lo == n, "beam: THEORY.md says lower <= exact <= upper for all 16 modes under 10 %")
-print("beam: THEORY.md section 8 table reproduced (%d modes checked)" % len(table))
+        check(rel <= tol_digits(row[3]), "beam mode %d second: %.5g, docs/THEORY.md %s" % (mode, t["second_order"][j], row[3]))
+n, up, lo = rates(t, "beam (docs/THEORY.md section 8)")
+check(up == n and lo == n, "beam: docs/THEORY.md says lower <= exact <= upper for all 16 modes under 10 %")
+print("beam: docs/THEORY.md section 8 table reproduced (%d modes checked)" % len(table))
 
 # --- 2. quadruple-pendulum body: bounds and selection --------------------------------------
 geo = os.path.join(ROOT, "examples", "geometry", "rod.geo")

@@ -4,7 +4,7 @@
 #
 # A tet10 rod with two RBE2 interfaces, reduced by fe2cb and selected by cbcheck to 1e-3 on 8
 # flexible modes, then every /ffrf invariant against a direct numpy evaluation from the file's
-# own /mesh/node_mass, /expand and /modes/shapes (BRIEF.md definitions), the rigid-body
+# own /mesh/node_mass, /expand and /modes/shapes (docs/THEORY.md section 9), the rigid-body
 # moments against /body, the modes against the FE matrices (mass-normalised, Rayleigh
 # quotients = eigenvalues, eigenvalues within the tolerance of scipy's full eigensolution),
 # the interface modes against /expand rows, and the modal stress layout.
@@ -88,7 +88,7 @@ err = lam / chi - 1
 print("exact relative errors of the kept modes: max %.2e (tolerance %g)" % (err.max(), TOL))
 check(np.all(err <= TOL) and np.all(err > -1e-9), "kept eigenvalues off the full ones: %s" % err)
 
-# --- FFRF invariants (BRIEF.md /ffrf) against numpy on the file's own arrays -------------------
+# --- FFRF invariants (docs/THEORY.md section 9) against numpy on the file's own arrays -------------------
 U = (E @ X).reshape(nn, 6, nm)          # row 6p+d of /expand: component d of node p
 T = U[:, :3, :]                          # translations (nn, 3, nm)
 S1 = np.einsum("p,pak->ak", mass, T)

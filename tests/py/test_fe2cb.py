@@ -7,7 +7,7 @@
 # the closed-form reduced matrices equal T0' M T0 and T0' K T0; reduced eigenvalues lie on or
 # above the full ones and their error falls as modes are added; rigid-body modes flagged; a
 # body with repeated frequencies returns both members of every pair (by count and by --fmax);
-# the free-free shift trap of THEORY.md section 8 does not bite (--method nm); lumped mass
+# the free-free shift trap of docs/THEORY.md section 8 does not bite (--method nm); lumped mass
 # (Mc = 0); --method nm --hold equals the fixed-interface modes.
 import os
 import subprocess
@@ -90,7 +90,7 @@ def closed_form_error(T, A, Ar, nd):
     return worst, margin
 
 
-# --- 1. free-free beam with two interfaces (THEORY.md section 8's beam), ARPACK path -----------
+# --- 1. free-free beam with two interfaces (docs/THEORY.md section 8's beam), ARPACK path -----------
 beam = fegen.beam(n_el=200, length=0.3, radius=0.015, E=100e9, nu=0.285, rho=7850,
                   interfaces={"end0": [0], "end1": [200]})
 fe = os.path.join(TMP, "beam.fe.h5")
@@ -175,7 +175,7 @@ for lo, hi in ((4, 8), (8, 16)):
     check(ok and zetas[hi][0] < zetas[lo][0],
           "beam: zeta falls from Nd=%d to %d (mode 7: %.2e -> %.2e, mode 12: %.2e -> %.2e)"
           % (lo, hi, zetas[lo][0], zetas[hi][0], zetas[lo][5], zetas[hi][5]))
-# THEORY.md section 8's table (Nd = 20, boundary = one end's 6 dofs): exact zeta of mode 1
+# docs/THEORY.md section 8's table (Nd = 20, boundary = one end's 6 dofs): exact zeta of mode 1
 # (1059.1 Hz) 1.322e-4, of mode 5 (torsion, 3710.7 Hz) 1.086e-3
 beam1 = fegen.beam(n_el=200, length=0.3, radius=0.015, E=100e9, nu=0.285, rho=7850,
                    interfaces={"end0": [0]})
@@ -189,7 +189,7 @@ z = cb["reduced/eigenvalues"][6:] / chi1[6:len(cb["reduced/eigenvalues"])] - 1
 f1 = np.sqrt(chi1[6]) / 2 / np.pi
 # the table gives 4 digits: 0.2 % agreement of the exact error, and of the frequency
 check(abs(f1 - 1059.1) < 0.5 and abs(z[0] / 1.322e-4 - 1) < 2e-3 and abs(z[4] / 1.086e-3 - 1) < 2e-3,
-      "THEORY.md 8 beam: f1 %.1f Hz (1059.1), zeta_1 %.4e (1.322e-4), zeta_5 %.4e (1.086e-3)"
+      "docs/THEORY.md section 8 beam: f1 %.1f Hz (1059.1), zeta_1 %.4e (1.322e-4), zeta_5 %.4e (1.086e-3)"
       % (f1, z[0], z[4]))
 
 # --- 2. repeated pairs: cantilever of circular section (Iy = Iz) ----------------------------------
@@ -222,7 +222,7 @@ nb_ref = int(np.sum(ref <= (2 * np.pi * fmax) ** 2))
 check(len(cb["cb/kappa"]) == nb_ref, "cantilever --fmax %.1f Hz: %d modes (scipy %d)"
       % (fmax, len(cb["cb/kappa"]), nb_ref))
 
-# --- 3. the free-free shift trap (THEORY.md 8): --method nm on the free beam ---------------------
+# --- 3. the free-free shift trap (docs/THEORY.md section 8): --method nm on the free beam ---------------------
 out = os.path.join(TMP, "beam.nm.h5")
 p = run(fe, "-o", out, "--method", "nm", "--modes", "16", "-v")
 cb = fegen.read_cb(out)

@@ -7,7 +7,7 @@
 # boundary) holds every tied face node (u_s = u_m + theta_m x r = 0): the fixed-interface modes
 # are the modes of the rod with the face x = 0 clamped, which is what ccx computes with
 # *BOUNDARY on the face nodes. Same mesh, same material, C3D10 (gmsh nodes 8 and 9 swapped,
-# TOOLCHAIN.md gotcha 8).
+# docs/TOOLCHAIN.md gotcha 8).
 import os
 import subprocess
 import sys
@@ -77,7 +77,7 @@ check(relw.max() < 1e-9, "fixed-interface eigenvalues vs scipy eigsh on the same
 # ~1e-4; fe2cb must return both members (ccx has them too)
 pairs = np.sum(np.diff(f_cb) < 1e-3 * f_cb[1:])
 check(pairs >= 4, "rod: %d near-repeated pairs among %d modes (bending 1, 2, 3, 4...)" % (pairs, N))
-# Euler-Bernoulli first bending (TOOLCHAIN.md 3g): 241.19 Hz; tet10 at h = 5 mm gave 240.88
+# Euler-Bernoulli first bending (docs/TOOLCHAIN.md section 3g): 241.19 Hz; tet10 at h = 5 mm gave 240.88
 check(abs(f_cb[0] - 240.9) < 0.5, "rod: first frequency %.2f Hz (tet10 h=5mm ccx: 240.88)" % f_cb[0])
 
 print("\n%d failure(s)" % len(failures))

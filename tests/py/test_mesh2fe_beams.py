@@ -200,7 +200,7 @@ def main():
     ax = first(kinds, flex, "axial")
     # bending 1 (a pair): Timoshenko is the right theory at L/D = 10; the 3-D solid and the 1-D
     # theory agree to ~0.3 % (the shear coefficient is an approximation); tet10 at h = R/2 adds
-    # < 0.1 % (TOOLCHAIN.md 3g: ccx converges to 0.03 % at h = 5 mm)
+    # < 0.1 % (docs/TOOLCHAIN.md section 3g: ccx converges to 0.03 % at h = 5 mm)
     check(len(b) >= 4, "free-free: two bending pairs found")
     for i in range(2):
         pair = b[2 * i: 2 * i + 2]
@@ -230,7 +230,7 @@ def main():
     ax = first(kinds, fr, "axial")
     check(fr[0] > 100, "cantilever has no rigid-body mode (first %.1f Hz)" % fr[0])
     # mode 1: the fully clamped face is a little stiffer than the ideal clamp of either theory;
-    # 3-D sits between Timoshenko and E-B (TOOLCHAIN.md 3g): within 0.5 % of E-B
+    # 3-D sits between Timoshenko and E-B (docs/TOOLCHAIN.md section 3g): within 0.5 % of E-B
     eb1 = BETA_CANT[0] ** 2 * EB
     check(abs(rel(b[0], eb1)) < 0.005, "cantilever bending 1: %.2f Hz vs E-B %.2f (%+.2f %%, tol 0.5 %%)"
           % (b[0], eb1, 100 * rel(b[0], eb1)))

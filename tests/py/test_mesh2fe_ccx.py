@@ -3,7 +3,7 @@
 
 The rod of examples/geometry/rod.geo (h = 7.5 mm, 2.7 k tet10), clamped at end0, through
 mesh2fe; the same nodes and elements written as a CalculiX C3D10 deck (gmsh local nodes 8 and 9
-swapped, coordinates %.12e: TOOLCHAIN.md gotchas 8-10), `ccx *FREQUENCY` in a scratch folder.
+swapped, coordinates %.12e: docs/TOOLCHAIN.md gotchas 8-10), `ccx *FREQUENCY` in a scratch folder.
 The first ten frequencies of mesh2fe's K, M (scipy eigsh, shift-invert) must agree with ccx's.
 
 Tolerance: the stiffness is the same element (isoparametric C3D10, 4-point rule) so it agrees to
@@ -11,7 +11,7 @@ roundoff; the mass differs: mesh2fe integrates N_a N_b with a 14-point degree-5 
 straight elements), CalculiX with its own rule. Measured at this mesh: 1.2e-4 for the torsion
 mode (mode 5, whose kinetic energy sits at the outer radius, in the curved boundary elements),
 <= 1.5e-5 for the bending and axial modes. Tolerance 5e-4: above the mass-rule
-difference, two orders below the discretisation error (TOOLCHAIN.md: mode 1 moves 3e-4
+difference, two orders below the discretisation error (docs/TOOLCHAIN.md: mode 1 moves 3e-4
 between h = 5 and 2.5 mm), so a wrong element (e.g. a mis-ordered mid-side node) fails.
 """
 import math

@@ -173,7 +173,7 @@ int main(void) {
     int rc = fmbd_eig_solve(K, M, NULL, &o, &r);
     EXPECT(rc == 0 && r.nev == 10, "free bar: rc %d", rc);
     EXPECT(rc || r.sigma < 0, "negative shift expected: %g", r.sigma);
-    // the shift is scaled to the first flexible eigenvalue (THEORY.md 8), not tiny
+    // the shift is scaled to the first flexible eigenvalue (docs/THEORY.md section 8), not tiny
     EXPECT(rc || (-r.sigma > 0.1 * lam1d(1, h) && -r.sigma < 2 * lam1d(1, h)), "shift %g vs lambda_1 %g",
            r.sigma, lam1d(1, h));
     // rigid mode: |lambda_0| tiny against lambda_1 (round-off of K + |sigma| M)
