@@ -145,14 +145,21 @@ int fmbd_cb_check_body(const fmbd_fe_body *b, double sym_rtol) {
       FMBD_FAIL(FMBD_ERR_VALUE, "matrix is not symmetric (|A(i,j) - A(j,i)| > %.0e max|A|) at row %s",
                 sym_rtol, dof_label(b->dofs, bad, lab, sizeof lab));
     }
+    double dmax = 0.0;
     for (int64_t i = 0; i < b->ndof; i++) {
       double d = fmbd_csr_get(A, i, i);
+      dmax = fmax(dmax, d);
       if (d < 0.0 || (k == 0 && d == 0.0)) {
         fmbd_err_context(NULL, name[k]);
         FMBD_FAIL(FMBD_ERR_VALUE, "diagonal entry %.6g at %s (%s)", d,
                   dof_label(b->dofs, i, lab, sizeof lab),
                   k == 0 ? "a stiffness matrix has a positive diagonal" : "negative mass");
       }
+    }
+    if (k == 1 && b->ndof > 0 && !(dmax > 0.0)) {
+      // else the eigensolvers fail later with their own codes (ARPACK info -9, dsygvd)
+      fmbd_err_context(NULL, name[k]);
+      FMBD_FAIL(FMBD_ERR_VALUE, "the mass matrix is zero (no dof has mass: density 0?)");
     }
   }
   return FMBD_OK;
@@ -897,6 +904,20 @@ int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
     FMBD_GCALL(fmbd_h5_read_i64(f, "/reduced/rigid", 1, &d, &cb->rigid));
   }
   FMBD_GCALL(read_cm(f, "/reduced/eigenvectors", nr, nr, &cb->Xi));
+  // counts that later arithmetic relies on (a corrupt attribute would otherwise surface as a
+  // negative "at most N modes" far downstream)
+  {
+    int64_t nrig = 0;
+    for (int64_t i = 0; i < nr; i++) nrig += cb->rigid[i] != 0;
+    fmbd_err_context(fmbd_h5_name(f), "/cb");
+    FMBD_GCHECK(cb->n_rigid == nrig, FMBD_ERR_FORMAT, "attribute n_rigid = %lld, but /reduced/rigid "
+                "flags %lld modes", (long long)cb->n_rigid, (long long)nrig);
+    FMBD_GCHECK(cb->n_rigid_removed >= 0 && cb->n_rigid_removed <= 6, FMBD_ERR_FORMAT,
+                "attribute n_rigid_removed = %lld (0 to 6)", (long long)cb->n_rigid_removed);
+    FMBD_GCHECK(nd <= ns, FMBD_ERR_FORMAT, "%lld fixed-interface modes (/cb/kappa) for %lld "
+                "interior dofs", (long long)nd, (long long)ns);
+    fmbd_err_context("", "");
+  }
   *out = cb;
   cb = NULL;
 done:

@@ -306,10 +306,16 @@ int fmbd_csr_check(const fmbd_csr *A) {
     fmbd_err_context(NULL, "indptr");
     FMBD_FAIL(FMBD_ERR_FORMAT, "indptr: does not start at 0");
   }
+  // the whole indptr first: a bad row pointer otherwise shows up as a confusing defect of the
+  // indices of another row
   for (int64_t i = 0; i < A->nrows; i++) {
     if (A->indptr[i + 1] < A->indptr[i]) {
-      FMBD_FAIL(FMBD_ERR_FORMAT, "indptr: decreasing at row %lld", (long long)i);
+      FMBD_FAIL(FMBD_ERR_FORMAT, "indptr: not monotone: entry %lld (%lld) is below entry %lld (%lld)",
+                (long long)(i + 1), (long long)A->indptr[i + 1], (long long)i,
+                (long long)A->indptr[i]);
     }
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       int64_t j = A->indices[p];
       if (j < 0 || j >= A->ncols) {

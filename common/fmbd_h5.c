@@ -294,6 +294,7 @@ int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major) {
                format);
   }
   FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &fmt));
+  FMBD_GCHECK(fmt[0], FMBD_ERR_FORMAT, "the 'format' attribute is empty, expected %s", format);
   if (strcmp(fmt, format) != 0) FMBD_GFAIL(FMBD_ERR_FORMAT, "is a %s file, expected %s", fmt, format);
   FMBD_GCHECK(fmbd_h5_has_attr(f, "/", "format_version"), FMBD_ERR_FORMAT,
               "no 'format_version' attribute");
@@ -606,8 +607,8 @@ static int open_numeric(fmbd_h5 *f, const char *path, int rank, int64_t *dims, h
   int rc = FMBD_OK;
   hid_t d = -1, sp = -1, t = -1;
   *out = -1;
-  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing dataset");
-  FMBD_H5(d = H5Dopen2(f->fid, path, H5P_DEFAULT), FMBD_ERR_FORMAT, "not a dataset");
+  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing dataset %s", path);
+  FMBD_H5(d = H5Dopen2(f->fid, path, H5P_DEFAULT), FMBD_ERR_FORMAT, "%s: not a dataset", path);
   FMBD_H5(t = H5Dget_type(d), FMBD_ERR_FORMAT, "cannot read the type");
   H5T_class_t cls = H5Tget_class(t);
   FMBD_GCHECK(cls == H5T_INTEGER || cls == H5T_FLOAT, FMBD_ERR_FORMAT,
@@ -867,14 +868,25 @@ int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
   FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "shape", 2, shape));
   FMBD_GCHECK(shape[0] >= 0 && shape[1] >= 0 && shape[0] < INT64_MAX / 16, FMBD_ERR_FORMAT,
               "bad shape (%lld, %lld)", (long long)shape[0], (long long)shape[1]);
-  // nnz from the data dataset, checked against indptr afterwards
+  // nnz from the data dataset, checked against indptr afterwards; the shape against the
+  // length of indptr and nnz against the shape before anything of that size is allocated (a
+  // corrupt shape is a format defect, not "out of memory")
   {
     bool fl;
-    int64_t dims[1] = {-1};
+    int64_t dims[1] = {-1}, ip[1] = {-1};
     FMBD_GCALL(join(p, sizeof p, path, "data"));
     FMBD_GCALL(open_numeric(f, p, 1, dims, &d, &fl));
     close_id(&d, H5Dclose);
     nnz = dims[0];
+    FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+    FMBD_GCALL(open_numeric(f, p, 1, ip, &d, &fl));
+    close_id(&d, H5Dclose);
+    FMBD_GCHECK(ip[0] == shape[0] + 1, FMBD_ERR_FORMAT,
+                "shape (%lld, %lld) does not match indptr, which has %lld entries (%lld rows)",
+                (long long)shape[0], (long long)shape[1], (long long)ip[0], (long long)(ip[0] - 1));
+    FMBD_GCHECK(shape[1] == 0 ? nnz == 0 : nnz / shape[1] <= shape[0], FMBD_ERR_FORMAT,
+                "data has %lld entries, more than a (%lld, %lld) matrix holds", (long long)nnz,
+                (long long)shape[0], (long long)shape[1]);
   }
   FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
   FMBD_GCALL(join(p, sizeof p, path, "indptr"));

@@ -102,6 +102,13 @@ noout bad.rflex.h5
 expect 1 "cbcheck: error" "text.fe.h5" -- cbcheck beam.cb.h5 --fe text.fe.h5
 expect 1 "cbcheck: error" "beam.cb.h5" "fmbd-cb" -- cbcheck beam.cb.h5 --fe beam.cb.h5
 expect 1 "cbcheck: error" "stiffer.fe.h5" "changed" -- cbcheck beam.cb.h5 --fe stiffer.fe.h5
+# a corrupt count is named where it is read (was a negative "at most -1099511627528 modes")
+"$PYTHON" -c "
+import h5py, shutil, numpy as np
+shutil.copy('beam.cb.h5', 'nrigid.cb.h5')
+with h5py.File('nrigid.cb.h5', 'r+') as f:
+    f['cb'].attrs['n_rigid'] = np.int64(2**40)"
+expect 1 "cbcheck: error: nrigid.cb.h5:/cb: attribute n_rigid = 1099511627776, but /reduced/rigid flags" -- cbcheck nrigid.cb.h5 --range 2
 # not a cb file, missing file, usage
 expect 1 "cbcheck: error" "beam.fe.h5" "fmbd-fe" -- cbcheck beam.fe.h5
 expect 1 "cbcheck: error" "nothere.cb.h5" -- cbcheck nothere.cb.h5

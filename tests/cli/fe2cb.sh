@@ -28,6 +28,23 @@ fl = fegen.beam(n_el=40, interfaces={"end0": [0]}, skip=(20,))
 fegen.write("floating.fe.h5", fl)
 small = fegen.lattice(nx=3, ny=2, nz=2, interfaces={"a": "x0"})
 fegen.write("small.fe.h5", small)
+# messages that used to mislead: each defect must be named as what it is
+import shutil
+def variant(name, edit):
+    shutil.copy("good.fe.h5", name)
+    with h5py.File(name, "r+") as f:
+        edit(f)
+variant("hugeshape.fe.h5", lambda f: f["K"].attrs.__setitem__("shape", np.array([2**40, 2**40], dtype=np.int64)))
+def zero_mass(f):
+    f["M/data"][...] = 0.0
+variant("zeromass.fe.h5", zero_mass)
+def bad_indptr(f):
+    ip = f["K/indptr"][()]
+    ip[5] = ip[7]
+    f["K/indptr"][...] = ip
+variant("indptr.fe.h5", bad_indptr)
+variant("nodata.fe.h5", lambda f: f["K"].__delitem__("data"))
+variant("emptyformat.fe.h5", lambda f: f.attrs.__setitem__("format", ""))
 PY
 printf 'not an hdf5 file\n' > text.fe.h5
 
@@ -43,6 +60,13 @@ expect_fail() {
   head -n 1 stderr.txt  # the message, for the log
   return 0
 }
+
+# --- misleading messages, now named for what they are ------------------------------------------
+expect_fail 1 'hugeshape\.fe\.h5:/K: shape \(1099511627776, 1099511627776\) does not match indptr' out11.cb.h5 -- hugeshape.fe.h5 -o out11.cb.h5
+expect_fail 1 'zeromass\.fe\.h5:/M: the mass matrix is zero' out12.cb.h5 -- zeromass.fe.h5 -o out12.cb.h5
+expect_fail 1 'indptr\.fe\.h5:/K: indptr: not monotone: entry 6' out13.cb.h5 -- indptr.fe.h5 -o out13.cb.h5
+expect_fail 1 'nodata\.fe\.h5:/K: missing dataset /K/data' out14.cb.h5 -- nodata.fe.h5 -o out14.cb.h5
+expect_fail 1 "emptyformat\.fe\.h5: the 'format' attribute is empty, expected fmbd-fe" out15.cb.h5 -- emptyformat.fe.h5 -o out15.cb.h5
 
 # --- good runs ----------------------------------------------------------------------------------
 fe2cb good.fe.h5 -o good.cb.h5 --modes 6 -q 2> err.txt || bad "good run failed: $(cat err.txt)"
