@@ -2394,6 +2394,13 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       if (h <= hmin * (1 + 1e-9)) {
         char buf[800];
         worst_residual(m, buf, sizeof buf);
+        if (!isfinite(m->worst_v)) {
+          // overflow, not a convergence problem: say so rather than "singular" or "diverged"
+          FMBD_FAIL(FMBD_ERR_CONVERGE,
+                    "t = %.9g s: the equations are not finite (overflow: a load, stiffness, "
+                    "mass or initial velocity of absurd magnitude?); first at %s",
+                    m->t + h, buf);
+        }
         FMBD_FAIL(FMBD_ERR_CONVERGE,
                   "t = %.9g s, h = %.3g s: Newton did not converge; largest residual: %s", m->t + h,
                   h, buf);

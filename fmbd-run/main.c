@@ -638,7 +638,6 @@ done:
       col_close(&r.time);
       for (int k = 0; k < 3; k++) col_close(&r.energy[k]);
       for (int k = 0; k < 2; k++) col_close(&r.momentum[k]);
-    for (int k = 0; k < 2; k++) col_close(&r.momentum[k]);
       for (int k = 0; k < s->nreactions; k++) {
         col_close(&r.react[k][0]);
         col_close(&r.react[k][1]);

@@ -135,6 +135,19 @@ ex=$ROOT/examples
   fmbd-run "$ex/scenes/pendulum.yaml" -o coarse.run.h5 --reference pendulum.run.h5 2>ref.err &&
   grep -q "bob: RMS position error 0.0000e+00 m" ref.err ) || { echo "man page examples failed"; fail=1; }
 
+# --- a load of absurd magnitude overflows: said as such (was "singular iteration matrix")
+cat >overflow.yaml <<'EOF'
+solver: {t_end: 0.1}
+bodies:
+  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}
+joints:
+  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}
+loads:
+  - {name: push, type: force, body: bob, point: [0, 0, 0], direction: [0, 1, 0], function: {type: ramp, t1: 0.01, v1: 1e300}}
+EOF
+expect overflow 1 "^fmbd-run: error: overflow.yaml: t = .* s: the equations are not finite \(overflow" -- fmbd-run overflow.yaml -o out.run.h5
+rm -f out.run.h5.part
+
 # --- a reference must be a complete run with a finite, strictly increasing /time ------------
 if [ -f man/pendulum.run.h5 ]; then
   "$PY" - <<'PYEOF' || { echo "reference fixtures failed"; fail=1; }
