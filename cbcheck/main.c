@@ -43,7 +43,7 @@ static const char *usage_text =
     "                   against the SHA-256 fe2cb recorded. When present, it also gives\n"
     "                   estimates free of the round-off of A' Ks^-1 A (see the man page)\n"
     "  --tol E          select the number of fixed-interface modes Nd so that the upper\n"
-    "                   estimate of flexible modes 1..NM is at most E (E > 0)\n"
+    "                   estimate of flexible modes 1..NM is at most E (E >= 1e-10)\n"
     "  --range NM       flexible modes reported, and (with --tol) that must meet E\n"
     "                   (default: with --tol 10, else every flexible mode of the body)\n"
     "  --init N0        first Nd of the selection (default 5)\n"
@@ -74,6 +74,12 @@ static const char *usage_text =
     "\n"
     "Example:\n"
     "  cbcheck rod.cb.h5 --tol 1e-3 --range 10 -o rod.rflex.h5\n";
+
+// Smallest --tol accepted. The estimates compare eigenvalues that the Lanczos and the dense
+// reduced solves give to about 1e-12..1e-9 relative (the fe2cb tests: 1e-9 against scipy),
+// so a tolerance below 1e-10 would be "met" by round-off, or chased forever by adding modes.
+// A body whose modes are less accurate than the tolerance (/cb/max_residual) gets a warning.
+#define TOL_FLOOR 1e-10
 
 typedef struct args {
   const char *input, *fe, *csv, *plot, *output;
@@ -189,9 +195,11 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
   if (a->has_tol && a->nd >= 0) {
     return fmbd_cli_usage_error("--nd and --tol are exclusive (the selection chooses Nd)");
   }
-  if (a->has_tol && !(a->tol > 0)) {
-    return fmbd_cli_usage_error("%s: --tol %g: the relative eigenvalue error tolerance must be > 0",
-                                a->input, a->tol);
+  if (a->has_tol && !(a->tol >= TOL_FLOOR)) {
+    return fmbd_cli_usage_error("%s: --tol %g: the relative eigenvalue error tolerance must be at "
+                                "least %g: below that the eigenvalues themselves are not resolved "
+                                "(double precision, the eigensolvers' accuracy)",
+                                a->input, a->tol, TOL_FLOOR);
   }
   if (a->output && a->csv && !strcmp(a->output, "-") && !strcmp(a->csv, "-")) {
     return fmbd_cli_usage_error("-o - and --csv - cannot both use standard output");
@@ -713,6 +721,11 @@ int main(int argc, char **argv) {
     r.nd_max = a.max_modes;
   }
   int64_t nm = a.range > 0 ? a.range : (a.has_tol ? 10 : nflex_red);
+  if (a.has_tol && a.tol < 10.0 * cb->max_residual) {
+    fmbd_log(FMBD_LOG_WARN, "%s: --tol %g is within 10 times the largest relative residual of the "
+             "fixed-interface modes (%.2g, /cb max_residual): the estimates cannot be trusted "
+             "that far", cbname, a.tol, cb->max_residual);
+  }
   if (a.has_tol && a.init > r.nd_max) {
     fmbd_err_context(cbname, "/cb/interior_dofs");
     FMBD_GFAIL(FMBD_ERR_VALUE, "--init %ld: at most %lld fixed-interface modes (%lld interior dofs%s)",

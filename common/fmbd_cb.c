@@ -855,6 +855,9 @@ int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
     snprintf(cb->fe_sha256, sizeof cb->fe_sha256, "%s", s);
     fmbd_free(s);
   }
+  if (fmbd_h5_has_attr(f, "/cb", "max_residual")) {
+    FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/cb", "max_residual", 1, &cb->max_residual));
+  }
   if (fmbd_h5_has_attr(f, "/cb", "sturm_shift")) {
     FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/cb", "sturm_shift", 1, &cb->sturm_shift));
     FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/cb", "sturm_count", 1, &cb->sturm_count));

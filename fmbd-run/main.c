@@ -512,6 +512,21 @@ int main(int argc, char **argv) {
     if (rc) goto done;
   }
 
+  // --- runaway runs: say so before the work (a 1e-12 s step to 1e3 s is 1e15 steps) ------------
+  {
+    double steps = s->solver.fixed ? s->solver.t_end / s->solver.step : s->solver.t_end / s->solver.max_step;
+    double rows = s->output_every > 0 ? s->solver.t_end / s->output_every : steps;
+    if (steps > 1e8) {
+      fmbd_log(FMBD_LOG_WARN, "%s: %s %.3g steps (t_end %g s, %s %g s): this run may take days", scene_file,
+               s->solver.fixed ? "fixed step:" : "at least", steps, s->solver.t_end,
+               s->solver.fixed ? "step" : "max_step", s->solver.fixed ? s->solver.step : s->solver.max_step);
+    }
+    if (rows > 1e7 && s->noutputs > 0) {
+      fmbd_log(FMBD_LOG_WARN, "%s: about %.3g output rows (t_end %g s, every %g s): the run file may be "
+               "very large; set outputs.every", scene_file, rows, s->solver.t_end, s->output_every);
+    }
+  }
+
   // --- build and initialise -----------------------------------------------------------------
   FMBD_GCALL(fmbd_scene_build(s, &m));
   fmbd_mbs_settings set;

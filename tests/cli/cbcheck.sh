@@ -73,8 +73,8 @@ expect 1 "cbcheck: error" "beam.cb.h5:/cb/interior_dofs" "--init" -- cbcheck bea
 noout bad.rflex.h5
 # without --tol, --range beyond the reduced body's modes
 expect 1 "cbcheck: error" "beam.cb.h5:/reduced/eigenvalues" -- cbcheck beam.cb.h5 --range 50
-# an unreachable tolerance: the best reached is reported, exit 1, no rflex
-expect 1 "cbcheck: error" "beam.cb.h5:/cb/kappa" "not reached" "best reached" -- cbcheck beam.cb.h5 --tol 1e-300 --range 2 -o bad.rflex.h5 --csv bad.csv --plot bad
+# an unreachable tolerance (the pool capped): the best reached is reported, exit 1, no rflex
+expect 1 "cbcheck: error" "beam.cb.h5:/cb/kappa" "not reached" "best reached" -- cbcheck beam.cb.h5 --tol 1e-10 --range 2 --max-modes 6 -o bad.rflex.h5 --csv bad.csv --plot bad
 grep -q "first_failing" out.txt || err "unreachable tolerance: no iteration log in the report"
 grep -q "upper_next" out.txt || err "unreachable tolerance: no table of the best Nd in the report"
 noout bad.rflex.h5 bad.csv bad-estimates.svg bad-convergence.svg
@@ -115,4 +115,8 @@ expect 1 "cbcheck: error" "nothere.cb.h5" -- cbcheck nothere.cb.h5
 expect 2 "cbcheck: error" -- cbcheck beam.cb.h5 --csv - -o -
 expect 2 "cbcheck: error" -- cbcheck
 expect 2 "--estimator" -- cbcheck beam.cb.h5 --estimator best
+# a tolerance below what double precision resolves is refused (it was "met" by estimates of
+# 1e-21 on a small body, or chased forever by adding modes on a larger one)
+expect 2 "cbcheck: error" "--tol 1e-16" "at least 1e-10" -- cbcheck beam.cb.h5 --tol 1e-16 -o bad.rflex.h5
+noout bad.rflex.h5
 exit $fail

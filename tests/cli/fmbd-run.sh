@@ -148,6 +148,14 @@ EOF
 expect overflow 1 "^fmbd-run: error: overflow.yaml: t = .* s: the equations are not finite \(overflow" -- fmbd-run overflow.yaml -o out.run.h5
 rm -f out.run.h5.part
 
+# --- a runaway run is announced before the work (it was silent while writing 25 MB/s)
+printf 'solver: {t_end: 1000, step: 1e-12}\nbodies:\n  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\njoints:\n  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}\noutputs:\n  points:\n    - {name: bob, body: bob, point: [0, 0, 0], quantities: [position]}\n' >runaway.yaml
+timeout 2 fmbd-run runaway.yaml -o runaway.run.h5 2>runaway.err
+grep -q "warning: runaway.yaml: fixed step: 1e+15 steps" runaway.err || { echo "runaway: no step-count warning"; cat runaway.err; fail=1; }
+grep -q "output rows" runaway.err || { echo "runaway: no output-size warning"; fail=1; }
+[ -e runaway.run.h5 ] && { echo "runaway: complete target after a kill"; fail=1; }
+rm -f runaway.run.h5.part
+
 # --- a reference must be a complete run with a finite, strictly increasing /time ------------
 if [ -f man/pendulum.run.h5 ]; then
   "$PY" - <<'PYEOF' || { echo "reference fixtures failed"; fail=1; }
