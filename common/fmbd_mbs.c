@@ -1840,6 +1840,20 @@ static int find_redundant(fmbd_mbs *m) {
     for (int64_t c = 0; c < nc; c++) sel[c] = false;
     for (int64_t i = 0; i < rank; i++) sel[jp[i] - 1] = true;
   }
+  // a driver is never dropped: dependent on the joints it is either at a singular position of
+  // the mechanism (a slider-crank's dead point) or fights them (a driven pivot of a chain
+  // locked to ground); dropped, the run would go on far from the motion it prescribes
+  for (int64_t c = 0; c < nc; c++) {
+    const meq *q = &m->eq[ix[c]];
+    if (sel[c] || q->kind != EQ_DRIVER) continue;
+    char buf[512];
+    eq_describe(m, q, buf, sizeof buf);
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "t = %.6g s: the %s depends on the joint equations (the mechanism is at a singular "
+               "position for it, or the driver fights the joints): it cannot be followed and is "
+               "not dropped",
+               m->t, buf);
+  }
   for (int64_t c = 0; c < nc; c++) {
     if (sel[c]) continue;
     meq *q = &m->eq[ix[c]];

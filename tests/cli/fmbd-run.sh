@@ -156,6 +156,13 @@ grep -q "output rows" runaway.err || { echo "runaway: no output-size warning"; f
 [ -e runaway.run.h5 ] && { echo "runaway: complete target after a kill"; fail=1; }
 rm -f runaway.run.h5.part
 
+# --- a driver is never dropped as redundant (it was, with a warning, and the run exited 0 far
+# from the prescribed motion): at a singular position, and fighting a locked chain
+printf 'solver: {t_end: 0.5}\nbodies:\n  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\njoints:\n  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}\ndrivers:\n  - {name: pushx, body: bob, coordinate: x, function: {type: linear, v0: 1, rate: 1}}\n' >drvsing.yaml
+expect driver-singular 1 "^fmbd-run: error: drvsing.yaml: t = 0 s: the driver 'pushx' .* depends on the joint equations" -- fmbd-run drvsing.yaml -o out.run.h5
+printf 'solver: {t_end: 0.5}\nbodies:\n  - {name: a, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\njoints:\n  - {name: pivot, type: revolute, body1: ground, body2: a, point: [0, 0, 0], axis: z}\n  - {name: lock, type: fixed, body1: ground, body2: a, point: [1, 0, 0]}\ndrivers:\n  - {name: motor, joint: pivot, function: {type: linear, rate: 1}}\n' >drvlock.yaml
+expect driver-locked 1 "^fmbd-run: error: drvlock.yaml: t = 0 s: the driver 'motor' .* depends on the joint equations" -- fmbd-run drvlock.yaml -o out.run.h5
+
 # --- a reference must be a complete run with a finite, strictly increasing /time ------------
 if [ -f man/pendulum.run.h5 ]; then
   "$PY" - <<'PYEOF' || { echo "reference fixtures failed"; fail=1; }
