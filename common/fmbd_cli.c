@@ -4,6 +4,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -65,7 +66,31 @@ static char *append_quoted(char *out, const char *s) {
   return out;
 }
 
+// SIGINT, SIGTERM, SIGHUP: remove the output being written, say so, exit 1. Only
+// async-signal-safe calls (unlink, write, _exit). fmbd-run replaces it while it steps, to keep
+// its valid prefix instead.
+static void on_fatal_signal(int sig) {
+  fmbd_h5_signal_cleanup();
+  const char *prog = fmbd_log_prog();
+  static const char msg[] = ": error: interrupted by a signal; no output written\n";
+  if (prog) {
+    ssize_t w = write(STDERR_FILENO, prog, strlen(prog));
+    (void)w;
+  }
+  ssize_t w = write(STDERR_FILENO, msg, sizeof msg - 1);
+  (void)w;
+  (void)sig;
+  _exit(1);
+}
+
 void fmbd_cli_init(const char *prog, int argc, char **argv) {
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_fatal_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  sigaction(SIGHUP, &sa, NULL);
   fmbd_timer_start(&g_timer);
   g_timer_started = true;
   fmbd_log_init(prog, FMBD_LOG_WARN);

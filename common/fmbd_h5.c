@@ -16,6 +16,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <signal.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -314,11 +315,34 @@ done:
 const char *fmbd_h5_name(const fmbd_h5 *f) { return f->name; }
 const char *fmbd_h5_sha256(const fmbd_h5 *f) { return f->sha; }
 
+// --- the output being written, for a signal handler ------------------------------------------
+// One slot: every program writes one output at a time. Set when a .part is created, cleared
+// after the rename (commit), the removal (close) or the hand-over (abandon).
+static char g_part[4096];
+static volatile sig_atomic_t g_part_set = 0;
+
+static void part_register(const char *part) {
+  g_part_set = 0;
+  if (part && strlen(part) < sizeof g_part) {
+    memcpy(g_part, part, strlen(part) + 1);
+    g_part_set = 1;
+  }
+}
+
+static void part_forget(const char *part) {
+  if (part && g_part_set && !strcmp(part, g_part)) g_part_set = 0;
+}
+
+void fmbd_h5_signal_cleanup(void) {
+  if (g_part_set) unlink(g_part);  // async-signal-safe
+}
+
 void fmbd_h5_close(fmbd_h5 **pf) {
   if (!pf || !*pf) return;
   fmbd_h5 *f = *pf;
   if (f->fid >= 0) H5Fclose(f->fid);
   if (f->writing && f->part) unlink(f->part);  // an uncommitted output is discarded
+  part_forget(f->part);
   h5_free(f);
   *pf = NULL;
 }
@@ -327,6 +351,7 @@ void fmbd_h5_abandon(fmbd_h5 **pf) {
   if (!pf || !*pf) return;
   fmbd_h5 *f = *pf;
   if (f->fid >= 0) H5Fclose(f->fid);  // "<name>.part" stays; an image for stdout is dropped
+  part_forget(f->part);
   h5_free(f);
   *pf = NULL;
 }
@@ -363,6 +388,7 @@ int fmbd_h5_create(const char *name, const char *format, const char *format_vers
       FMBD_GFAIL(FMBD_ERR_IO, "cannot create %s.part: %s", name, strerror(e));
     }
     fclose(fp);
+    part_register(f->part);
     FMBD_H5(f->fid = H5Fcreate(f->part, H5F_ACC_TRUNC, H5P_DEFAULT, fapl), FMBD_ERR_IO,
             "cannot create %s", f->part);
   }
@@ -484,6 +510,7 @@ int fmbd_h5_commit(fmbd_h5 **pf, double wall_s, double cpu_s) {
     if (rename(f->part, f->name) != 0) {
       FMBD_GFAIL(FMBD_ERR_IO, "cannot rename %s to %s: %s", f->part, f->name, strerror(errno));
     }
+    part_forget(f->part);
     fmbd_free(f->part);
     f->part = NULL;  // committed: nothing to remove
   }

@@ -163,4 +163,9 @@ void fmbd_sha256_hex(const void *data, uint64_t n, char hex[65]);
 /// @brief SHA-256 of a file's contents. FMBD_ERR_IO if it cannot be read.
 int fmbd_sha256_file(const char *path, char hex[65]);
 
+/// @brief For a signal handler (async-signal-safe): remove the ".part" of the output being
+/// written, if any (created by fmbd_h5_create and neither committed, closed nor abandoned), so
+/// that an interrupted program leaves nothing half-written. fmbd_cli_init installs the handler.
+void fmbd_h5_signal_cleanup(void);
+
 #endif

@@ -598,6 +598,7 @@ int main(int argc, char **argv) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
+  sigaction(SIGHUP, &sa, NULL);
   r.t0_wall = fmbd_wall_s();
   r.t0_cpu = fmbd_cpu_s();
   FMBD_GCALL(record(&r));  // the initial (consistent) state
