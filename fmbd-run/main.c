@@ -5,7 +5,7 @@
 //
 // The run file is written as the run goes (extendible series, flushed), under RUN.h5.part;
 // it is renamed to RUN.h5 only when the run is complete. An interrupted run (SIGINT,
-// SIGTERM, Newton failure) keeps RUN.h5.part, a valid prefix with /stats complete = 0, and
+// SIGTERM, SIGHUP, Newton failure) keeps RUN.h5.part, a valid prefix with /stats complete = 0, and
 // exits 1: make never sees a target it could trust.
 #include <getopt.h>
 #include <math.h>
@@ -420,7 +420,7 @@ static void usage(void) {
       "  -v, --verbose           progress and details (-vv: debug)\n"
       "  -h, --help              this help\n"
       "  -V, --version           the version\n\n"
-      "An interrupted run (SIGINT, SIGTERM, no Newton convergence at the smallest step) keeps\n"
+      "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step) keeps\n"
       "its valid prefix in RUN.h5.part with /stats attribute complete = 0, and exits 1.\n\n%s",
       fmbd_cli_exit_help());
 }
