@@ -7,6 +7,7 @@
 #   make demo       the main job end to end (examples/)
 #   make bench      benchmarks under bench/ (minutes; see bench/README.md)
 #   make install    PREFIX=/usr/local DESTDIR=
+#   make format     reformat the C/C++ sources with .clang-format (make check checks it)
 #   make info       resolved flags;  V=1 full command lines
 .DELETE_ON_ERROR:
 .SUFFIXES:
@@ -104,7 +105,7 @@ $(BUILD)/tools/%: $(BUILD)/tests/tools/%.o $(LIB)
 	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $< $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
 
 # --- targets ------------------------------------------------------------------------------
-.PHONY: all deps check check-build demo bench install uninstall clean info
+.PHONY: all deps check check-build demo bench install uninstall clean info format
 deps:
 	@bash scripts/install-deps.sh
 
@@ -132,6 +133,9 @@ uninstall:
 
 clean:
 	rm -rf build build-san
+
+format:
+	@bash scripts/format-check.sh --fix
 
 info:
 	@echo "VERSION       $(VERSION)"

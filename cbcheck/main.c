@@ -101,12 +101,12 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
   for (int i = 1; i < argc; i++) {
     const char *arg = argv[i];
     const char *val = NULL;
-#define NEED_VALUE()                                                     \
-  do {                                                                   \
-    if (i + 1 >= argc) {                                                 \
-      return fmbd_cli_usage_error("option %s needs a value", arg);       \
-    }                                                                    \
-    val = argv[++i];                                                     \
+#define NEED_VALUE()                                               \
+  do {                                                             \
+    if (i + 1 >= argc) {                                           \
+      return fmbd_cli_usage_error("option %s needs a value", arg); \
+    }                                                              \
+    val = argv[++i];                                               \
   } while (0)
     int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
     if (common == FMBD_CLI_DONE) {
@@ -171,7 +171,8 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
       } else if (!strcmp(val, "lower")) {
         a->which = FMBD_EST_LOWER;
       } else {
-        return fmbd_cli_usage_error("--estimator: '%s' is not upper, upper-next, second or lower", val);
+        return fmbd_cli_usage_error("--estimator: '%s' is not upper, upper-next, second or lower",
+                                    val);
       }
     } else if (!strcmp(arg, "--exact")) {
       a->exact = true;
@@ -196,10 +197,11 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
     return fmbd_cli_usage_error("--nd and --tol are exclusive (the selection chooses Nd)");
   }
   if (a->has_tol && !(a->tol >= TOL_FLOOR)) {
-    return fmbd_cli_usage_error("%s: --tol %g: the relative eigenvalue error tolerance must be at "
-                                "least %g: below that the eigenvalues themselves are not resolved "
-                                "(double precision, the eigensolvers' accuracy)",
-                                a->input, a->tol, TOL_FLOOR);
+    return fmbd_cli_usage_error(
+        "%s: --tol %g: the relative eigenvalue error tolerance must be at "
+        "least %g: below that the eigenvalues themselves are not resolved "
+        "(double precision, the eigensolvers' accuracy)",
+        a->input, a->tol, TOL_FLOOR);
   }
   if (a->output && a->csv && !strcmp(a->output, "-") && !strcmp(a->csv, "-")) {
     return fmbd_cli_usage_error("-o - and --csv - cannot both use standard output");
@@ -210,18 +212,18 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
 // --- the state of one run ------------------------------------------------------------------
 typedef struct run {
   const args *a;
-  fmbd_h5 *cbf;          // the cb file
-  fmbd_cb *cb;           // its /cb, /reduced
-  fmbd_fe_body *desc;    // its description (no K, M)
-  char *fe_name;         // fe file used (or NULL)
+  fmbd_h5 *cbf;        // the cb file
+  fmbd_cb *cb;         // its /cb, /reduced
+  fmbd_fe_body *desc;  // its description (no K, M)
+  char *fe_name;       // fe file used (or NULL)
   char fe_sha[65];
-  fmbd_fe_body *fe;      // the fe body with K, M (NULL until needed/available)
+  fmbd_fe_body *fe;  // the fe body with K, M (NULL until needed/available)
   bool fe_tried;
   fmbd_est *est;
   int64_t nd_max;
   double t_extend_s, t_exact_s, t_est_s, t_load_s;  // wall
-  double c_exact_s, c_est_s, c_load_s;               // cpu
-  int64_t nd_file;  // modes in the cb file
+  double c_exact_s, c_est_s, c_load_s;              // cpu
+  int64_t nd_file;                                  // modes in the cb file
   int64_t nextend;
 } run;
 
@@ -280,8 +282,9 @@ static int load_fe(run *r, bool required, const char *why) {
   rc = fmbd_h5_open(cand, &f);
   if (rc != FMBD_OK) {
     if (!required) {
-      fmbd_log(FMBD_LOG_WARN, "%s: source fe file %s not readable; estimates from the cb file alone",
-               cbname, cand);
+      fmbd_log(FMBD_LOG_WARN,
+               "%s: source fe file %s not readable; estimates from the cb file alone", cbname,
+               cand);
       fmbd_err_clear();
       rc = FMBD_OK;
       goto done;
@@ -302,7 +305,8 @@ static int load_fe(run *r, bool required, const char *why) {
     fmbd_err_context(cbname, "/cb");
     FMBD_GFAIL(FMBD_ERR_VALUE,
                "source fe file %s changed since fe2cb read it: SHA-256 %.12s..., recorded "
-               "fe_sha256 %.12s... (%s)", cand, sha, r->cb->fe_sha256, why);
+               "fe_sha256 %.12s... (%s)",
+               cand, sha, r->cb->fe_sha256, why);
   }
   fmbd_err_context(cand, "");
   FMBD_GCALL(fmbd_fe_read(f, &r->fe));
@@ -389,9 +393,9 @@ static int extend(void *ctx, fmbd_est *e, int64_t nd_wanted) {
 
 // --- report ------------------------------------------------------------------------------------
 typedef struct table {
-  int64_t nflex;        // flexible modes listed
+  int64_t nflex;                                                 // flexible modes listed
   double *freq, *chib, *lower, *second, *upper, *unext, *exact;  // (nflex)
-  int64_t *cluster;     // flexible index (1-based) of the cluster's first member
+  int64_t *cluster;  // flexible index (1-based) of the cluster's first member
 } table;
 
 static void table_free(table *t) {
@@ -419,9 +423,9 @@ static int table_fill(table *t, const fmbd_est_modes *m, int64_t nflex, const do
   t->unext = fmbd_calloc(n, sizeof(double));
   t->exact = fmbd_calloc(n, sizeof(double));
   t->cluster = fmbd_calloc(n, sizeof(int64_t));
-  FMBD_CHECK(t->freq && t->chib && t->lower && t->second && t->upper && t->unext && t->exact &&
-                 t->cluster,
-             FMBD_ERR_NOMEM, "out of memory");
+  FMBD_CHECK(
+      t->freq && t->chib && t->lower && t->second && t->upper && t->unext && t->exact && t->cluster,
+      FMBD_ERR_NOMEM, "out of memory");
   int64_t j = 0, *flexidx = fmbd_calloc((size_t)m->nmodes + 1, sizeof(int64_t));
   FMBD_CHECK(flexidx, FMBD_ERR_NOMEM, "out of memory");
   for (int64_t k = 0; k < m->nmodes; k++) {
@@ -465,9 +469,11 @@ static void print_table(FILE *fp, const table *t, bool exact) {
     any = any || t->cluster[j] != j + 1;
   }
   if (any) {
-    fprintf(fp, "clusters (eigenvalues within 1e-3, or overlapping intervals [chibar/(1+upper), chibar]):\n"
-                "each member gets the cluster's largest upper and second-order estimates and its\n"
-                "smallest lower estimate\n");
+    fprintf(
+        fp,
+        "clusters (eigenvalues within 1e-3, or overlapping intervals [chibar/(1+upper), chibar]):\n"
+        "each member gets the cluster's largest upper and second-order estimates and its\n"
+        "smallest lower estimate\n");
   }
   if (exact) {  // measured bounding rates over modes with exact error below 10 %
     int64_t n = 0, up = 0, lo = 0, un = 0;
@@ -512,7 +518,8 @@ static int write_csv(const char *name, const table *t) {
       FMBD_FAIL(FMBD_ERR_IO, "cannot write the CSV file");
     }
   }
-  fprintf(fp, "mode,frequency_hz,eigenvalue,lower,second_order,upper,exact,upper_kappa_next,cluster\n");
+  fprintf(fp,
+          "mode,frequency_hz,eigenvalue,lower,second_order,upper,exact,upper_kappa_next,cluster\n");
   for (int64_t j = 0; j < t->nflex; j++) {
     fprintf(fp, "%lld", (long long)j + 1);
     csv_num(fp, t->freq[j]);
@@ -654,13 +661,16 @@ static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t n
   FMBD_GCALL(fmbd_est_set_nd(r->est, nd_save));
   fmbd_svg_series s[2 * NPICK + 1];
   int ns = 0;
-  static const char *const col[NPICK] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  static const char *const col[NPICK] = {"#1f77b4", "#d62728", "#2ca02c",
+                                         "#ff7f0e", "#9467bd", "#8c564b"};
   for (int64_t q = 0; q < npick; q++) {
     snprintf(labels[2 * q], sizeof labels[0], "mode %lld estimate", (long long)pick[q]);
-    s[ns++] = (fmbd_svg_series){labels[2 * q], nx, xs, ys + nx * q, col[q], FMBD_SVG_NONE, FMBD_SVG_DASHED};
+    s[ns++] = (fmbd_svg_series){labels[2 * q],  nx, xs, ys + nx * q, col[q], FMBD_SVG_NONE,
+                                FMBD_SVG_DASHED};
     if (chi) {
       snprintf(labels[2 * q + 1], sizeof labels[0], "mode %lld exact", (long long)pick[q]);
-      s[ns++] = (fmbd_svg_series){labels[2 * q + 1], nx, xs, ye + nx * q, col[q], FMBD_SVG_NONE, FMBD_SVG_SOLID};
+      s[ns++] = (fmbd_svg_series){labels[2 * q + 1], nx, xs, ye + nx * q, col[q], FMBD_SVG_NONE,
+                                  FMBD_SVG_SOLID};
     }
   }
   double tx[2] = {(double)nd_lo, (double)nd_hi}, ty[2] = {tol, tol};
@@ -722,14 +732,18 @@ int main(int argc, char **argv) {
   }
   int64_t nm = a.range > 0 ? a.range : (a.has_tol ? 10 : nflex_red);
   if (a.has_tol && a.tol < 10.0 * cb->max_residual) {
-    fmbd_log(FMBD_LOG_WARN, "%s: --tol %g is within 10 times the largest relative residual of the "
+    fmbd_log(FMBD_LOG_WARN,
+             "%s: --tol %g is within 10 times the largest relative residual of the "
              "fixed-interface modes (%.2g, /cb max_residual): the estimates cannot be trusted "
-             "that far", cbname, a.tol, cb->max_residual);
+             "that far",
+             cbname, a.tol, cb->max_residual);
   }
   if (a.has_tol && a.init > r.nd_max) {
     fmbd_err_context(cbname, "/cb/interior_dofs");
-    FMBD_GFAIL(FMBD_ERR_VALUE, "--init %ld: at most %lld fixed-interface modes (%lld interior dofs%s)",
-               a.init, (long long)r.nd_max, (long long)cb->ns, r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "--init %ld: at most %lld fixed-interface modes (%lld interior dofs%s)", a.init,
+               (long long)r.nd_max, (long long)cb->ns,
+               r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
   }
   // the most flexible modes a reduced body can have: Nd <= ns - 1 (the eigensolver needs
   // nev < n) plus the boundary dofs, less the rigid-body modes
@@ -738,7 +752,9 @@ int main(int argc, char **argv) {
   }
   if (nm > nflex_body) {
     fmbd_err_context(cbname, "/dofs");
-    FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the body can have at most %lld flexible modes (%lld dofs, %lld rigid-body modes%s)",
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "--range %lld: the body can have at most %lld flexible modes (%lld dofs, %lld "
+               "rigid-body modes%s)",
                (long long)nm, (long long)nflex_body, (long long)cb->ndof, (long long)cb->n_rigid,
                r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
   }
@@ -750,8 +766,10 @@ int main(int argc, char **argv) {
   }
   if (!a.has_tol && nm > nflex_red) {
     fmbd_err_context(cbname, "/reduced/eigenvalues");
-    FMBD_GFAIL(FMBD_ERR_VALUE, "--range %lld: the reduced body has only %lld flexible modes (give --tol to add modes)",
-               (long long)nm, (long long)nflex_red);
+    FMBD_GFAIL(
+        FMBD_ERR_VALUE,
+        "--range %lld: the reduced body has only %lld flexible modes (give --tol to add modes)",
+        (long long)nm, (long long)nflex_red);
   }
   // output streams: the report leaves stdout to the rflex or the CSV
   bool want_rflex = a.output || a.has_tol;
@@ -794,12 +812,15 @@ int main(int argc, char **argv) {
   }
   FMBD_GCALL(set_pool(&r));
   if (rep) {
-    fprintf(rep, "cbcheck: %s: method %s, %lld dofs, %lld boundary dofs, %lld fixed-interface modes, %lld rigid-body modes\n",
+    fprintf(rep,
+            "cbcheck: %s: method %s, %lld dofs, %lld boundary dofs, %lld fixed-interface modes, "
+            "%lld rigid-body modes\n",
             cbname, cb->method, (long long)cb->ndof, (long long)cb->nb, (long long)cb->nd,
             (long long)cb->n_rigid);
     fprintf(rep, "residual flexibility: %s\n",
             r.fe && !a.plain ? "projected with the FE matrices of the fe file (no cancellation)"
-                 : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone (may lose digits on slender bodies)");
+                             : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone "
+                               "(may lose digits on slender bodies)");
   }
 
   // --- selection or plain estimates ---
@@ -810,21 +831,24 @@ int main(int argc, char **argv) {
     t_sel = fmbd_wall_s() - ts;
     c_sel = fmbd_cpu_s() - cs;
     if (rep) {
-      fprintf(rep, "selection: tol %g on flexible modes 1..%lld, estimator %s, from Nd = %ld\n", a.tol,
-              (long long)nm,
-              a.which == FMBD_EST_UPPER ? "upper (kappa_n)" : a.which == FMBD_EST_UPPER_NEXT ? "upper (kappa_(Nd+1))"
-              : a.which == FMBD_EST_SECOND ? "second order" : "lower",
+      fprintf(rep, "selection: tol %g on flexible modes 1..%lld, estimator %s, from Nd = %ld\n",
+              a.tol, (long long)nm,
+              a.which == FMBD_EST_UPPER        ? "upper (kappa_n)"
+              : a.which == FMBD_EST_UPPER_NEXT ? "upper (kappa_(Nd+1))"
+              : a.which == FMBD_EST_SECOND     ? "second order"
+                                               : "lower",
               a.init);
       fprintf(rep, "%6s %14s %14s\n", "Nd", "first_failing", "largest");
       for (int64_t i = 0; i < sel.niter; i++) {
-        fprintf(rep, "%6lld %14lld %14.4e\n", (long long)sel.log[i].nd, (long long)sel.log[i].first_failing,
-                sel.log[i].largest);
+        fprintf(rep, "%6lld %14lld %14.4e\n", (long long)sel.log[i].nd,
+                (long long)sel.log[i].first_failing, sel.log[i].largest);
       }
     }
   } else if (a.nd >= 0) {  // the estimates of another Nd (extended from the fe file if larger)
     if (a.nd > r.nd_max) {
       fmbd_err_context(cbname, "/cb/interior_dofs");
-      FMBD_GFAIL(FMBD_ERR_VALUE, "--nd %ld: at most %lld fixed-interface modes", a.nd, (long long)r.nd_max);
+      FMBD_GFAIL(FMBD_ERR_VALUE, "--nd %ld: at most %lld fixed-interface modes", a.nd,
+                 (long long)r.nd_max);
     }
     if (a.nd > fmbd_est_npool(r.est)) {
       FMBD_GCALL(extend(&r, r.est, a.nd));
@@ -842,8 +866,9 @@ int main(int argc, char **argv) {
     for (int64_t k = 0; k < m.nmodes && k < cb->nr; k++) {
       double d = fabs(m.chibar[k] - cb->chibar[k]);
       if (!m.rigid[k] && d > 1e-6 * fabs(cb->chibar[k])) {
-        fmbd_log(FMBD_LOG_WARN, "%s: /reduced/eigenvalues[%lld] = %.10g, the closed form gives %.10g",
-                 cbname, (long long)k, cb->chibar[k], m.chibar[k]);
+        fmbd_log(FMBD_LOG_WARN,
+                 "%s: /reduced/eigenvalues[%lld] = %.10g, the closed form gives %.10g", cbname,
+                 (long long)k, cb->chibar[k], m.chibar[k]);
         break;
       }
     }
@@ -853,8 +878,8 @@ int main(int argc, char **argv) {
     nrig += m.rigid[k];
   }
   if (nrig != cb->n_rigid) {
-    fmbd_log(FMBD_LOG_WARN, "%s: %lld rigid-body modes found at Nd = %lld, /cb n_rigid = %lld", cbname,
-             (long long)nrig, (long long)nd, (long long)cb->n_rigid);
+    fmbd_log(FMBD_LOG_WARN, "%s: %lld rigid-body modes found at Nd = %lld, /cb n_rigid = %lld",
+             cbname, (long long)nrig, (long long)nd, (long long)cb->n_rigid);
   }
   int64_t nlist = nm < m.nmodes - nrig ? nm : m.nmodes - nrig;
   if (a.exact) {
@@ -888,11 +913,13 @@ int main(int argc, char **argv) {
     if (hi > fmbd_est_npool(r.est)) {
       hi = fmbd_est_npool(r.est);
     }
-    FMBD_GCALL(plot_convergence(&r, a.plot, nlist, lo, hi, chi, nchi, a.which, a.has_tol ? a.tol : 0));
+    FMBD_GCALL(
+        plot_convergence(&r, a.plot, nlist, lo, hi, chi, nchi, a.which, a.has_tol ? a.tol : 0));
   }
   // --- the reduced flexible body ---
   if (outname) {
-    FMBD_GCHECK(nlist == nm, FMBD_ERR_VALUE, "the reduced body has only %lld flexible modes", (long long)nlist);
+    FMBD_GCHECK(nlist == nm, FMBD_ERR_VALUE, "the reduced body has only %lld flexible modes",
+                (long long)nlist);
     double *chif = fmbd_calloc((size_t)nm + 1, sizeof(double));
     double *Xif = fmbd_calloc((size_t)(nr * nm) + 1, sizeof(double));
     FMBD_GCHECK(chif && Xif, FMBD_ERR_NOMEM, "out of memory");
@@ -904,8 +931,8 @@ int main(int argc, char **argv) {
         j++;
       }
     }
-    fmbd_modal_input mi = {r.desc, cb->ns, cb->nb, cb->interior, cb->boundary, nd, cb->Phi, cb->ns,
-                           cb->Psi, nm, chif, Xif, nr, a.stress};
+    fmbd_modal_input mi = {r.desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd, cb->Phi,
+                           cb->ns, cb->Psi, nm,     chif,         Xif,          nr, a.stress};
     rc = fmbd_modal_build(&mi, &rf);
     fmbd_free(chif);
     fmbd_free(Xif);
@@ -921,8 +948,10 @@ int main(int argc, char **argv) {
     FMBD_GCALL(fmbd_h5_write_attr_i64(out, "/modes", "n_fixed_interface_modes", 1, &ndv));
     double maxest = 0;
     for (int64_t q = 0; q < t.nflex; q++) {
-      maxest = fmax(maxest, a.which == FMBD_EST_UPPER_NEXT ? t.unext[q] : a.which == FMBD_EST_SECOND ? t.second[q]
-                            : a.which == FMBD_EST_LOWER ? t.lower[q] : t.upper[q]);
+      maxest = fmax(maxest, a.which == FMBD_EST_UPPER_NEXT ? t.unext[q]
+                            : a.which == FMBD_EST_SECOND   ? t.second[q]
+                            : a.which == FMBD_EST_LOWER    ? t.lower[q]
+                                                           : t.upper[q]);
     }
     FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "max_estimate", 1, &maxest));
     if (a.has_tol) {
@@ -939,18 +968,21 @@ int main(int argc, char **argv) {
              "iterations of which extensions %.3f s (%lld calls, %lld modes), exact %.3f s",
              r.t_est_s, r.t_load_s, t_sel, (long long)sel.niter, r.t_extend_s, (long long)r.nextend,
              (long long)(r.cb->nd - r.nd_file), r.t_exact_s);
-    fmbd_log(FMBD_LOG_INFO, "cpu: estimates %.3f s (reading the fe file %.3f s), selection %.3f s, exact %.3f s",
+    fmbd_log(FMBD_LOG_INFO,
+             "cpu: estimates %.3f s (reading the fe file %.3f s), selection %.3f s, exact %.3f s",
              r.c_est_s, r.c_load_s, c_sel, r.c_exact_s);
   }
   if (a.has_tol) {
-    fmbd_cli_summary("%s: Nd = %lld meets %g on flexible modes 1..%lld (%lld iterations, %lld extensions), %lld modes kept",
-                     outname, (long long)nd, a.tol, (long long)nm, (long long)sel.niter,
-                     (long long)sel.nextend, (long long)nm);
+    fmbd_cli_summary(
+        "%s: Nd = %lld meets %g on flexible modes 1..%lld (%lld iterations, %lld extensions), %lld "
+        "modes kept",
+        outname, (long long)nd, a.tol, (long long)nm, (long long)sel.niter, (long long)sel.nextend,
+        (long long)nm);
   } else if (outname) {
     fmbd_cli_summary("%s: %lld flexible modes of Nd = %lld", outname, (long long)nm, (long long)nd);
   } else {
-    fmbd_cli_summary("%s: estimates of %lld flexible modes at Nd = %lld", cbname, (long long)t.nflex,
-                     (long long)nd);
+    fmbd_cli_summary("%s: estimates of %lld flexible modes at Nd = %lld", cbname,
+                     (long long)t.nflex, (long long)nd);
   }
 done:
   if (rep) {

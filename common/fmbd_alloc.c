@@ -16,8 +16,12 @@ static int should_fail(void) {
   return 0;
 }
 
-void fmbd_alloc_fail_after(int64_t n) { g_countdown = n; }
-int64_t fmbd_alloc_count(void) { return g_count; }
+void fmbd_alloc_fail_after(int64_t n) {
+  g_countdown = n;
+}
+int64_t fmbd_alloc_count(void) {
+  return g_count;
+}
 
 void *fmbd_malloc(size_t n) {
   if (should_fail()) return NULL;
@@ -35,7 +39,9 @@ void *fmbd_realloc(void *p, size_t n) {
   return realloc(p, n ? n : 1);
 }
 
-void fmbd_free(void *p) { free(p); }
+void fmbd_free(void *p) {
+  free(p);
+}
 
 char *fmbd_strdup(const char *s) {
   size_t n = strlen(s) + 1;

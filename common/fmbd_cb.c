@@ -67,7 +67,9 @@ static const char *dof_label(const int64_t *dofs, int64_t i, char *buf, size_t s
   return buf;
 }
 
-static void *alloc_f64(int64_t n) { return fmbd_malloc((size_t)(n > 0 ? n : 1) * sizeof(double)); }
+static void *alloc_f64(int64_t n) {
+  return fmbd_malloc((size_t)(n > 0 ? n : 1) * sizeof(double));
+}
 
 // --- partition ------------------------------------------------------------------------------
 int fmbd_cb_boundary(const fmbd_fe_body *b, int ngroups, const char *const *groups, int64_t *nb,
@@ -142,8 +144,9 @@ int fmbd_cb_check_body(const fmbd_fe_body *b, double sym_rtol) {
     int64_t bad = -1;
     if (!fmbd_csr_is_symmetric(A, sym_rtol, &bad)) {
       fmbd_err_context(NULL, name[k]);
-      FMBD_FAIL(FMBD_ERR_VALUE, "matrix is not symmetric (|A(i,j) - A(j,i)| > %.0e max|A|) at row %s",
-                sym_rtol, dof_label(b->dofs, bad, lab, sizeof lab));
+      FMBD_FAIL(FMBD_ERR_VALUE,
+                "matrix is not symmetric (|A(i,j) - A(j,i)| > %.0e max|A|) at row %s", sym_rtol,
+                dof_label(b->dofs, bad, lab, sizeof lab));
     }
     double dmax = 0.0;
     for (int64_t i = 0; i < b->ndof; i++) {
@@ -205,8 +208,10 @@ int fmbd_cb_update_reduced(fmbd_cb *cb, double rigid_rtol) {
   memcpy(Ka, Kr, (size_t)(nr * nr) * sizeof(double));
   rc = fmbd_dense_sygv(nr, Ka, Ma, w);
   if (rc == FMBD_ERR_SINGULAR) {
-    FMBD_GFAIL(rc, "reduced mass matrix (%lld x %lld) is not positive definite: a boundary dof "
-               "without mass (massless interface node?)", (long long)nr, (long long)nr);
+    FMBD_GFAIL(rc,
+               "reduced mass matrix (%lld x %lld) is not positive definite: a boundary dof "
+               "without mass (massless interface node?)",
+               (long long)nr, (long long)nr);
   }
   FMBD_GCALL(rc);
   // rigid-body modes: chibar below rigid_rtol of the first fixed-interface eigenvalue (a
@@ -330,7 +335,9 @@ static void mem_log(const char *where) {
   fmbd_log(FMBD_LOG_DEBUG, "memory %s: %.0f MB resident, %.0f MB peak", where, rss, hwm);
 }
 
-static double hz(double lambda) { return sqrt(fabs(lambda)) / (2.0 * M_PI); }
+static double hz(double lambda) {
+  return sqrt(fabs(lambda)) / (2.0 * M_PI);
+}
 
 // nm free-free: the lowest flexible modes of the whole body (rigid-body modes removed)
 static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts *o, fmbd_cb *cb) {
@@ -364,13 +371,16 @@ static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts 
       continue;
     }
     if (lmax <= 0.0) {
-      FMBD_GCHECK(nflex >= o->nmodes, FMBD_ERR_VALUE, "%lld free-free flexible modes asked for, "
+      FMBD_GCHECK(nflex >= o->nmodes, FMBD_ERR_VALUE,
+                  "%lld free-free flexible modes asked for, "
                   "but the body has only %lld (%lld rigid-body modes among %lld dofs)",
                   (long long)o->nmodes, (long long)nflex, (long long)nrig, (long long)n);
       nflex = o->nmodes;
     }
-    FMBD_GCHECK(nflex > 0, FMBD_ERR_VALUE, "--fmax %g Hz lies below the first flexible mode "
-                "(%.6g Hz)", o->fmax_hz, isnan(er.next_lambda) ? NAN : hz(er.next_lambda));
+    FMBD_GCHECK(nflex > 0, FMBD_ERR_VALUE,
+                "--fmax %g Hz lies below the first flexible mode "
+                "(%.6g Hz)",
+                o->fmax_hz, isnan(er.next_lambda) ? NAN : hz(er.next_lambda));
     take_eig_time(cb, &er);
     cb->n_rigid_removed = nrig;
     cb->nd = nflex;
@@ -380,11 +390,14 @@ static int reduce_free(const fmbd_csr *K, const fmbd_csr *M, const fmbd_cb_opts 
     memcpy(cb->Phi, er.X + nrig * n, (size_t)(n * nflex) * sizeof(double));
     cb->kappa_next = nrig + nflex < er.nev ? er.lambda[nrig + nflex] : er.next_lambda;
     if (nrig > 0) {
-      fmbd_log(FMBD_LOG_INFO, "free-free body: %lld rigid-body modes removed (|lambda| <= %.3g, "
-               "first flexible %.6g Hz)", (long long)nrig, rig_thr, hz(cb->kappa[0]));
+      fmbd_log(FMBD_LOG_INFO,
+               "free-free body: %lld rigid-body modes removed (|lambda| <= %.3g, "
+               "first flexible %.6g Hz)",
+               (long long)nrig, rig_thr, hz(cb->kappa[0]));
     }
     if (nrig > 6) {
-      fmbd_log(FMBD_LOG_WARN, "%lld zero-frequency modes: the body is a mechanism", (long long)nrig);
+      fmbd_log(FMBD_LOG_WARN, "%lld zero-frequency modes: the body is a mechanism",
+               (long long)nrig);
     }
     break;
   }
@@ -462,8 +475,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   FMBD_GALLOC(cb->interior = fmbd_malloc((size_t)ns * sizeof(int64_t)));
   FMBD_GALLOC(cb->boundary = fmbd_malloc((size_t)(nb ? nb : 1) * sizeof(int64_t)));
   for (int64_t i = 0, a = 0, b = 0; i < n; i++) {
-    if (mark[i]) cb->boundary[b++] = i;
-    else cb->interior[a++] = i;
+    if (mark[i])
+      cb->boundary[b++] = i;
+    else
+      cb->interior[a++] = i;
   }
   cb->nb = nb;
   FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
@@ -480,10 +495,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   }
   cb->time.partition = fmbd_wall_s() - t0;
   if (o.fmax_hz <= 0.0) {
-  mem_log("after the partition");
+    mem_log("after the partition");
     FMBD_GCHECK(o.nmodes <= ns, FMBD_ERR_VALUE,
                 "%lld modes asked for, but the body has only %lld interior dofs (%lld dofs, %lld "
-                "on the boundary)", (long long)o.nmodes, (long long)ns, (long long)n, (long long)nb);
+                "on the boundary)",
+                (long long)o.nmodes, (long long)ns, (long long)n, (long long)nb);
   }
 
   // --- the factor of Ks, once ---
@@ -557,8 +573,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
     memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
     for (int64_t i = 0; i < nb; i++) {
-      for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++) cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
-      for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++) cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
+      for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++)
+        cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
+      for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++)
+        cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
       // eigenvalue scale of the body for rigid-mode detection without modes (before the
       // condensation, whose round-off is about eps times these entries)
       double kii = fmbd_csr_get(Kb, i, i), mii = fmbd_csr_get(Mb, i, i);
@@ -613,13 +631,16 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
 #endif
       mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
-      if (fmbd_progress_enabled()) fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
+      if (fmbd_progress_enabled())
+        fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
       FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok));
       if (!ok) {
         // a skipped mode, or no gap to place the shift: again with the full checked solver
-        fmbd_log(FMBD_LOG_INFO, "Sturm count %lld below %.6g Hz, Lanczos found %lld: solving again "
-                 "with the in-loop checks", (long long)er.sturm_count,
-                 isnan(er.sturm_shift) ? NAN : hz(er.sturm_shift), (long long)er.nev);
+        fmbd_log(FMBD_LOG_INFO,
+                 "Sturm count %lld below %.6g Hz, Lanczos found %lld: solving again "
+                 "with the in-loop checks",
+                 (long long)er.sturm_count, isnan(er.sturm_shift) ? NAN : hz(er.sturm_shift),
+                 (long long)er.nev);
         take_eig_time(cb, &er);
         fmbd_eig_result_free(&er);
         FMBD_GCALL(fmbd_chol_analyze_perm(Ks, NULL, FMBD_CHOL_LLT, perm, &F));
@@ -656,9 +677,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         last = i;
       }
     }
-    fmbd_log(FMBD_LOG_INFO, "reduced problem: %lld rigid-body modes (modes %lld..%lld, "
-             "|chibar| <= %.3g = %.0e kappa_1)", (long long)cb->n_rigid, (long long)first + 1,
-             (long long)last + 1, o.rigid_rtol * (nd > 0 ? cb->kappa[0] : 0.0), o.rigid_rtol);
+    fmbd_log(FMBD_LOG_INFO,
+             "reduced problem: %lld rigid-body modes (modes %lld..%lld, "
+             "|chibar| <= %.3g = %.0e kappa_1)",
+             (long long)cb->n_rigid, (long long)first + 1, (long long)last + 1,
+             o.rigid_rtol * (nd > 0 ? cb->kappa[0] : 0.0), o.rigid_rtol);
   }
   *out = cb;
   cb = NULL;
@@ -719,14 +742,15 @@ int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd
   fmbd_cb_defaults(&o);
   if (eig) o.eig = *eig;
   FMBD_GCALL(modes(Ks, Ms, F, &o, nd_new, 0.0, false, &er));
-  FMBD_GCHECK(er.nev == nd_new, FMBD_ERR_CONVERGE, "%lld of %lld modes computed",
-              (long long)er.nev, (long long)nd_new);
+  FMBD_GCHECK(er.nev == nd_new, FMBD_ERR_CONVERGE, "%lld of %lld modes computed", (long long)er.nev,
+              (long long)nd_new);
   // the old modes must be reproduced (ARPACK tol 1e-12: eigenvalues agree far below 1e-8)
   FMBD_GALLOC(mx = alloc_f64(ns));
   for (int64_t k = 0; k < nd; k++) {
     FMBD_GCHECK(fabs(er.lambda[k] - cb->kappa[k]) <= 1e-8 * fabs(cb->kappa[k]), FMBD_ERR_CONVERGE,
                 "extending the mode set: mode %lld comes out at %.12g, was %.12g (the FE matrices "
-                "do not belong to this reduced body?)", (long long)k + 1, er.lambda[k], cb->kappa[k]);
+                "do not belong to this reduced body?)",
+                (long long)k + 1, er.lambda[k], cb->kappa[k]);
     fmbd_csr_matvec(Ms, cb->Phi + k * ns, mx);
     double s = 0.0;
     for (int64_t i = 0; i < ns; i++) s += mx[i] * er.X[i + k * ns];
@@ -747,7 +771,8 @@ int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd
     fmbd_free(cb->PhitA);
     cb->PhitA = NULL;
     FMBD_GALLOC(cb->PhitA = alloc_f64(nd_new * cb->nb));
-    fmbd_dense_gemm('T', 'N', nd_new, cb->nb, ns, 1.0, cb->Phi, ns, cb->A, ns, 0.0, cb->PhitA, nd_new);
+    fmbd_dense_gemm('T', 'N', nd_new, cb->nb, ns, 1.0, cb->Phi, ns, cb->A, ns, 0.0, cb->PhitA,
+                    nd_new);
   }
   FMBD_GCALL(fmbd_cb_update_reduced(cb, 1e-6));
 done:
@@ -913,12 +938,16 @@ int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
     int64_t nrig = 0;
     for (int64_t i = 0; i < nr; i++) nrig += cb->rigid[i] != 0;
     fmbd_err_context(fmbd_h5_name(f), "/cb");
-    FMBD_GCHECK(cb->n_rigid == nrig, FMBD_ERR_FORMAT, "attribute n_rigid = %lld, but /reduced/rigid "
-                "flags %lld modes", (long long)cb->n_rigid, (long long)nrig);
+    FMBD_GCHECK(cb->n_rigid == nrig, FMBD_ERR_FORMAT,
+                "attribute n_rigid = %lld, but /reduced/rigid "
+                "flags %lld modes",
+                (long long)cb->n_rigid, (long long)nrig);
     FMBD_GCHECK(cb->n_rigid_removed >= 0 && cb->n_rigid_removed <= 6, FMBD_ERR_FORMAT,
                 "attribute n_rigid_removed = %lld (0 to 6)", (long long)cb->n_rigid_removed);
-    FMBD_GCHECK(nd <= ns, FMBD_ERR_FORMAT, "%lld fixed-interface modes (/cb/kappa) for %lld "
-                "interior dofs", (long long)nd, (long long)ns);
+    FMBD_GCHECK(nd <= ns, FMBD_ERR_FORMAT,
+                "%lld fixed-interface modes (/cb/kappa) for %lld "
+                "interior dofs",
+                (long long)nd, (long long)ns);
     fmbd_err_context("", "");
   }
   *out = cb;

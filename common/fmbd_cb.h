@@ -37,13 +37,13 @@
 
 /// Options of fmbd_cb_reduce; fill with fmbd_cb_defaults.
 typedef struct fmbd_cb_opts {
-  bool nm;             ///< method "nm" instead of "cb". Default false
-  bool hold;           ///< nm: hold the boundary dofs (else free-free). Default false
-  int64_t nmodes;      ///< fixed-interface (or normal) modes wanted. Default 20
-  double fmax_hz;      ///< > 0: every mode up to this frequency instead of a count. Default 0
-  double rigid_rtol;   ///< reduced chibar <= rigid_rtol * kappa_1 is rigid. Default 1e-6
-  double sym_rtol;     ///< K, M symmetric to |Aij - Aji| <= sym_rtol max|A|. Default 1e-10
-  fmbd_eig_opts eig;   ///< eigensolver options (nev / lambda_max / free_body are set here)
+  bool nm;            ///< method "nm" instead of "cb". Default false
+  bool hold;          ///< nm: hold the boundary dofs (else free-free). Default false
+  int64_t nmodes;     ///< fixed-interface (or normal) modes wanted. Default 20
+  double fmax_hz;     ///< > 0: every mode up to this frequency instead of a count. Default 0
+  double rigid_rtol;  ///< reduced chibar <= rigid_rtol * kappa_1 is rigid. Default 1e-6
+  double sym_rtol;    ///< K, M symmetric to |Aij - Aji| <= sym_rtol max|A|. Default 1e-10
+  fmbd_eig_opts eig;  ///< eigensolver options (nev / lambda_max / free_body are set here)
 } fmbd_cb_opts;
 
 /// @brief Fill the defaults documented in fmbd_cb_opts (and fmbd_eig_defaults for eig).
@@ -53,45 +53,45 @@ void fmbd_cb_defaults(fmbd_cb_opts *o);
 typedef struct fmbd_cb_timing {
   double partition, ordering, factor, lanczos, sturm, residuals, constraint, projection,
       reduced_eig;
-  int64_t solves;          ///< sparse solves (Lanczos + constraint + projections)
-  int eig_passes;          ///< Lanczos runs
+  int64_t solves;  ///< sparse solves (Lanczos + constraint + projections)
+  int eig_passes;  ///< Lanczos runs
   const char *ordering_name;
-  double nnz_l;            ///< entries of the Cholesky factor of Ks
+  double nnz_l;  ///< entries of the Cholesky factor of Ks
 } fmbd_cb_timing;
 
 /// A reduced body: everything the fmbd-cb file holds beyond the copied description.
 /// Dense matrices are column-major; all arrays owned (fmbd_cb_destroy).
 typedef struct fmbd_cb {
-  char method[8];          ///< "cb" or "nm"
-  int64_t ndof;            ///< active FE dofs of the body
-  int64_t ns, nb, nd;      ///< interior dofs, boundary dofs (constraint modes), modes
-  int64_t nr;              ///< reduced order nd + nb
-  int64_t *interior;       ///< (ns) rows of /dofs, ascending
-  int64_t *boundary;       ///< (nb) rows of /dofs, ascending
-  int64_t nheld;           ///< nm with hold: held dofs (not reduced coordinates)
-  int64_t *held;           ///< (nheld) rows of /dofs, or NULL
-  double *kappa;           ///< (nd) fixed-interface eigenvalues, ascending [rad^2/s^2]
-  double kappa_next;       ///< the next one above kappa[nd-1] (NAN if unknown)
-  double *Phi;             ///< ns x nd, Phi' Ms Phi = I
-  double *Psi;             ///< ns x nb
-  double *A;               ///< ns x nb, Ms Psi + Mc
-  double *KsinvA;          ///< ns x nb
-  double *KsinvMsKsinvA;   ///< ns x nb
-  double *PhitA;           ///< nd x nb
-  double *Mr, *Kr;         ///< nr x nr reduced matrices
-  double *chibar;          ///< (nr) reduced eigenvalues, ascending
-  double *Xi;              ///< nr x nr reduced eigenvectors, Xi' Mr Xi = I
-  int64_t *rigid;          ///< (nr) 1 = rigid-body mode
-  int64_t n_rigid;         ///< rigid-body modes of the reduced problem
-  int64_t n_rigid_removed; ///< nm free-free: rigid-body modes found and left out
-  double sturm_shift;      ///< Sturm check of the modes (NAN if none / dense)
-  int64_t sturm_count;     ///< eigenvalues below sturm_shift (-1 if none)
-  double max_residual;     ///< largest relative residual of the modes
-  double rigid_scale;      ///< max Kb_ii / Mb_ii before condensation (0 unknown): rigid-mode
-                           ///< scale when nd = 0 (not stored in the file)
-  char *fe_file;           ///< name of the fe file (owned, may be NULL)
-  char fe_sha256[65];      ///< its SHA-256 ("" if unknown)
-  fmbd_cb_timing time;     ///< cost of the reduction (not stored in the file)
+  char method[8];           ///< "cb" or "nm"
+  int64_t ndof;             ///< active FE dofs of the body
+  int64_t ns, nb, nd;       ///< interior dofs, boundary dofs (constraint modes), modes
+  int64_t nr;               ///< reduced order nd + nb
+  int64_t *interior;        ///< (ns) rows of /dofs, ascending
+  int64_t *boundary;        ///< (nb) rows of /dofs, ascending
+  int64_t nheld;            ///< nm with hold: held dofs (not reduced coordinates)
+  int64_t *held;            ///< (nheld) rows of /dofs, or NULL
+  double *kappa;            ///< (nd) fixed-interface eigenvalues, ascending [rad^2/s^2]
+  double kappa_next;        ///< the next one above kappa[nd-1] (NAN if unknown)
+  double *Phi;              ///< ns x nd, Phi' Ms Phi = I
+  double *Psi;              ///< ns x nb
+  double *A;                ///< ns x nb, Ms Psi + Mc
+  double *KsinvA;           ///< ns x nb
+  double *KsinvMsKsinvA;    ///< ns x nb
+  double *PhitA;            ///< nd x nb
+  double *Mr, *Kr;          ///< nr x nr reduced matrices
+  double *chibar;           ///< (nr) reduced eigenvalues, ascending
+  double *Xi;               ///< nr x nr reduced eigenvectors, Xi' Mr Xi = I
+  int64_t *rigid;           ///< (nr) 1 = rigid-body mode
+  int64_t n_rigid;          ///< rigid-body modes of the reduced problem
+  int64_t n_rigid_removed;  ///< nm free-free: rigid-body modes found and left out
+  double sturm_shift;       ///< Sturm check of the modes (NAN if none / dense)
+  int64_t sturm_count;      ///< eigenvalues below sturm_shift (-1 if none)
+  double max_residual;      ///< largest relative residual of the modes
+  double rigid_scale;       ///< max Kb_ii / Mb_ii before condensation (0 unknown): rigid-mode
+                            ///< scale when nd = 0 (not stored in the file)
+  char *fe_file;            ///< name of the fe file (owned, may be NULL)
+  char fe_sha256[65];       ///< its SHA-256 ("" if unknown)
+  fmbd_cb_timing time;      ///< cost of the reduction (not stored in the file)
 } fmbd_cb;
 
 /// @brief Release a reduced body and set *cb = NULL. NULL is fine.
@@ -101,8 +101,8 @@ void fmbd_cb_destroy(fmbd_cb **cb);
 /// active dof of the nodes of the named mesh groups (or interfaces). Sorted, unique.
 /// @param[in] groups  (ngroups) names, borrowed; an unknown name is FMBD_ERR_VALUE
 /// @param[out] boundary caller frees with fmbd_free; *nb its length
-int fmbd_cb_boundary(const fmbd_fe_body *b, int ngroups, const char *const *groups,
-                     int64_t *nb, int64_t **boundary);
+int fmbd_cb_boundary(const fmbd_fe_body *b, int ngroups, const char *const *groups, int64_t *nb,
+                     int64_t **boundary);
 
 /// @brief Check K and M of a body: present, ndof x ndof, symmetric (sym_rtol), positive
 /// diagonal of K where M has mass. FMBD_ERR_VALUE/FORMAT naming the matrix and the dof

@@ -16,22 +16,22 @@
 struct fmbd_chol {
   int kind;
   int64_t n;
-  const fmbd_csr *A, *B;     // borrowed
+  const fmbd_csr *A, *B;  // borrowed
   cholmod_common c;
   int started;
-  cholmod_sparse *S;         // upper triangle (stype = +1) of the union pattern, CSC
-  int64_t *posA, *posB;      // position in S of each upper entry of A / B (CSR order)
-  int64_t *diag;             // position in S of each diagonal entry, -1 if absent
+  cholmod_sparse *S;     // upper triangle (stype = +1) of the union pattern, CSC
+  int64_t *posA, *posB;  // position in S of each upper entry of A / B (CSR order)
+  int64_t *diag;         // position in S of each diagonal entry, -1 if absent
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
   double sigma;
   double pivot_rtol;
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
-  double *Lx;                // L->xsize values: D on the diagonal, unit-L below
+  double *Lx;  // L->xsize values: D on the diagonal, unit-L below
   int64_t *iperm, *col2super, *map, *head, *next, *lpos;
-  double *wC, *wW;           // update workspaces
+  double *wC, *wW;  // update workspaces
   int64_t sizeC, sizeW;
-  int64_t neg;               // negative pivots of the last LDLT factorisation
+  int64_t neg;  // negative pivots of the last LDLT factorisation
   int64_t failed_row;
   fmbd_chol_stats st;
 };
@@ -57,13 +57,20 @@ static void route_suitesparse_memory(void) {
 
 static const char *ordering_name(int o) {
   switch (o) {
-  case CHOLMOD_NATURAL: return "natural";
-  case CHOLMOD_GIVEN: return "given";
-  case CHOLMOD_AMD: return "AMD";
-  case CHOLMOD_METIS: return "METIS";
-  case CHOLMOD_NESDIS: return "NESDIS";
-  case CHOLMOD_COLAMD: return "COLAMD";
-  case CHOLMOD_POSTORDERED: return "postordered";
+    case CHOLMOD_NATURAL:
+      return "natural";
+    case CHOLMOD_GIVEN:
+      return "given";
+    case CHOLMOD_AMD:
+      return "AMD";
+    case CHOLMOD_METIS:
+      return "METIS";
+    case CHOLMOD_NESDIS:
+      return "NESDIS";
+    case CHOLMOD_COLAMD:
+      return "COLAMD";
+    case CHOLMOD_POSTORDERED:
+      return "postordered";
   }
   return "unknown";
 }
@@ -414,8 +421,10 @@ static double pivot(const cholmod_factor *L, int64_t k) {
     int64_t lo = 0, hi = (int64_t)L->nsuper - 1;
     while (lo < hi) {
       int64_t mid = (lo + hi + 1) / 2;
-      if (super[mid] <= k) lo = mid;
-      else hi = mid - 1;
+      if (super[mid] <= k)
+        lo = mid;
+      else
+        hi = mid - 1;
     }
     int64_t nsrow = pi[lo + 1] - pi[lo], c = k - super[lo];
     double l = x[px[lo] + c + c * nsrow];
@@ -540,11 +549,21 @@ void fmbd_chol_release_matrix(fmbd_chol *F) {
   F->posA = F->posB = F->diag = NULL;
 }
 
-int64_t fmbd_chol_negative_pivots(const fmbd_chol *F) { return F->kind != FMBD_CHOL_LLT ? F->neg : -1; }
-int64_t fmbd_chol_failed_row(const fmbd_chol *F) { return F->failed_row; }
-double fmbd_chol_sigma(const fmbd_chol *F) { return F->sigma; }
-void fmbd_chol_set_pivot_rtol(fmbd_chol *F, double rtol) { F->pivot_rtol = rtol; }
-void fmbd_chol_get_stats(const fmbd_chol *F, fmbd_chol_stats *st) { *st = F->st; }
+int64_t fmbd_chol_negative_pivots(const fmbd_chol *F) {
+  return F->kind != FMBD_CHOL_LLT ? F->neg : -1;
+}
+int64_t fmbd_chol_failed_row(const fmbd_chol *F) {
+  return F->failed_row;
+}
+double fmbd_chol_sigma(const fmbd_chol *F) {
+  return F->sigma;
+}
+void fmbd_chol_set_pivot_rtol(fmbd_chol *F, double rtol) {
+  F->pivot_rtol = rtol;
+}
+void fmbd_chol_get_stats(const fmbd_chol *F, fmbd_chol_stats *st) {
+  *st = F->st;
+}
 
 void fmbd_chol_destroy(fmbd_chol **pF) {
   if (!pF || !*pF) return;

@@ -25,7 +25,9 @@ static char *g_cmdline = NULL;  // shell-quoted command line (fmbd_malloc), "" b
 static fmbd_timer g_timer;
 static bool g_timer_started = false;
 
-const char *fmbd_version(void) { return FMBD_VERSION; }
+const char *fmbd_version(void) {
+  return FMBD_VERSION;
+}
 
 // Whether a word needs no quoting for a POSIX shell.
 static bool shell_safe(const char *s) {
@@ -109,10 +111,16 @@ void fmbd_cli_init(const char *prog, int argc, char **argv) {
   *p = '\0';
 }
 
-const char *fmbd_cli_command_line(void) { return g_cmdline ? g_cmdline : ""; }
+const char *fmbd_cli_command_line(void) {
+  return g_cmdline ? g_cmdline : "";
+}
 
-double fmbd_cli_wall_s(void) { return g_timer_started ? fmbd_timer_wall_s(&g_timer) : 0.0; }
-double fmbd_cli_cpu_s(void) { return g_timer_started ? fmbd_timer_cpu_s(&g_timer) : 0.0; }
+double fmbd_cli_wall_s(void) {
+  return g_timer_started ? fmbd_timer_wall_s(&g_timer) : 0.0;
+}
+double fmbd_cli_cpu_s(void) {
+  return g_timer_started ? fmbd_timer_cpu_s(&g_timer) : 0.0;
+}
 
 void fmbd_cli_set_verbosity(int quiet, int verbose) {
   int level = FMBD_LOG_WARN - quiet + verbose;
@@ -140,8 +148,10 @@ int fmbd_cli_check_not_input(const char *output, const char *input) {
     FMBD_FAIL(FMBD_ERR_USAGE, "the output '%s' is an input of this run: refusing to overwrite it",
               output);
   }
-  FMBD_FAIL(FMBD_ERR_USAGE, "the output '%s' is the input '%s' (the same file): refusing to "
-            "overwrite it", output, input);
+  FMBD_FAIL(FMBD_ERR_USAGE,
+            "the output '%s' is the input '%s' (the same file): refusing to "
+            "overwrite it",
+            output, input);
 }
 
 int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
@@ -211,8 +221,7 @@ int fmbd_cli_parse_int(const char *opt, const char *text, long *out) {
   long v = text ? strtol(text, &end, 10) : 0;
   if (!text || end == text || *end != '\0' || errno == ERANGE) {
     fmbd_err_context("", "");
-    FMBD_FAIL(FMBD_ERR_USAGE, "option %s: '%s' is not an integer", opt,
-              text ? text : "(missing)");
+    FMBD_FAIL(FMBD_ERR_USAGE, "option %s: '%s' is not an integer", opt, text ? text : "(missing)");
   }
   *out = v;
   return FMBD_OK;

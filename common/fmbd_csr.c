@@ -119,8 +119,10 @@ int64_t fmbd_csr_find(const fmbd_csr *A, int64_t i, int64_t j) {
   while (lo <= hi) {
     int64_t mid = lo + (hi - lo) / 2, c = A->indices[mid];
     if (c == j) return mid;
-    if (c < j) lo = mid + 1;
-    else hi = mid - 1;
+    if (c < j)
+      lo = mid + 1;
+    else
+      hi = mid - 1;
   }
   return -1;
 }
@@ -310,9 +312,9 @@ int fmbd_csr_check(const fmbd_csr *A) {
   // indices of another row
   for (int64_t i = 0; i < A->nrows; i++) {
     if (A->indptr[i + 1] < A->indptr[i]) {
-      FMBD_FAIL(FMBD_ERR_FORMAT, "indptr: not monotone: entry %lld (%lld) is below entry %lld (%lld)",
-                (long long)(i + 1), (long long)A->indptr[i + 1], (long long)i,
-                (long long)A->indptr[i]);
+      FMBD_FAIL(
+          FMBD_ERR_FORMAT, "indptr: not monotone: entry %lld (%lld) is below entry %lld (%lld)",
+          (long long)(i + 1), (long long)A->indptr[i + 1], (long long)i, (long long)A->indptr[i]);
     }
   }
   for (int64_t i = 0; i < A->nrows; i++) {

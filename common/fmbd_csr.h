@@ -18,7 +18,9 @@ typedef struct fmbd_csr {
 } fmbd_csr;
 
 /// @brief Number of stored entries.
-static inline int64_t fmbd_csr_nnz(const fmbd_csr *A) { return A->indptr[A->nrows]; }
+static inline int64_t fmbd_csr_nnz(const fmbd_csr *A) {
+  return A->indptr[A->nrows];
+}
 
 /// @brief Allocate an nrows x ncols matrix with room for nnz entries; indptr zeroed.
 /// @param[out] out caller destroys with fmbd_csr_destroy

@@ -17,21 +17,22 @@
 #define FMBD_LAPACK(info, routine)                                                          \
   do {                                                                                      \
     if ((info) == LAPACK_WORK_MEMORY_ERROR || (info) == LAPACK_TRANSPOSE_MEMORY_ERROR)      \
-      FMBD_FAIL(FMBD_ERR_NOMEM, "%s: out of memory for the workspace", routine);          \
+      FMBD_FAIL(FMBD_ERR_NOMEM, "%s: out of memory for the workspace", routine);            \
     if ((info) < 0)                                                                         \
       FMBD_FAIL(FMBD_ERR_VALUE, "%s: argument %d has an illegal value (info = %d; a NaN?)", \
                 routine, (int)-(info), (int)(info));                                        \
   } while (0)
 
 // Whether 1 + 6n + 2n^2 (the dsygvd/dsyevd real workspace with vectors) fits a lapack_int.
-static int eig_size_ok(int64_t n) { return n <= 32000; }  // 2*32000^2 + 6*32000 + 1 < 2^31
+static int eig_size_ok(int64_t n) {
+  return n <= 32000;
+}  // 2*32000^2 + 6*32000 + 1 < 2^31
 
 int fmbd_dense_sygv(int64_t n, double *A, double *B, double *w) {
   FMBD_CHECK(n >= 0, FMBD_ERR_VALUE, "dsygvd: negative order %lld", (long long)n);
   if (n == 0) return FMBD_OK;
   FMBD_CHECK(eig_size_ok(n), FMBD_ERR_VALUE,
-             "dsygvd: order %lld too large for 32-bit LAPACK workspace (max 32000)",
-             (long long)n);
+             "dsygvd: order %lld too large for 32-bit LAPACK workspace (max 32000)", (long long)n);
   lapack_int nn = (lapack_int)n;
   lapack_int info = LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'U', nn, A, nn, B, nn, w);
   FMBD_LAPACK(info, "dsygvd");
@@ -40,8 +41,7 @@ int fmbd_dense_sygv(int64_t n, double *A, double *B, double *w) {
               "dsygvd: B is not positive definite (leading minor of order %d, info = %d)",
               (int)(info - nn), (int)info);
   if (info > 0)
-    FMBD_FAIL(FMBD_ERR_CONVERGE, "dsygvd: eigensolver failed to converge (info = %d)",
-              (int)info);
+    FMBD_FAIL(FMBD_ERR_CONVERGE, "dsygvd: eigensolver failed to converge (info = %d)", (int)info);
   return FMBD_OK;
 }
 
@@ -49,14 +49,12 @@ int fmbd_dense_syev(int64_t n, double *A, double *w) {
   FMBD_CHECK(n >= 0, FMBD_ERR_VALUE, "dsyevd: negative order %lld", (long long)n);
   if (n == 0) return FMBD_OK;
   FMBD_CHECK(eig_size_ok(n), FMBD_ERR_VALUE,
-             "dsyevd: order %lld too large for 32-bit LAPACK workspace (max 32000)",
-             (long long)n);
+             "dsyevd: order %lld too large for 32-bit LAPACK workspace (max 32000)", (long long)n);
   lapack_int nn = (lapack_int)n;
   lapack_int info = LAPACKE_dsyevd(LAPACK_COL_MAJOR, 'V', 'U', nn, A, nn, w);
   FMBD_LAPACK(info, "dsyevd");
   if (info > 0)
-    FMBD_FAIL(FMBD_ERR_CONVERGE, "dsyevd: eigensolver failed to converge (info = %d)",
-              (int)info);
+    FMBD_FAIL(FMBD_ERR_CONVERGE, "dsyevd: eigensolver failed to converge (info = %d)", (int)info);
   return FMBD_OK;
 }
 
@@ -98,12 +96,14 @@ int fmbd_dense_lu_solve(int64_t n, double *A, int64_t nrhs, double *B, int64_t l
   fmbd_free(ipiv);
   FMBD_LAPACK(info, "dgesv");
   if (info > 0)
-    FMBD_FAIL(FMBD_ERR_SINGULAR, "dgesv: matrix is singular (U(%d,%d) is exactly zero)",
-              (int)info, (int)info);
+    FMBD_FAIL(FMBD_ERR_SINGULAR, "dgesv: matrix is singular (U(%d,%d) is exactly zero)", (int)info,
+              (int)info);
   return FMBD_OK;
 }
 
-static int is_trans(char t) { return t == 'T' || t == 't' || t == 'C' || t == 'c'; }
+static int is_trans(char t) {
+  return t == 'T' || t == 't' || t == 'C' || t == 'c';
+}
 
 void fmbd_dense_gemm(char ta, char tb, int64_t m, int64_t n, int64_t k, double alpha,
                      const double *A, int64_t lda, const double *B, int64_t ldb, double beta,
@@ -116,8 +116,8 @@ void fmbd_dense_gemm(char ta, char tb, int64_t m, int64_t n, int64_t k, double a
     }
     return;
   }
-  if (m <= LAPACK_INT_MAX && n <= LAPACK_INT_MAX && k <= LAPACK_INT_MAX &&
-      lda <= LAPACK_INT_MAX && ldb <= LAPACK_INT_MAX && ldc <= LAPACK_INT_MAX) {
+  if (m <= LAPACK_INT_MAX && n <= LAPACK_INT_MAX && k <= LAPACK_INT_MAX && lda <= LAPACK_INT_MAX &&
+      ldb <= LAPACK_INT_MAX && ldc <= LAPACK_INT_MAX) {
     cblas_dgemm(CblasColMajor, at ? CblasTrans : CblasNoTrans, bt ? CblasTrans : CblasNoTrans,
                 (int)m, (int)n, (int)k, alpha, A, (int)lda, B, (int)ldb, beta, C, (int)ldc);
     return;

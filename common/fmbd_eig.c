@@ -97,17 +97,17 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   FMBD_GALLOC(workl = fmbd_malloc((size_t)lworkl * sizeof(double)));
   FMBD_GALLOC(tmp = fmbd_malloc((size_t)n * sizeof(double)));
   a_int iparam[11] = {0}, ipntr[11] = {0}, ido = 0, info = 0;
-  iparam[0] = 1;            // exact shifts
-  iparam[2] = maxit;        // restarts
-  iparam[6] = 3;            // mode 3: shift-invert, generalized
+  iparam[0] = 1;      // exact shifts
+  iparam[2] = maxit;  // restarts
+  iparam[6] = 3;      // mode 3: shift-invert, generalized
   int64_t solves = 0;
   double sigma = fmbd_chol_sigma(F);
   // one BLAS thread for the single-vector solves (see fmbd_blas_set_threads); ARPACK's own
   // orthogonalisation (dgemv on n x ncv) keeps the caller's threads
   threads = fmbd_blas_set_threads(0);
   for (;;) {
-    dsaupd_c(&ido, "G", (a_int)n, "LM", (a_int)nreq, tol, resid, (a_int)ncv, v, (a_int)n,
-             iparam, ipntr, workd, workl, lworkl, &info);
+    dsaupd_c(&ido, "G", (a_int)n, "LM", (a_int)nreq, tol, resid, (a_int)ncv, v, (a_int)n, iparam,
+             ipntr, workd, workl, lworkl, &info);
     double *x = workd + ipntr[0] - 1, *y = workd + ipntr[1] - 1;
     if (ido == -1 || ido == 1) {
       if (ido == -1) {
@@ -145,12 +145,12 @@ static int arpack_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv
   FMBD_GALLOC(d = fmbd_malloc((size_t)(nreq + 1) * sizeof(double)));
   FMBD_GALLOC(out->X = fmbd_malloc((size_t)n * (size_t)nreq * sizeof(double)));
   a_int einfo = 0;
-  dseupd_c(1, "A", select, d, out->X, (a_int)n, sigma, "G", (a_int)n, "LM", (a_int)nreq, tol,
-           resid, (a_int)ncv, v, (a_int)n, iparam, ipntr, workd, workl, lworkl, &einfo);
+  dseupd_c(1, "A", select, d, out->X, (a_int)n, sigma, "G", (a_int)n, "LM", (a_int)nreq, tol, resid,
+           (a_int)ncv, v, (a_int)n, iparam, ipntr, workd, workl, lworkl, &einfo);
   if (einfo != 0) {
     FMBD_GFAIL(FMBD_ERR_CONVERGE,
-               "ARPACK dseupd failed with info %d (%lld of %lld eigenpairs converged)",
-               (int)einfo, (long long)nconv, (long long)nreq);
+               "ARPACK dseupd failed with info %d (%lld of %lld eigenpairs converged)", (int)einfo,
+               (long long)nconv, (long long)nreq);
   }
   nconv = iparam[4];  // with info == 1 (maxit), only the converged ones are meaningful
   out->nconv = nconv;
@@ -290,17 +290,19 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   double *work = NULL;
   bool bound = o.lambda_max > 0.0;
   FMBD_CHECK(K->ncols == n && M->nrows == n && M->ncols == n, FMBD_ERR_VALUE,
-             "K (%lld x %lld) and M (%lld x %lld) are not square of one size",
-             (long long)K->nrows, (long long)K->ncols, (long long)M->nrows, (long long)M->ncols);
+             "K (%lld x %lld) and M (%lld x %lld) are not square of one size", (long long)K->nrows,
+             (long long)K->ncols, (long long)M->nrows, (long long)M->ncols);
   FMBD_CHECK(n >= 1, FMBD_ERR_VALUE, "empty eigenproblem");
   if (!bound) {
     FMBD_CHECK(o.nev >= 1, FMBD_ERR_VALUE, "number of modes %lld must be at least 1",
                (long long)o.nev);
-    FMBD_CHECK(o.nev <= n, FMBD_ERR_VALUE, "%lld modes asked for, but the problem has only %lld dofs",
-               (long long)o.nev, (long long)n);
+    FMBD_CHECK(o.nev <= n, FMBD_ERR_VALUE,
+               "%lld modes asked for, but the problem has only %lld dofs", (long long)o.nev,
+               (long long)n);
   }
   if (o.nev < 1) o.nev = 20;
-  FMBD_CHECK(o.tol > 0.0, FMBD_ERR_VALUE, "ARPACK tol must be positive (docs/TOOLCHAIN.md gotcha 11)");
+  FMBD_CHECK(o.tol > 0.0, FMBD_ERR_VALUE,
+             "ARPACK tol must be positive (docs/TOOLCHAIN.md gotcha 11)");
   FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
 
   // --- small problems: dense LAPACK, complete by construction ---------------------------------
@@ -310,8 +312,10 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     if (rc == FMBD_ERR_SINGULAR && n > o.dense_max) {
       // M only semi-definite (massless dofs): LAPACK cannot, and nev is too close to n for
       // Lanczos
-      FMBD_GFAIL(FMBD_ERR_VALUE, "%lld modes asked for, but the problem has %lld dofs and a "
-                 "singular mass matrix", (long long)o.nev, (long long)n);
+      FMBD_GFAIL(FMBD_ERR_VALUE,
+                 "%lld modes asked for, but the problem has %lld dofs and a "
+                 "singular mass matrix",
+                 (long long)o.nev, (long long)n);
     }
     FMBD_GCALL(rc);
     res->dense = true;
@@ -339,8 +343,8 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     double t1 = fmbd_wall_s();
     double scale = fabs(spectrum_scale(K, M)) * 1e-12;
     for (int64_t j = 0; j < keep; j++) {
-      res->resid[j] = fmbd_eig_residual(K, M, r.lam[j], r.X + j * n, fmax(fabs(r.lam[j]), scale),
-                                        work);
+      res->resid[j] =
+          fmbd_eig_residual(K, M, r.lam[j], r.X + j * n, fmax(fabs(r.lam[j]), scale), work);
     }
     res->t_check_s = fmbd_wall_s() - t1;
     res->lambda = r.lam;
@@ -349,7 +353,8 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     goto done;
   }
 
-  // --- the factor and its shift (docs/THEORY.md section 8) -------------------------------------------
+  // --- the factor and its shift (docs/THEORY.md section 8)
+  // -------------------------------------------
   fmbd_chol *op = F;
   if (o.free_body || !F) {
     double t0 = fmbd_wall_s();
@@ -378,8 +383,10 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
       }
       run_out_free(&r);
       double sigma = lf > 0.0 ? -0.5 * lf : sigma0;
-      fmbd_log(FMBD_LOG_DEBUG, "eig: shift estimate pass at %.3g: first flexible eigenvalue "
-               "~%.6g, shift %.6g", sigma0, lf, sigma);
+      fmbd_log(FMBD_LOG_DEBUG,
+               "eig: shift estimate pass at %.3g: first flexible eigenvalue "
+               "~%.6g, shift %.6g",
+               sigma0, lf, sigma);
       t0 = fmbd_wall_s();
       FMBD_GCALL(fmbd_chol_factor(own, sigma));
       res->sigma = sigma;
@@ -494,8 +501,10 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
       if (isnan(s)) {
         // the returned pairs end inside a cluster: ask for more
         if (++failed > o.max_passes) {
-          FMBD_GFAIL(FMBD_ERR_CONVERGE, "no gap above the last of %lld eigenvalues for the "
-                     "Sturm check after %d runs", (long long)r.nconv, res->passes);
+          FMBD_GFAIL(FMBD_ERR_CONVERGE,
+                     "no gap above the last of %lld eigenvalues for the "
+                     "Sturm check after %d runs",
+                     (long long)r.nconv, res->passes);
         }
         nreq = r.nconv + 5;
         continue;
@@ -515,16 +524,19 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
       res->t_sturm_s += fmbd_wall_s() - t3;
       res->sturm_shift = s;
       res->sturm_count = cnt;
-      fmbd_log(FMBD_LOG_DEBUG, "eig: Sturm count below %.9g: %lld, returned %lld",
-               s, (long long)cnt, (long long)j);
+      fmbd_log(FMBD_LOG_DEBUG, "eig: Sturm count below %.9g: %lld, returned %lld", s,
+               (long long)cnt, (long long)j);
       if (cnt != j) {
         if (++failed > o.max_passes) {
           FMBD_GFAIL(FMBD_ERR_CONVERGE,
                      "Sturm check failed: %lld eigenvalues below %.9g, Lanczos found %lld "
-                     "(after %d runs)", (long long)cnt, s, (long long)j, res->passes);
+                     "(after %d runs)",
+                     (long long)cnt, s, (long long)j, res->passes);
         }
-        fmbd_log(FMBD_LOG_INFO, "eig: Sturm count %lld below %.9g, Lanczos found %lld: again "
-                 "with more vectors", (long long)cnt, s, (long long)j);
+        fmbd_log(FMBD_LOG_INFO,
+                 "eig: Sturm count %lld below %.9g, Lanczos found %lld: again "
+                 "with more vectors",
+                 (long long)cnt, s, (long long)j);
         if (cnt > j) nreq += cnt - j + 2;
         ncv_extra += nreq / 2 + 10;
         continue;

@@ -15,7 +15,8 @@
 //   lambda_f (the lowest one above 1e-6 of the largest found); the real pass uses
 //   sigma = -lambda_f / 2, so rigid (0) and flexible eigenvalues map to operator eigenvalues
 //   of the same order and K - sigma M is as well conditioned as it can be. A shift at -10
-//   against lambda_f = 4e7 loses modes (docs/THEORY.md section 8): this is what the strategy avoids.
+//   against lambda_f = 4e7 loses modes (docs/THEORY.md section 8): this is what the strategy
+//   avoids.
 // - Every pair is checked by its residual ||K x - lambda M x|| / max(||K x||, |sigma| ||M x||)
 //   (the second term keeps rigid-body pairs, K x ~ 0, meaningful).
 // - Sturm check: an LDL' factorisation of K - s M (no pivoting; supernodal, fmbd_chol) counts
@@ -41,18 +42,18 @@ typedef void (*fmbd_eig_progress_fn)(void *ctx, const char *stage, int64_t solve
 
 /// Options; fill with fmbd_eig_defaults, then change.
 typedef struct fmbd_eig_opts {
-  int64_t nev;         ///< pairs wanted (count mode); in bound mode the first guess (0: 20)
-  double lambda_max;   ///< > 0: bound mode, every eigenvalue <= lambda_max. Default 0
-  bool free_body;      ///< K may be singular (rigid-body modes): negative shift. Default false
-  double tol;          ///< ARPACK tol (relative Ritz accuracy). Default 1e-12
-  double resid_tol;    ///< accepted relative residual of each pair. Default 1e-6, or the
-                       ///< attainable 1e3 eps max(K_ii/M_ii) / lambda if larger
-  int maxit;           ///< ARPACK restarts per run. Default 500
-  int max_passes;      ///< runs with more vectors after a failed check. Default 4
-  bool sturm;          ///< do the Sturm count check. Default true
-  int64_t ncv;         ///< Lanczos basis size (0: automatic, nev + max(20, nev/2), capped)
-  int64_t dense_max;   ///< solve densely with LAPACK up to this order. Default 400
-  fmbd_eig_progress_fn progress; ///< may be NULL (default)
+  int64_t nev;        ///< pairs wanted (count mode); in bound mode the first guess (0: 20)
+  double lambda_max;  ///< > 0: bound mode, every eigenvalue <= lambda_max. Default 0
+  bool free_body;     ///< K may be singular (rigid-body modes): negative shift. Default false
+  double tol;         ///< ARPACK tol (relative Ritz accuracy). Default 1e-12
+  double resid_tol;   ///< accepted relative residual of each pair. Default 1e-6, or the
+                      ///< attainable 1e3 eps max(K_ii/M_ii) / lambda if larger
+  int maxit;          ///< ARPACK restarts per run. Default 500
+  int max_passes;     ///< runs with more vectors after a failed check. Default 4
+  bool sturm;         ///< do the Sturm count check. Default true
+  int64_t ncv;        ///< Lanczos basis size (0: automatic, nev + max(20, nev/2), capped)
+  int64_t dense_max;  ///< solve densely with LAPACK up to this order. Default 400
+  fmbd_eig_progress_fn progress;  ///< may be NULL (default)
   void *progress_ctx;
 } fmbd_eig_opts;
 

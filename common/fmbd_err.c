@@ -70,9 +70,13 @@ void fmbd_err_contextf(const char *file, const char *fmt, ...) {
   memcpy(g_err.where, buf, sizeof buf);
 }
 
-void fmbd_err_clear(void) { memset(&g_err, 0, sizeof g_err); }
+void fmbd_err_clear(void) {
+  memset(&g_err, 0, sizeof g_err);
+}
 
-const fmbd_err *fmbd_err_get(void) { return &g_err; }
+const fmbd_err *fmbd_err_get(void) {
+  return &g_err;
+}
 
 void fmbd_err_format(char *buf, int size) {
   const char *msg = g_err.msg[0] ? g_err.msg : fmbd_err_string(g_err.code);

@@ -11,18 +11,18 @@
 #include <stdarg.h>
 
 // X(name, value, message, exit_status)  exit_status: 1 = data, 2 = usage
-#define FMBD_ERROR_LIST(X)                                                        \
-  X(FMBD_OK, 0, "success", 0)                                                     \
-  X(FMBD_ERR_NOMEM, -1, "out of memory", 1)                                       \
-  X(FMBD_ERR_IO, -2, "input/output error", 1)                                     \
-  X(FMBD_ERR_FORMAT, -3, "bad or foreign file", 1)                                \
-  X(FMBD_ERR_VERSION, -4, "unsupported format version", 1)                        \
-  X(FMBD_ERR_VALUE, -5, "invalid value", 1)                                       \
-  X(FMBD_ERR_USAGE, -6, "usage error", 2)                                         \
-  X(FMBD_ERR_SINGULAR, -7, "singular matrix", 1)                                  \
-  X(FMBD_ERR_CONVERGE, -8, "no convergence", 1)                                   \
-  X(FMBD_ERR_EXTERNAL, -9, "failure in an external library", 1)                   \
-  X(FMBD_ERR_INTERNAL, -10, "internal error", 1)                                  \
+#define FMBD_ERROR_LIST(X)                                      \
+  X(FMBD_OK, 0, "success", 0)                                   \
+  X(FMBD_ERR_NOMEM, -1, "out of memory", 1)                     \
+  X(FMBD_ERR_IO, -2, "input/output error", 1)                   \
+  X(FMBD_ERR_FORMAT, -3, "bad or foreign file", 1)              \
+  X(FMBD_ERR_VERSION, -4, "unsupported format version", 1)      \
+  X(FMBD_ERR_VALUE, -5, "invalid value", 1)                     \
+  X(FMBD_ERR_USAGE, -6, "usage error", 2)                       \
+  X(FMBD_ERR_SINGULAR, -7, "singular matrix", 1)                \
+  X(FMBD_ERR_CONVERGE, -8, "no convergence", 1)                 \
+  X(FMBD_ERR_EXTERNAL, -9, "failure in an external library", 1) \
+  X(FMBD_ERR_INTERNAL, -10, "internal error", 1)                \
   X(FMBD_ERR_SCENE, -11, "bad scene", 1)
 
 enum fmbd_error_code {
@@ -33,13 +33,13 @@ enum fmbd_error_code {
 
 /// The error record. Filled by fmbd_err_set (through FMBD_FAIL and friends).
 typedef struct fmbd_err {
-  int code;            ///< one of FMBD_ERROR_LIST
-  char msg[1024];      ///< the detail message
-  char file[512];      ///< data file at fault ("" if none)
-  char where[512];     ///< HDF5 path, dataset, or "line L, column C" of a scene ("" if none)
-  const char *src;     ///< __FILE__ of the failure
-  int line;            ///< __LINE__ of the failure
-  const char *func;    ///< __func__ of the failure
+  int code;          ///< one of FMBD_ERROR_LIST
+  char msg[1024];    ///< the detail message
+  char file[512];    ///< data file at fault ("" if none)
+  char where[512];   ///< HDF5 path, dataset, or "line L, column C" of a scene ("" if none)
+  const char *src;   ///< __FILE__ of the failure
+  int line;          ///< __LINE__ of the failure
+  const char *func;  ///< __func__ of the failure
 } fmbd_err;
 
 /// @brief The message of an error code (never NULL).
@@ -57,7 +57,8 @@ int fmbd_err_set(int code, const char *src, int line, const char *func, const ch
 /// raise an error. A failing function may also set it just before FMBD_FAIL.
 void fmbd_err_context(const char *file, const char *where);
 /// @brief Same as fmbd_err_context with a printf-formatted `where`.
-void fmbd_err_contextf(const char *file, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void fmbd_err_contextf(const char *file, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
 /// @brief Forget the last error and its context.
 void fmbd_err_clear(void);
 /// @brief The current error record (borrowed; valid until the next fmbd_err_* call).
@@ -68,44 +69,44 @@ void fmbd_err_format(char *buf, int size);
 // --- propagation macros -----------------------------------------------------------------
 // Direct-return family, for functions that hold no resources.
 #define FMBD_FAIL(code, ...) return fmbd_err_set((code), __FILE__, __LINE__, __func__, __VA_ARGS__)
-#define FMBD_CHECK(cond, code, ...)                                                          \
-  do {                                                                                     \
-    if (!(cond)) FMBD_FAIL(code, __VA_ARGS__);                                             \
+#define FMBD_CHECK(cond, code, ...)            \
+  do {                                         \
+    if (!(cond)) FMBD_FAIL(code, __VA_ARGS__); \
   } while (0)
-#define FMBD_CALL(expr)                                                                      \
-  do {                                                                                     \
-    int fmbd_rc_ = (expr);                                                                 \
-    if (fmbd_rc_ != 0) return fmbd_rc_;                                                    \
+#define FMBD_CALL(expr)                 \
+  do {                                  \
+    int fmbd_rc_ = (expr);              \
+    if (fmbd_rc_ != 0) return fmbd_rc_; \
   } while (0)
 
 // goto-done family, for functions with one `done:` cleanup label and an `int rc` variable.
-#define FMBD_GFAIL(code, ...)                                                                \
-  do {                                                                                     \
-    rc = fmbd_err_set((code), __FILE__, __LINE__, __func__, __VA_ARGS__);                  \
-    goto done;                                                                             \
+#define FMBD_GFAIL(code, ...)                                             \
+  do {                                                                    \
+    rc = fmbd_err_set((code), __FILE__, __LINE__, __func__, __VA_ARGS__); \
+    goto done;                                                            \
   } while (0)
-#define FMBD_GCHECK(cond, code, ...)                                                         \
-  do {                                                                                     \
-    if (!(cond)) FMBD_GFAIL(code, __VA_ARGS__);                                            \
+#define FMBD_GCHECK(cond, code, ...)            \
+  do {                                          \
+    if (!(cond)) FMBD_GFAIL(code, __VA_ARGS__); \
   } while (0)
-#define FMBD_GCALL(expr)                                                                     \
-  do {                                                                                     \
-    rc = (expr);                                                                           \
-    if (rc != 0) goto done;                                                                \
+#define FMBD_GCALL(expr)    \
+  do {                      \
+    rc = (expr);            \
+    if (rc != 0) goto done; \
   } while (0)
 /// Allocation check in the goto-done family: `FMBD_GALLOC(p = fmbd_malloc(n));`
-#define FMBD_GALLOC(assign)                                                                  \
-  do {                                                                                     \
-    if (!(assign)) FMBD_GFAIL(FMBD_ERR_NOMEM, "out of memory");                            \
+#define FMBD_GALLOC(assign)                                     \
+  do {                                                          \
+    if (!(assign)) FMBD_GFAIL(FMBD_ERR_NOMEM, "out of memory"); \
   } while (0)
 
 // Internal invariants: gone under NDEBUG (PetscAssert). Input checks use FMBD_CHECK.
 #ifdef NDEBUG
 #define FMBD_ASSERT(cond) ((void)0)
 #else
-#define FMBD_ASSERT(cond)                                                                    \
-  do {                                                                                     \
-    if (!(cond)) FMBD_FAIL(FMBD_ERR_INTERNAL, "assertion failed: %s", #cond);              \
+#define FMBD_ASSERT(cond)                                                     \
+  do {                                                                        \
+    if (!(cond)) FMBD_FAIL(FMBD_ERR_INTERNAL, "assertion failed: %s", #cond); \
   } while (0)
 #endif
 

@@ -14,11 +14,11 @@
 struct fmbd_est {
   int64_t nb, npool, nd;
   fmbd_est_options opt;
-  double *Mbb, *Kbb;   // nb x nb
-  double *kappa;       // npool
-  double *PhitA;       // npool x nb (column-major, leading dimension npool)
-  double *Xb, *Gb;     // current, nb x nb
-  double kappa_next;   // kappa_(npool+1) or NAN
+  double *Mbb, *Kbb;  // nb x nb
+  double *kappa;      // npool
+  double *PhitA;      // npool x nb (column-major, leading dimension npool)
+  double *Xb, *Gb;    // current, nb x nb
+  double kappa_next;  // kappa_(npool+1) or NAN
 };
 
 void fmbd_est_options_defaults(fmbd_est_options *o) {
@@ -122,8 +122,8 @@ int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
               FMBD_ERR_VALUE, "K and M must be square of the same order, with %lld interior rows",
               (long long)ns);
   for (int64_t k = 0; k < npool; k++) {
-    FMBD_GCHECK(kappa[k] > 0, FMBD_ERR_VALUE,
-                "fixed-interface eigenvalue %lld is %g, not positive", (long long)k + 1, kappa[k]);
+    FMBD_GCHECK(kappa[k] > 0, FMBD_ERR_VALUE, "fixed-interface eigenvalue %lld is %g, not positive",
+                (long long)k + 1, kappa[k]);
   }
   size_t nsb = (size_t)(ns * nb) + 1, nb_n = interior ? (size_t)(n * nb) + 1 : 1;
   FMBD_GALLOC(W = fmbd_malloc(sizeof(double) * nsb));
@@ -273,15 +273,27 @@ int fmbd_est_set_nd(fmbd_est *e, int64_t nd) {
   return FMBD_OK;
 }
 
-int64_t fmbd_est_nd(const fmbd_est *e) { return e->nd; }
-int64_t fmbd_est_npool(const fmbd_est *e) { return e->npool; }
-int64_t fmbd_est_nb(const fmbd_est *e) { return e->nb; }
-const double *fmbd_est_xb(const fmbd_est *e) { return e->Xb; }
-const double *fmbd_est_gb(const fmbd_est *e) { return e->Gb; }
+int64_t fmbd_est_nd(const fmbd_est *e) {
+  return e->nd;
+}
+int64_t fmbd_est_npool(const fmbd_est *e) {
+  return e->npool;
+}
+int64_t fmbd_est_nb(const fmbd_est *e) {
+  return e->nb;
+}
+const double *fmbd_est_xb(const fmbd_est *e) {
+  return e->Xb;
+}
+const double *fmbd_est_gb(const fmbd_est *e) {
+  return e->Gb;
+}
 bool fmbd_est_knext_known(const fmbd_est *e) {
   return e->nd < e->npool || (e->nd == e->npool && isfinite(e->kappa_next));
 }
-void fmbd_est_set_kappa_next(fmbd_est *e, double kappa_next) { e->kappa_next = kappa_next; }
+void fmbd_est_set_kappa_next(fmbd_est *e, double kappa_next) {
+  e->kappa_next = kappa_next;
+}
 
 int fmbd_est_solve(fmbd_est *e, double *chibar, double *Xi) {
   int rc = FMBD_OK;
@@ -376,10 +388,10 @@ int fmbd_est_estimate(const fmbd_est *e, const double *chibar, const double *Xi,
     }
   }
   // kappa_(nd+1); unknown: kappa_nd (smaller, so the estimate stays above [H36])
-  double knext = e->npool > nd                ? e->kappa[nd]
-                 : isfinite(e->kappa_next)   ? e->kappa_next
-                 : nd > 0                    ? e->kappa[nd - 1]
-                                             : INFINITY;
+  double knext = e->npool > nd             ? e->kappa[nd]
+                 : isfinite(e->kappa_next) ? e->kappa_next
+                 : nd > 0                  ? e->kappa[nd - 1]
+                                           : INFINITY;
   for (int64_t n = 0; n < nm; n++) {
     double c = chibar[n];
     const double *b = Xi + ldxi * n + nd;
@@ -463,10 +475,14 @@ done:
 
 double fmbd_est_pick(const fmbd_est_modes *m, int which, int64_t n) {
   switch (which) {
-    case FMBD_EST_UPPER_NEXT: return m->upper_next[n];
-    case FMBD_EST_SECOND: return m->second[n];
-    case FMBD_EST_LOWER: return m->lower[n];
-    default: return m->upper[n];
+    case FMBD_EST_UPPER_NEXT:
+      return m->upper_next[n];
+    case FMBD_EST_SECOND:
+      return m->second[n];
+    case FMBD_EST_LOWER:
+      return m->lower[n];
+    default:
+      return m->upper[n];
   }
 }
 

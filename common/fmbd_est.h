@@ -18,8 +18,8 @@
 // error of the solves Ks^-1 A (relative error up to eps * cond(Ks)). On a slender beam
 // (docs/THEORY.md section 8: cond(Ks) ~ 4e11, ratio ~ 3e5) this destroyed every digit of the
 // bending modes' estimates when Ks^-1 A came from dense LAPACK solves (Gb is worse: ratio
-// squared); with CHOLMOD's solves of fe2cb the loss measured 1.7e-6 there. fmbd_est_base_projected computes
-// the same Xb, Gb without the cancellation when the FE matrices Ks, Ms are at hand: with
+// squared); with CHOLMOD's solves of fe2cb the loss measured 1.7e-6 there. fmbd_est_base_projected
+// computes the same Xb, Gb without the cancellation when the FE matrices Ks, Ms are at hand: with
 // W = Ks^-1 A - Phi Lambda^-1 PhitA (= Frs A in exact arithmetic), the errors of the solve
 // lie mostly along the low modes, which are removed by the Ms-orthogonal projection
 // W := W - Phi (Phi' Ms W) (exactly zero in exact arithmetic); then Xb = W' Ks W and
@@ -59,24 +59,24 @@ typedef struct fmbd_est fmbd_est;
 
 /// Per-mode results (arrays of nmodes, caller-owned, see fmbd_est_estimate).
 typedef struct fmbd_est_modes {
-  int64_t nmodes;   ///< reduced modes described
-  double *chibar;   ///< eigenvalue of the reduced body
-  bool *rigid;      ///< rigid-body mode (error 0, not a flexible mode)
-  int64_t *cluster; ///< index of the first member of the mode's cluster (itself if alone)
-  double *lower, *second, *upper, *upper_next; ///< the estimates (0 for rigid modes)
-  double *x;        ///< b' Xb b (diagnostic)
-  double *g;        ///< b' Gb b (diagnostic)
+  int64_t nmodes;    ///< reduced modes described
+  double *chibar;    ///< eigenvalue of the reduced body
+  bool *rigid;       ///< rigid-body mode (error 0, not a flexible mode)
+  int64_t *cluster;  ///< index of the first member of the mode's cluster (itself if alone)
+  double *lower, *second, *upper, *upper_next;  ///< the estimates (0 for rigid modes)
+  double *x;                                    ///< b' Xb b (diagnostic)
+  double *g;                                    ///< b' Gb b (diagnostic)
 } fmbd_est_modes;
 
 /// Options of the estimator. Fill with fmbd_est_options_defaults.
 typedef struct fmbd_est_options {
-  double rigid_rtol;   ///< chibar <= rigid_rtol * kappa_1 is a rigid-body mode. Default 1e-6
-                       ///< (a frequency 1e-3 of the first fixed-interface one)
-  double cluster_rtol; ///< |chibar_i - chibar_j| <= cluster_rtol * chibar_j groups modes into a
-                       ///< repeated cluster. Default 1e-3 (tet meshes of symmetric sections
-                       ///< split pairs by ~1e-4)
-  bool cluster_overlap; ///< also cluster modes whose intervals [chibar / (1 + upper), chibar]
-                        ///< overlap. Default true
+  double rigid_rtol;     ///< chibar <= rigid_rtol * kappa_1 is a rigid-body mode. Default 1e-6
+                         ///< (a frequency 1e-3 of the first fixed-interface one)
+  double cluster_rtol;   ///< |chibar_i - chibar_j| <= cluster_rtol * chibar_j groups modes into a
+                         ///< repeated cluster. Default 1e-3 (tet meshes of symmetric sections
+                         ///< split pairs by ~1e-4)
+  bool cluster_overlap;  ///< also cluster modes whose intervals [chibar / (1 + upper), chibar]
+                         ///< overlap. Default true
 } fmbd_est_options;
 
 /// @brief The defaults documented in fmbd_est_options.
@@ -161,10 +161,10 @@ int fmbd_est_run(fmbd_est *e, fmbd_est_modes *m, double *Xi);
 // --- iterative selection (docs/THEORY.md section 3, the paper's Figure 1) ------------------------
 /// Which estimate drives the selection.
 enum fmbd_est_which {
-  FMBD_EST_UPPER = 0,      ///< upper, kappa_n (the paper's [H42]; the default)
-  FMBD_EST_UPPER_NEXT = 1, ///< upper, kappa_(nd+1) (tighter)
-  FMBD_EST_SECOND = 2,     ///< second order (not a bound)
-  FMBD_EST_LOWER = 3       ///< lower (not conservative)
+  FMBD_EST_UPPER = 0,       ///< upper, kappa_n (the paper's [H42]; the default)
+  FMBD_EST_UPPER_NEXT = 1,  ///< upper, kappa_(nd+1) (tighter)
+  FMBD_EST_SECOND = 2,      ///< second order (not a bound)
+  FMBD_EST_LOWER = 3        ///< lower (not conservative)
 };
 /// @brief The estimate `which` of mode n of m.
 double fmbd_est_pick(const fmbd_est_modes *m, int which, int64_t n);
@@ -183,10 +183,10 @@ typedef struct fmbd_est_select_opts {
 
 /// One iteration of the selection log.
 typedef struct fmbd_est_iter {
-  int64_t nd;            ///< dominant modes of this iteration
-  int64_t first_failing; ///< first flexible mode (1-based) above tol, 0 if none
-  double largest;        ///< largest estimate over flexible modes 1..nm (INFINITY if the
-                         ///< reduced body has fewer than nm flexible modes)
+  int64_t nd;             ///< dominant modes of this iteration
+  int64_t first_failing;  ///< first flexible mode (1-based) above tol, 0 if none
+  double largest;         ///< largest estimate over flexible modes 1..nm (INFINITY if the
+                          ///< reduced body has fewer than nm flexible modes)
 } fmbd_est_iter;
 
 typedef struct fmbd_est_select_result {

@@ -1,7 +1,9 @@
 // common/fmbd_fe.c: FE body assembly (checks, dof layout, CSR assembly, ties and clamps, mass
 // properties), nodal stress, and the small helpers of fmbd_fe.h
 // SPDX-License-Identifier: MIT
-#define _DEFAULT_SOURCE // madvise, MADV_HUGEPAGE (Linux); guarded below
+#define _DEFAULT_SOURCE  // madvise, MADV_HUGEPAGE (Linux); guarded below
+#include "fmbd_fe.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,7 +11,6 @@
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
-#include "fmbd_fe.h"
 #include "fmbd_fe_impl.h"
 #include "fmbd_log.h"
 
@@ -133,8 +134,8 @@ static void auto_orientation(const double *x0, const double *x1, double v[3]) {
 static int check_inputs(const fmbd_mesh *m, const fmbd_fe_options *o) {
   FMBD_CHECK(isfinite(o->E) && o->E > 0.0, FMBD_ERR_VALUE,
              "Young's modulus E = %g: must be positive", o->E);
-  FMBD_CHECK(isfinite(o->rho) && o->rho > 0.0, FMBD_ERR_VALUE,
-             "density rho = %g: must be positive", o->rho);
+  FMBD_CHECK(isfinite(o->rho) && o->rho > 0.0, FMBD_ERR_VALUE, "density rho = %g: must be positive",
+             o->rho);
   FMBD_CHECK(isfinite(o->nu) && o->nu > -1.0 && o->nu < 0.5, FMBD_ERR_VALUE,
              "Poisson's ratio nu = %g: must lie in (-1, 0.5)", o->nu);
   FMBD_CHECK(o->mass == FMBD_FE_MASS_CONSISTENT || o->mass == FMBD_FE_MASS_LUMPED, FMBD_ERR_VALUE,
@@ -201,9 +202,9 @@ static int check_inputs(const fmbd_mesh *m, const fmbd_fe_options *o) {
                "interface %s: the group has no nodes", s->group);
     FMBD_CHECK(s->kind == FMBD_FE_RBE2 || s->kind == FMBD_FE_RBE3, FMBD_ERR_VALUE,
                "interface %s: unknown tie kind %d", s->group, (int)s->kind);
-    FMBD_CHECK(!s->has_point || (isfinite(s->point[0]) && isfinite(s->point[1]) &&
-                                 isfinite(s->point[2])),
-               FMBD_ERR_VALUE, "interface %s: non-finite point", s->group);
+    FMBD_CHECK(
+        !s->has_point || (isfinite(s->point[0]) && isfinite(s->point[1]) && isfinite(s->point[2])),
+        FMBD_ERR_VALUE, "interface %s: non-finite point", s->group);
     for (int j = 0; j < i; j++) {
       FMBD_CHECK(strcmp(o->interfaces[j].group, s->group) != 0, FMBD_ERR_VALUE,
                  "interface %s given twice", s->group);
@@ -243,7 +244,7 @@ static void rigid_solid(int nn, const int64_t *en, const double *xyz, const doub
   }
   // tr = -[S1]x ; rr = tr(S2) I - S2'
   double tr2 = S2[0] + S2[4] + S2[8];
-  double X[9] = {0, -S1[2], S1[1], S1[2], 0, -S1[0], -S1[1], S1[0], 0}; // [S1]x
+  double X[9] = {0, -S1[2], S1[1], S1[2], 0, -S1[0], -S1[1], S1[0], 0};  // [S1]x
   for (int i = 0; i < 3; i++) {
     Mr[i * 6 + i] += S0;
     for (int j = 0; j < 3; j++) {
@@ -263,11 +264,14 @@ static void rigid_beam(const double *x0, const double *x1, const double *Me, dou
     const double *p = x[a];
     for (int k = 0; k < 6; k++) r[k * 6 + k] = 1.0;
     // -[p]x = [[0, pz, -py], [-pz, 0, px], [py, -px, 0]]
-    r[0 * 6 + 4] = p[2]; r[0 * 6 + 5] = -p[1];
-    r[1 * 6 + 3] = -p[2]; r[1 * 6 + 5] = p[0];
-    r[2 * 6 + 3] = p[1]; r[2 * 6 + 4] = -p[0];
+    r[0 * 6 + 4] = p[2];
+    r[0 * 6 + 5] = -p[1];
+    r[1 * 6 + 3] = -p[2];
+    r[1 * 6 + 5] = p[0];
+    r[2 * 6 + 3] = p[1];
+    r[2 * 6 + 4] = -p[0];
   }
-  double MR[72]; // Me R (12 x 6)
+  double MR[72];  // Me R (12 x 6)
   for (int i = 0; i < 12; i++) {
     for (int j = 0; j < 6; j++) {
       double s = 0.0;
@@ -318,11 +322,11 @@ typedef struct asm_ctx {
   const int8_t *tied;   // per node
   const fmbd_csr *T;    // full -> active
   bool any_tied;
-  int64_t *eptr, *enode; // reduced node list of each element (CSR)
-  int64_t *G_ptr, *G_idx, *noff; // node graph; dof offset of each neighbour within a dof row
-  int64_t *stamp, *pos;  // scratch per node
-  double *Te, *W, *R;    // scratch for tied elements
-  int64_t cap;           // capacity of the scratch (in dofs)
+  int64_t *eptr, *enode;          // reduced node list of each element (CSR)
+  int64_t *G_ptr, *G_idx, *noff;  // node graph; dof offset of each neighbour within a dof row
+  int64_t *stamp, *pos;           // scratch per node
+  double *Te, *W, *R;             // scratch for tied elements
+  int64_t cap;                    // capacity of the scratch (in dofs)
 } asm_ctx;
 
 static void asm_free(asm_ctx *c) {
@@ -351,7 +355,9 @@ static int elem_nodes(const asm_ctx *c, int64_t e, const int64_t **nodes, int *p
   return 2;
 }
 
-static inline int64_t nact(const fmbd_fe_body *b, int64_t p) { return b->node_dof[p + 1] - b->node_dof[p]; }
+static inline int64_t nact(const fmbd_fe_body *b, int64_t p) {
+  return b->node_dof[p + 1] - b->node_dof[p];
+}
 
 // an element adds its own matrix (no T_e product) when its nodes are untied and carry exactly
 // the element's dofs per node (or none: clamped)
@@ -370,7 +376,8 @@ static void hugepage_hint(void *p, size_t n) {
 #ifdef MADV_HUGEPAGE
   const size_t page = 4096;
   if (n < (size_t)(8u << 20)) return;
-  uintptr_t a = ((uintptr_t)p + page - 1) & ~(uintptr_t)(page - 1), e = ((uintptr_t)p + n) & ~(uintptr_t)(page - 1);
+  uintptr_t a = ((uintptr_t)p + page - 1) & ~(uintptr_t)(page - 1),
+            e = ((uintptr_t)p + n) & ~(uintptr_t)(page - 1);
   if (e > a) (void)madvise((void *)a, e - a, MADV_HUGEPAGE);
 #else
   (void)p;
@@ -560,7 +567,8 @@ done:
 static int add_diag(fmbd_csr *A, int64_t r0, int n, double v) {
   for (int k = 0; k < n; k++) {
     int64_t pos = fmbd_csr_find(A, r0 + k, r0 + k);
-    FMBD_CHECK(pos >= 0, FMBD_ERR_INTERNAL, "diagonal entry %lld not in the pattern", (long long)(r0 + k));
+    FMBD_CHECK(pos >= 0, FMBD_ERR_INTERNAL, "diagonal entry %lld not in the pattern",
+               (long long)(r0 + k));
     A->data[pos] += v;
   }
   return FMBD_OK;
@@ -568,8 +576,8 @@ static int add_diag(fmbd_csr *A, int64_t r0, int n, double v) {
 
 // add the blocks of the element matrices Ae (and Be, may be NULL) for the nodes of list: block
 // (a, b) is Ae[(eoff[a] + i) * stride + eoff[b] + j], i < nact(list[a]), j < nact(list[b])
-static int add_blocks(asm_ctx *c, int64_t nl, const int64_t *list, const int64_t *eoff, int64_t stride,
-                      const double *Ae, const double *Be) {
+static int add_blocks(asm_ctx *c, int64_t nl, const int64_t *list, const int64_t *eoff,
+                      int64_t stride, const double *Ae, const double *Be) {
   fmbd_fe_body *b = c->b;
   fmbd_csr *K = b->K, *M = b->M;
   for (int64_t a = 0; a < nl; a++) {
@@ -585,11 +593,13 @@ static int add_blocks(asm_ctx *c, int64_t nl, const int64_t *list, const int64_t
           t = mid;
           break;
         }
-        if (row[mid] < q) lo = mid + 1;
-        else hi = mid - 1;
+        if (row[mid] < q)
+          lo = mid + 1;
+        else
+          hi = mid - 1;
       }
-      FMBD_CHECK(t >= 0, FMBD_ERR_INTERNAL, "node pair (%lld, %lld) not in the pattern", (long long)p,
-                 (long long)q);
+      FMBD_CHECK(t >= 0, FMBD_ERR_INTERNAL, "node pair (%lld, %lld) not in the pattern",
+                 (long long)p, (long long)q);
       int64_t o = c->noff[c->G_ptr[p] + t];
       for (int64_t i = 0; i < np; i++) {
         int64_t base = K->indptr[r0 + i] + o;
@@ -608,7 +618,7 @@ static int add_blocks(asm_ctx *c, int64_t nl, const int64_t *list, const int64_t
 // R = Te' X Te (ka x ka, symmetrised) for the k x k element matrix X
 static void reduce_matrix(asm_ctx *c, int k, int64_t ka, const double *X) {
   double *Te = c->Te, *W = c->W, *R = c->R;
-  for (int i = 0; i < k; i++) { // W = X Te (k x ka)
+  for (int i = 0; i < k; i++) {  // W = X Te (k x ka)
     for (int64_t j = 0; j < ka; j++) W[i * ka + j] = 0.0;
     for (int l = 0; l < k; l++) {
       double x = X[i * k + l];
@@ -617,7 +627,7 @@ static void reduce_matrix(asm_ctx *c, int k, int64_t ka, const double *X) {
     }
   }
   for (int64_t i = 0; i < ka * ka; i++) R[i] = 0.0;
-  for (int l = 0; l < k; l++) { // R = Te' W
+  for (int l = 0; l < k; l++) {  // R = Te' W
     for (int64_t i = 0; i < ka; i++) {
       double t = Te[l * ka + i];
       if (t == 0.0) continue;
@@ -652,7 +662,7 @@ static int add_element(asm_ctx *c, int64_t e, int k, const double *Ke, const dou
   FMBD_GALLOC(off = fmbd_malloc((size_t)nl * sizeof *off));
   for (int64_t a = 0; a < nl; a++) {
     off[a] = ka;
-    c->stamp[list[a]] = -2 - e; // position lookups below
+    c->stamp[list[a]] = -2 - e;  // position lookups below
     c->pos[list[a]] = a;
     ka += nact(c->b, list[a]);
   }
@@ -662,8 +672,8 @@ static int add_element(asm_ctx *c, int64_t e, int k, const double *Ke, const dou
       int64_t f = c->fdof[nodes[a]] + kk, row = (int64_t)per * a + kk;
       for (int64_t t = c->T->indptr[f]; t < c->T->indptr[f + 1]; t++) {
         int64_t col = c->T->indices[t], q = c->b->dofs[2 * col];
-        FMBD_GCHECK(c->stamp[q] == -2 - e, FMBD_ERR_INTERNAL, "element %lld: node %lld missing from its list",
-                    (long long)e, (long long)q);
+        FMBD_GCHECK(c->stamp[q] == -2 - e, FMBD_ERR_INTERNAL,
+                    "element %lld: node %lld missing from its list", (long long)e, (long long)q);
         c->Te[row * ka + off[c->pos[q]] + (col - c->b->node_dof[q])] += c->T->data[t];
       }
     }
@@ -742,7 +752,8 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
     FMBD_GALLOC(b->group_name = fmbd_calloc((size_t)m->ngroups, sizeof *b->group_name));
     FMBD_GALLOC(b->group_ptr = fmbd_malloc(((size_t)m->ngroups + 1) * sizeof *b->group_ptr));
     FMBD_GALLOC(b->group_node = fmbd_malloc((size_t)(ng ? ng : 1) * sizeof *b->group_node));
-    for (int g = 0; g < m->ngroups; g++) FMBD_GALLOC(b->group_name[g] = fmbd_strdup(m->group_name[g]));
+    for (int g = 0; g < m->ngroups; g++)
+      FMBD_GALLOC(b->group_name[g] = fmbd_strdup(m->group_name[g]));
     memcpy(b->group_ptr, m->group_ptr, ((size_t)m->ngroups + 1) * sizeof *b->group_ptr);
     memcpy(b->group_node, m->group_node, (size_t)ng * sizeof *b->group_node);
   }
@@ -778,7 +789,7 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
       }
     }
     memcpy(b->xyz + 3 * it->node, it->point, sizeof it->point);
-    on_beam[it->node] = 1; // 6 dofs
+    on_beam[it->node] = 1;  // 6 dofs
   }
   // --- clamps ---
   b->nclamped = opt->nclamps;
@@ -838,7 +849,8 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
   const bool progress = fmbd_progress_enabled() && m->ntet + m->nbeam > 200000;
   for (int64_t e = 0; e < m->ntet; e++) {
     if (progress && e % 65536 == 0) {
-      fmbd_progress("assembling: %lld of %lld elements", (long long)e, (long long)(m->ntet + m->nbeam));
+      fmbd_progress("assembling: %lld of %lld elements", (long long)e,
+                    (long long)(m->ntet + m->nbeam));
     }
     double xe[30], vol, d[10], Ms[100];
     const int64_t *en = m->tet + e * tn;
@@ -874,18 +886,18 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_bod
     double L = sqrt((x1[0] - x0[0]) * (x1[0] - x0[0]) + (x1[1] - x0[1]) * (x1[1] - x0[1]) +
                     (x1[2] - x0[2]) * (x1[2] - x0[2]));
     vol_beam += b->area * L;
-    FMBD_GCALL(fmbd_fe_beam_matrices(x0, x1, v, b->E, b->nu, b->rho, b->area, b->Iy, b->Iz, b->J,
-                                     e, Ke, Me));
+    FMBD_GCALL(fmbd_fe_beam_matrices(x0, x1, v, b->E, b->nu, b->rho, b->area, b->Iy, b->Iz, b->J, e,
+                                     Ke, Me));
     rigid_beam(x0, x1, Me, Mr);
     FMBD_GCALL(fmbd_fe_beam_lumped(x0, x1, v, b->rho, b->area, b->J, e, Ml));
     b->node_mass[m->beam[2 * e]] += Ml[0];
     b->node_mass[m->beam[2 * e + 1]] += Ml[6 * 12 + 6];
     const double *Mb = opt->mass == FMBD_FE_MASS_CONSISTENT ? Me : Ml;
     FMBD_GCALL(add_element(&c, m->ntet + e, 12, Ke, diag_mass ? NULL : Mb));
-    if (diag_mass) { // translations on the diagonal (isotropic m/2), rotations a 3x3 block
+    if (diag_mass) {  // translations on the diagonal (isotropic m/2), rotations a 3x3 block
       for (int a = 0; a < 2; a++) {
         int64_t r0 = b->node_dof[m->beam[2 * e + a]];
-        if (b->node_dof[m->beam[2 * e + a] + 1] == r0) continue; // clamped
+        if (b->node_dof[m->beam[2 * e + a] + 1] == r0) continue;  // clamped
         FMBD_GCALL(add_diag(b->M, r0, 3, Ml[(6 * a) * 13]));
         for (int i = 0; i < 3; i++) {
           for (int j = 0; j < 3; j++) {
@@ -945,7 +957,7 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
     fmbd_csr_matmat(b->expand, ncb, q + c0 * b->ndof, b->ndof, u, ld);
     for (int64_t e = 0; e < b->ntet; e++) {
       const int64_t *en = b->tet + e * nn;
-      double G[10][30]; // global gradients of the shape functions at each node of the element
+      double G[10][30];  // global gradients of the shape functions at each node of the element
       for (int a = 0; a < nn; a++) {
         double J[9] = {0}, Ji[9];
         for (int k = 0; k < nn; k++) {
@@ -956,8 +968,9 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
         }
         double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
                      J[2] * (J[3] * J[7] - J[4] * J[6]);
-        FMBD_GCHECK(det > 0.0, FMBD_ERR_VALUE, "element %lld (tet%d): Jacobian determinant %g at node %d",
-                    (long long)e, nn, det, a);
+        FMBD_GCHECK(det > 0.0, FMBD_ERR_VALUE,
+                    "element %lld (tet%d): Jacobian determinant %g at node %d", (long long)e, nn,
+                    det, a);
         Ji[0] = (J[4] * J[8] - J[5] * J[7]) / det;
         Ji[1] = (J[2] * J[7] - J[1] * J[8]) / det;
         Ji[2] = (J[1] * J[5] - J[2] * J[4]) / det;
@@ -969,8 +982,8 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
         Ji[8] = (J[0] * J[4] - J[1] * J[3]) / det;
         for (int k = 0; k < nn; k++) {
           for (int j = 0; j < 3; j++) {
-            G[a][k * 3 + j] = Ji[j * 3 + 0] * dNn[a][k * 3 + 0] + Ji[j * 3 + 1] * dNn[a][k * 3 + 1] +
-                              Ji[j * 3 + 2] * dNn[a][k * 3 + 2];
+            G[a][k * 3 + j] = Ji[j * 3 + 0] * dNn[a][k * 3 + 0] +
+                              Ji[j * 3 + 1] * dNn[a][k * 3 + 1] + Ji[j * 3 + 2] * dNn[a][k * 3 + 2];
           }
         }
       }
@@ -978,7 +991,7 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
         const double *uc = u + c * ld;
         double *sg = sigma + (c0 + c) * b->nnodes * 6;
         for (int a = 0; a < nn; a++) {
-          double gu[9] = {0}; // gu[i][j] = d u_i / d x_j
+          double gu[9] = {0};  // gu[i][j] = d u_i / d x_j
           for (int k = 0; k < nn; k++) {
             const double *uk = uc + 6 * en[k], *g = G[a] + 3 * k;
             for (int i = 0; i < 3; i++) {

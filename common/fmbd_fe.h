@@ -30,12 +30,18 @@
 // --- the mesh input ------------------------------------------------------------------------
 /// The mesh as read from gmsh or CGAL (the contract between mesh2fe and this module).
 typedef struct fmbd_mesh {
-  int64_t nnodes; double *xyz;               // (nnodes, 3) row-major
-  int64_t ntet; int tet_nodes; int64_t *tet; // tet_nodes 4 or 10 (gmsh order); (ntet, tet_nodes)
-  int64_t nbeam; int64_t *beam;              // (nbeam, 2)
-  int ngroups; char **group_name;            // physical group names
-  int64_t *group_ptr; int64_t *group_node;   // group g: group_node[group_ptr[g]..group_ptr[g+1]]
-} fmbd_mesh;                                 // all arrays owned; fmbd_mesh_destroy(&m)
+  int64_t nnodes;
+  double *xyz;  // (nnodes, 3) row-major
+  int64_t ntet;
+  int tet_nodes;
+  int64_t *tet;  // tet_nodes 4 or 10 (gmsh order); (ntet, tet_nodes)
+  int64_t nbeam;
+  int64_t *beam;  // (nbeam, 2)
+  int ngroups;
+  char **group_name;  // physical group names
+  int64_t *group_ptr;
+  int64_t *group_node;  // group g: group_node[group_ptr[g]..group_ptr[g+1]]
+} fmbd_mesh;            // all arrays owned; fmbd_mesh_destroy(&m)
 
 /// @brief Release every array of the mesh (fmbd_free) and zero the struct. NULL is fine.
 /// The struct itself is not freed (it usually lives on the stack).
@@ -46,14 +52,14 @@ int fmbd_mesh_find_group(const fmbd_mesh *m, const char *name);
 
 // --- options -------------------------------------------------------------------------------
 typedef enum fmbd_fe_mass_kind {
-  FMBD_FE_MASS_CONSISTENT = 0, ///< consistent mass matrix
-  FMBD_FE_MASS_LUMPED = 1      ///< HRZ lumped (Hinton, Rock, Zienkiewicz 1976): diagonal for
-                               ///< solids; beams: diagonal translations, 3x3 rotational block
+  FMBD_FE_MASS_CONSISTENT = 0,  ///< consistent mass matrix
+  FMBD_FE_MASS_LUMPED = 1       ///< HRZ lumped (Hinton, Rock, Zienkiewicz 1976): diagonal for
+                                ///< solids; beams: diagonal translations, 3x3 rotational block
 } fmbd_fe_mass_kind;
 
 typedef enum fmbd_fe_tie_kind {
-  FMBD_FE_RBE2 = 0, ///< rigid spider: tied dofs eliminated exactly
-  FMBD_FE_RBE3 = 1  ///< weighted-average (distributing) connection, see fmbd_fe_assemble
+  FMBD_FE_RBE2 = 0,  ///< rigid spider: tied dofs eliminated exactly
+  FMBD_FE_RBE3 = 1   ///< weighted-average (distributing) connection, see fmbd_fe_assemble
 } fmbd_fe_tie_kind;
 
 /// One interface request: a physical group tied to a new 6-dof node.
@@ -66,24 +72,24 @@ typedef struct fmbd_fe_interface_spec {
 
 /// Material, mass and model options. Fill with fmbd_fe_options_defaults, then change fields.
 typedef struct fmbd_fe_options {
-  double E;   ///< Young's modulus [Pa], > 0. Default 210e9 (steel)
-  double nu;  ///< Poisson's ratio, in (-1, 0.5). Default 0.3
-  double rho; ///< density [kg/m^3], > 0. Default 7850
-  fmbd_fe_mass_kind mass; ///< default FMBD_FE_MASS_CONSISTENT
+  double E;                ///< Young's modulus [Pa], > 0. Default 210e9 (steel)
+  double nu;               ///< Poisson's ratio, in (-1, 0.5). Default 0.3
+  double rho;              ///< density [kg/m^3], > 0. Default 7850
+  fmbd_fe_mass_kind mass;  ///< default FMBD_FE_MASS_CONSISTENT
   // beam section, required (all > 0) when the mesh has beam elements; default 0 = not given
-  double area; ///< A [m^2]
-  double Iy;   ///< second moment about the local y axis [m^4] (bending in the local x-z plane)
-  double Iz;   ///< second moment about the local z axis [m^4] (bending in the local x-y plane)
-  double J;    ///< torsion constant [m^4]; the torsional mass uses rho*J
+  double area;  ///< A [m^2]
+  double Iy;    ///< second moment about the local y axis [m^4] (bending in the local x-z plane)
+  double Iz;    ///< second moment about the local z axis [m^4] (bending in the local x-y plane)
+  double J;     ///< torsion constant [m^4]; the torsional mass uses rho*J
   /// Beam orientation vector (any vector in the local x-z plane, not parallel to the beam).
   /// Default (0,0,0) = automatic: global Z, or global X for elements within 0.1 rad of Z.
   double orientation[3];
   /// Optional per-element orientation vectors (nbeam, 3), overriding `orientation`
   /// (borrowed; NULL by default).
   const double *beam_orientation;
-  int ninterfaces;                          ///< default 0
-  const fmbd_fe_interface_spec *interfaces; ///< (ninterfaces,) borrowed
-  int nclamps;                              ///< default 0
+  int ninterfaces;                           ///< default 0
+  const fmbd_fe_interface_spec *interfaces;  ///< (ninterfaces,) borrowed
+  int nclamps;                               ///< default 0
   /// Clamped group names (borrowed). A clamp name that is also an interface clamps the interface
   /// node (its 6 dofs); otherwise every dof of every node of the mesh group is removed.
   const char *const *clamps;
@@ -94,50 +100,58 @@ void fmbd_fe_options_defaults(fmbd_fe_options *o);
 
 // --- the body: everything an fmbd-fe file holds --------------------------------------------
 typedef struct fmbd_fe_interface {
-  char *name;            ///< group name (owned)
+  char *name;  ///< group name (owned)
   fmbd_fe_tie_kind kind;
-  int64_t node;          ///< the interface node (index into the body's nodes, >= nmesh_nodes)
-  double point[3];       ///< its position
-  int64_t nnodes;        ///< tied nodes
-  int64_t *nodes;        ///< (nnodes,) owned
+  int64_t node;     ///< the interface node (index into the body's nodes, >= nmesh_nodes)
+  double point[3];  ///< its position
+  int64_t nnodes;   ///< tied nodes
+  int64_t *nodes;   ///< (nnodes,) owned
 } fmbd_fe_interface;
 
 typedef struct fmbd_fe_clamp {
-  char *name;     ///< group (or interface) name (owned)
+  char *name;  ///< group (or interface) name (owned)
   int64_t nnodes;
-  int64_t *nodes; ///< (nnodes,) owned: nodes whose dofs were removed
+  int64_t *nodes;  ///< (nnodes,) owned: nodes whose dofs were removed
 } fmbd_fe_clamp;
 
 typedef struct fmbd_fe_body {
   // /mesh: nodes are the mesh nodes first, then one node per interface
-  int64_t nnodes;        ///< all nodes
-  int64_t nmesh_nodes;   ///< mesh nodes (nodes nmesh_nodes.. are interface nodes)
-  double *xyz;           ///< (nnodes, 3)
-  int64_t ntet; int tet_nodes; int64_t *tet; ///< (ntet, tet_nodes), tet_nodes 4 or 10 (0 if none)
-  int64_t nbeam; int64_t *beam;              ///< (nbeam, 2)
-  double *beam_orientation;                  ///< (nbeam, 3) the orientation used, or NULL
-  int ngroups; char **group_name; int64_t *group_ptr; int64_t *group_node; ///< as fmbd_mesh
-  double *node_mass;     ///< (nnodes,) HRZ lumped translational mass (0 on interface nodes)
+  int64_t nnodes;       ///< all nodes
+  int64_t nmesh_nodes;  ///< mesh nodes (nodes nmesh_nodes.. are interface nodes)
+  double *xyz;          ///< (nnodes, 3)
+  int64_t ntet;
+  int tet_nodes;
+  int64_t *tet;  ///< (ntet, tet_nodes), tet_nodes 4 or 10 (0 if none)
+  int64_t nbeam;
+  int64_t *beam;             ///< (nbeam, 2)
+  double *beam_orientation;  ///< (nbeam, 3) the orientation used, or NULL
+  int ngroups;
+  char **group_name;
+  int64_t *group_ptr;
+  int64_t *group_node;  ///< as fmbd_mesh
+  double *node_mass;    ///< (nnodes,) HRZ lumped translational mass (0 on interface nodes)
   // /material
   double E, nu, rho;
   fmbd_fe_mass_kind mass_kind;
-  bool has_section;      ///< beam section attributes present
+  bool has_section;  ///< beam section attributes present
   double area, Iy, Iz, J;
   // /dofs
   int64_t ndof;
-  int64_t *dofs;         ///< (ndof, 2): node, direction (0..5), node-major
-  int64_t *node_dof;     ///< (nnodes+1,) first row of /dofs of each node (derived on read)
+  int64_t *dofs;      ///< (ndof, 2): node, direction (0..5), node-major
+  int64_t *node_dof;  ///< (nnodes+1,) first row of /dofs of each node (derived on read)
   // matrices (NULL when absent: downstream files hold the description only)
-  fmbd_csr *K, *M;       ///< ndof x ndof, full symmetric storage
-  fmbd_csr *expand;      ///< 6*nnodes x ndof: u_all = expand * q
+  fmbd_csr *K, *M;   ///< ndof x ndof, full symmetric storage
+  fmbd_csr *expand;  ///< 6*nnodes x ndof: u_all = expand * q
   // /interfaces, /clamped
-  int ninterfaces; fmbd_fe_interface *interfaces;
-  int nclamped; fmbd_fe_clamp *clamped;
+  int ninterfaces;
+  fmbd_fe_interface *interfaces;
+  int nclamped;
+  fmbd_fe_clamp *clamped;
   // /body: rigid-body properties (from the consistent mass; see fmbd_fe_assemble)
-  double mass;              ///< [kg]
-  double center_of_mass[3]; ///< [m]
-  double inertia[9];        ///< 3x3 row-major about the centre of mass [kg m^2]
-  double volume;            ///< solid volume [m^3] (beams: A*L added)
+  double mass;               ///< [kg]
+  double center_of_mass[3];  ///< [m]
+  double inertia[9];         ///< 3x3 row-major about the centre of mass [kg m^2]
+  double volume;             ///< solid volume [m^3] (beams: A*L added)
 } fmbd_fe_body;
 
 /// @brief Assemble a body from a mesh.
@@ -214,12 +228,13 @@ void fmbd_fe_tet_shape(int nn, const double xi[3], double *N, double *dN);
 /// @brief Element matrices of a tet4 or tet10.
 /// @param[in] xyz (nn, 3) node coordinates
 /// @param[out] Ke (3nn x 3nn) row-major, dofs node-major (ux uy uz of node 0, ...); may be NULL
-/// @param[out] Me (nn x nn) row-major scalar consistent mass (the 3D mass is Me (x) I3); may be NULL
+/// @param[out] Me (nn x nn) row-major scalar consistent mass (the 3D mass is Me (x) I3); may be
+/// NULL
 /// @param[out] volume element volume
 /// @return FMBD_ERR_VALUE "element <elem>: Jacobian determinant <d> at quadrature point ..." if
 /// det J <= 0 (inverted or degenerate) at a quadrature or node point
-int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double rho,
-                         int64_t elem, double *Ke, double *Me, double *volume);
+int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double rho, int64_t elem,
+                         double *Ke, double *Me, double *volume);
 
 /// @brief Local-to-global rotation of a beam: rows are the local x, y, z axes in global
 /// coordinates. x = (x1 - x0)/L; z = component of v orthogonal to x, normalised; y = z cross x.

@@ -20,20 +20,20 @@
 //   (Univ. of Colorado lecture notes), section 17.4, "14-point rule", and by N. Walkington,
 //   Quadrature on simplices of arbitrary dimension (CMU report, 2000). Its exactness for every
 //   monomial of degree <= 5 is checked in tests/unit/t200-fe-elem.c.
-#define Q2A 0.13819660112501051518 // (5 - sqrt 5)/20
-#define Q2B 0.58541019662496845446 // 1 - 3 a
+#define Q2A 0.13819660112501051518  // (5 - sqrt 5)/20
+#define Q2B 0.58541019662496845446  // 1 - 3 a
 static const double q1_pts[3] = {0.25, 0.25, 0.25};
 static const double q1_w[1] = {1.0 / 6.0};
 static const double q2_pts[12] = {Q2A, Q2A, Q2A, Q2B, Q2A, Q2A, Q2A, Q2B, Q2A, Q2A, Q2A, Q2B};
 static const double q2_w[4] = {1.0 / 24, 1.0 / 24, 1.0 / 24, 1.0 / 24};
-#define Q5A1 0.09273525031089122640 // orbit 1: (a, a, a, 1 - 3a)
-#define Q5C1 0.72179424906732632079 // 1 - 3 a1
+#define Q5A1 0.09273525031089122640  // orbit 1: (a, a, a, 1 - 3a)
+#define Q5C1 0.72179424906732632079  // 1 - 3 a1
 #define Q5W1 0.01224884051939365826
-#define Q5A2 0.31088591926330060980 // orbit 2
-#define Q5C2 0.06734224221009817061 // 1 - 3 a2
+#define Q5A2 0.31088591926330060980  // orbit 2
+#define Q5C2 0.06734224221009817061  // 1 - 3 a2
 #define Q5W2 0.01878132095300264180
-#define Q5B 0.04550370412564964949 // orbit 3: (b, b, 1/2 - b, 1/2 - b)
-#define Q5D 0.45449629587435035051 // 1/2 - b
+#define Q5B 0.04550370412564964949  // orbit 3: (b, b, 1/2 - b, 1/2 - b)
+#define Q5D 0.45449629587435035051  // 1/2 - b
 #define Q5W3 0.00709100346284689436
 static const double q5_pts[42] = {
     // orbit 1 (L1, L2, L3); the fourth barycentric is L0
@@ -47,10 +47,23 @@ static const double q5_w[14] = {Q5W1, Q5W1, Q5W1, Q5W1, Q5W2, Q5W2, Q5W2,
 
 int fmbd_fe_tet_rule(int degree, int *npts, const double **pts, const double **w) {
   switch (degree) {
-  case 1: *npts = 1; *pts = q1_pts; *w = q1_w; return FMBD_OK;
-  case 2: *npts = 4; *pts = q2_pts; *w = q2_w; return FMBD_OK;
-  case 5: *npts = 14; *pts = q5_pts; *w = q5_w; return FMBD_OK;
-  default: FMBD_FAIL(FMBD_ERR_VALUE, "no tetrahedron rule of degree %d (1, 2, 5 exist)", degree);
+    case 1:
+      *npts = 1;
+      *pts = q1_pts;
+      *w = q1_w;
+      return FMBD_OK;
+    case 2:
+      *npts = 4;
+      *pts = q2_pts;
+      *w = q2_w;
+      return FMBD_OK;
+    case 5:
+      *npts = 14;
+      *pts = q5_pts;
+      *w = q5_w;
+      return FMBD_OK;
+    default:
+      FMBD_FAIL(FMBD_ERR_VALUE, "no tetrahedron rule of degree %d (1, 2, 5 exist)", degree);
   }
 }
 
@@ -72,11 +85,11 @@ void fmbd_fe_tet_shape(int nn, const double xi[3], double *N, double *dN) {
     }
     return;
   }
-  for (int a = 0; a < 4; a++) { // corner: L (2L - 1)
+  for (int a = 0; a < 4; a++) {  // corner: L (2L - 1)
     N[a] = L[a] * (2.0 * L[a] - 1.0);
     for (int k = 0; k < 3; k++) dN[a * 3 + k] = (4.0 * L[a] - 1.0) * dL[a][k];
   }
-  for (int l = 0; l < 6; l++) { // mid-side: 4 Li Lj
+  for (int l = 0; l < 6; l++) {  // mid-side: 4 Li Lj
     int i = tet_edge[l][0], j = tet_edge[l][1];
     N[4 + l] = 4.0 * L[i] * L[j];
     for (int k = 0; k < 3; k++) dN[(4 + l) * 3 + k] = 4.0 * (dL[i][k] * L[j] + L[i] * dL[j][k]);
@@ -118,7 +131,8 @@ static double edge_scale3(const double *xyz) {
   for (int a = 0; a < 4; a++) {
     for (int b = a + 1; b < 4; b++) {
       double d2 = 0.0;
-      for (int k = 0; k < 3; k++) d2 += (xyz[a * 3 + k] - xyz[b * 3 + k]) * (xyz[a * 3 + k] - xyz[b * 3 + k]);
+      for (int k = 0; k < 3; k++)
+        d2 += (xyz[a * 3 + k] - xyz[b * 3 + k]) * (xyz[a * 3 + k] - xyz[b * 3 + k]);
       if (d2 > h2) h2 = d2;
     }
   }
@@ -146,10 +160,10 @@ static int check_det(double det, double h3, int64_t elem, int nn, const char *wh
 // threaded; the tables are filled on the first call)
 typedef struct tet_tables {
   bool ready;
-  double N[2][3][14][10];   // [tet4, tet10][rule deg 1, 2, 5][point][node]
+  double N[2][3][14][10];  // [tet4, tet10][rule deg 1, 2, 5][point][node]
   double dN[2][3][14][30];
-  double Nnode[10][30];     // tet10 derivatives at its nodes
-  double Mref[2][100];      // int N_a N_b over the unit tetrahedron (degree-5 rule: exact)
+  double Nnode[10][30];  // tet10 derivatives at its nodes
+  double Mref[2][100];   // int N_a N_b over the unit tetrahedron (degree-5 rule: exact)
 } tet_tables;
 static tet_tables tt;
 
@@ -162,7 +176,8 @@ static void tables_init(void) {
       int np;
       const double *pts, *w;
       fmbd_fe_tet_rule(degs[r], &np, &pts, &w);
-      for (int q = 0; q < np; q++) fmbd_fe_tet_shape(nn, pts + 3 * q, tt.N[o][r][q], tt.dN[o][r][q]);
+      for (int q = 0; q < np; q++)
+        fmbd_fe_tet_shape(nn, pts + 3 * q, tt.N[o][r][q], tt.dN[o][r][q]);
       if (r == 2) {
         for (int a = 0; a < nn; a++) {
           for (int b = 0; b < nn; b++) {
@@ -180,7 +195,8 @@ static void tables_init(void) {
 }
 
 // K += (stiffness integrand at one point) for gradients g (nn x 3) and weight wd, b >= a only
-static void stiffness_point(int nn, const double *g, double wd, double lambda, double mu, double *Ke) {
+static void stiffness_point(int nn, const double *g, double wd, double lambda, double mu,
+                            double *Ke) {
   const int n3 = 3 * nn;
   for (int a = 0; a < nn; a++) {
     const double *ga = g + 3 * a;
@@ -205,7 +221,8 @@ static void stiffness_point(int nn, const double *g, double wd, double lambda, d
 static void gradients(int nn, const double *Jinv, const double *dN, double *g) {
   for (int a = 0; a < nn; a++) {
     for (int j = 0; j < 3; j++) {
-      g[a * 3 + j] = Jinv[j * 3 + 0] * dN[a * 3 + 0] + Jinv[j * 3 + 1] * dN[a * 3 + 1] + Jinv[j * 3 + 2] * dN[a * 3 + 2];
+      g[a * 3 + j] = Jinv[j * 3 + 0] * dN[a * 3 + 0] + Jinv[j * 3 + 1] * dN[a * 3 + 1] +
+                     Jinv[j * 3 + 2] * dN[a * 3 + 2];
     }
   }
 }
@@ -226,9 +243,11 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
   if (nn == 10) {
     const double tol2 = 1e-20 * cbrt(h3 * h3);
     for (int l = 0; l < 6 && affine; l++) {
-      const double *xa = xyz + 3 * tet_edge[l][0], *xb = xyz + 3 * tet_edge[l][1], *xm = xyz + 3 * (4 + l);
+      const double *xa = xyz + 3 * tet_edge[l][0], *xb = xyz + 3 * tet_edge[l][1],
+                   *xm = xyz + 3 * (4 + l);
       double d2 = 0.0;
-      for (int k = 0; k < 3; k++) d2 += (xm[k] - 0.5 * (xa[k] + xb[k])) * (xm[k] - 0.5 * (xa[k] + xb[k]));
+      for (int k = 0; k < 3; k++)
+        d2 += (xm[k] - 0.5 * (xa[k] + xb[k])) * (xm[k] - 0.5 * (xa[k] + xb[k]));
       affine = d2 <= tol2;
     }
   }
@@ -241,7 +260,7 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
     double det = inv3(J, Jinv);
     const double centroid[3] = {0.25, 0.25, 0.25};
     FMBD_CALL(check_det(det, h3, elem, nn, "every point (straight element)", centroid));
-    if (Ke) { // degree 0 (tet4, 1 point) or 2 (tet10, 4 points): exact
+    if (Ke) {  // degree 0 (tet4, 1 point) or 2 (tet10, 4 points): exact
       const int r = nn == 4 ? 0 : 1;
       FMBD_CALL(fmbd_fe_tet_rule(nn == 4 ? 1 : 2, &np, &pts, &w));
       for (int q = 0; q < np; q++) {
@@ -249,7 +268,7 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
         stiffness_point(nn, g, w[q] * det, lambda, mu, Ke);
       }
     }
-    if (Me) { // rho det int N_a N_b (exact reference table)
+    if (Me) {  // rho det int N_a N_b (exact reference table)
       for (int i = 0; i < nn * nn; i++) Me[i] = rho * det * tt.Mref[o][i];
     }
     if (volume) *volume = det / 6.0;
@@ -264,7 +283,7 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
         FMBD_CALL(check_det(det, h3, elem, nn, where, tet_node_xi[a]));
       }
     }
-    if (Ke) { // 4-point degree-2 rule (exact on straight elements; CalculiX C3D10 uses the same)
+    if (Ke) {  // 4-point degree-2 rule (exact on straight elements; CalculiX C3D10 uses the same)
       FMBD_CALL(fmbd_fe_tet_rule(2, &np, &pts, &w));
       for (int q = 0; q < np; q++) {
         double det = jacobian(nn, xyz, tt.dN[o][1][q], J, Jinv);
@@ -297,17 +316,19 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
     }
     if (volume) *volume = vol;
   }
-  if (Ke) { // mirror the upper block triangle; diagonal blocks made exactly symmetric
+  if (Ke) {  // mirror the upper block triangle; diagonal blocks made exactly symmetric
     for (int a = 0; a < nn; a++) {
       for (int i = 0; i < 3; i++) {
         for (int j = i + 1; j < 3; j++) {
-          double *x = Ke + (size_t)(3 * a + i) * n3 + 3 * a + j, *y = Ke + (size_t)(3 * a + j) * n3 + 3 * a + i;
+          double *x = Ke + (size_t)(3 * a + i) * n3 + 3 * a + j,
+                 *y = Ke + (size_t)(3 * a + j) * n3 + 3 * a + i;
           *x = *y = 0.5 * (*x + *y);
         }
       }
       for (int b = a + 1; b < nn; b++) {
         for (int i = 0; i < 3; i++) {
-          for (int j = 0; j < 3; j++) Ke[(size_t)(3 * b + j) * n3 + 3 * a + i] = Ke[(size_t)(3 * a + i) * n3 + 3 * b + j];
+          for (int j = 0; j < 3; j++)
+            Ke[(size_t)(3 * b + j) * n3 + 3 * a + i] = Ke[(size_t)(3 * a + i) * n3 + 3 * b + j];
         }
       }
     }
@@ -338,7 +359,7 @@ int fmbd_fe_beam_frame(const double x0[3], const double x1[3], const double v[3]
              (long long)elem, v[0], v[1], v[2], ex[0], ex[1], ex[2]);
   for (int k = 0; k < 3; k++) ez[k] /= nz;
   double ey[3] = {ez[1] * ex[2] - ez[2] * ex[1], ez[2] * ex[0] - ez[0] * ex[2],
-                  ez[0] * ex[1] - ez[1] * ex[0]}; // z cross x
+                  ez[0] * ex[1] - ez[1] * ex[0]};  // z cross x
   for (int k = 0; k < 3; k++) {
     R[0 * 3 + k] = ex[k];
     R[1 * 3 + k] = ey[k];
@@ -364,25 +385,64 @@ static void beam_local(double L, double E, double G, double rho, double A, doubl
 #define MS(i, j, val) sym12(M, i, j, val)
   const double L2 = L * L, L3 = L2 * L;
   double ea = E * A / L, gj = G * J / L;
-  KS(0, 0, ea); KS(6, 6, ea); KS(0, 6, -ea);
-  KS(3, 3, gj); KS(9, 9, gj); KS(3, 9, -gj);
+  KS(0, 0, ea);
+  KS(6, 6, ea);
+  KS(0, 6, -ea);
+  KS(3, 3, gj);
+  KS(9, 9, gj);
+  KS(3, 9, -gj);
   double a = 12 * E * Iz / L3, b = 6 * E * Iz / L2, c = 4 * E * Iz / L, d = 2 * E * Iz / L;
-  KS(1, 1, a); KS(1, 5, b); KS(1, 7, -a); KS(1, 11, b);
-  KS(5, 5, c); KS(5, 7, -b); KS(5, 11, d);
-  KS(7, 7, a); KS(7, 11, -b); KS(11, 11, c);
-  a = 12 * E * Iy / L3; b = 6 * E * Iy / L2; c = 4 * E * Iy / L; d = 2 * E * Iy / L;
-  KS(2, 2, a); KS(2, 4, -b); KS(2, 8, -a); KS(2, 10, -b);
-  KS(4, 4, c); KS(4, 8, b); KS(4, 10, d);
-  KS(8, 8, a); KS(8, 10, b); KS(10, 10, c);
+  KS(1, 1, a);
+  KS(1, 5, b);
+  KS(1, 7, -a);
+  KS(1, 11, b);
+  KS(5, 5, c);
+  KS(5, 7, -b);
+  KS(5, 11, d);
+  KS(7, 7, a);
+  KS(7, 11, -b);
+  KS(11, 11, c);
+  a = 12 * E * Iy / L3;
+  b = 6 * E * Iy / L2;
+  c = 4 * E * Iy / L;
+  d = 2 * E * Iy / L;
+  KS(2, 2, a);
+  KS(2, 4, -b);
+  KS(2, 8, -a);
+  KS(2, 10, -b);
+  KS(4, 4, c);
+  KS(4, 8, b);
+  KS(4, 10, d);
+  KS(8, 8, a);
+  KS(8, 10, b);
+  KS(10, 10, c);
   const double m = rho * A * L, mt = rho * J * L, f = m / 420.0;
-  MS(0, 0, m / 3); MS(6, 6, m / 3); MS(0, 6, m / 6);
-  MS(3, 3, mt / 3); MS(9, 9, mt / 3); MS(3, 9, mt / 6);
-  MS(1, 1, 156 * f); MS(1, 5, 22 * L * f); MS(1, 7, 54 * f); MS(1, 11, -13 * L * f);
-  MS(5, 5, 4 * L2 * f); MS(5, 7, 13 * L * f); MS(5, 11, -3 * L2 * f);
-  MS(7, 7, 156 * f); MS(7, 11, -22 * L * f); MS(11, 11, 4 * L2 * f);
-  MS(2, 2, 156 * f); MS(2, 4, -22 * L * f); MS(2, 8, 54 * f); MS(2, 10, 13 * L * f);
-  MS(4, 4, 4 * L2 * f); MS(4, 8, -13 * L * f); MS(4, 10, -3 * L2 * f);
-  MS(8, 8, 156 * f); MS(8, 10, 22 * L * f); MS(10, 10, 4 * L2 * f);
+  MS(0, 0, m / 3);
+  MS(6, 6, m / 3);
+  MS(0, 6, m / 6);
+  MS(3, 3, mt / 3);
+  MS(9, 9, mt / 3);
+  MS(3, 9, mt / 6);
+  MS(1, 1, 156 * f);
+  MS(1, 5, 22 * L * f);
+  MS(1, 7, 54 * f);
+  MS(1, 11, -13 * L * f);
+  MS(5, 5, 4 * L2 * f);
+  MS(5, 7, 13 * L * f);
+  MS(5, 11, -3 * L2 * f);
+  MS(7, 7, 156 * f);
+  MS(7, 11, -22 * L * f);
+  MS(11, 11, 4 * L2 * f);
+  MS(2, 2, 156 * f);
+  MS(2, 4, -22 * L * f);
+  MS(2, 8, 54 * f);
+  MS(2, 10, 13 * L * f);
+  MS(4, 4, 4 * L2 * f);
+  MS(4, 8, -13 * L * f);
+  MS(4, 10, -3 * L2 * f);
+  MS(8, 8, 156 * f);
+  MS(8, 10, 22 * L * f);
+  MS(10, 10, 4 * L2 * f);
 #undef KS
 #undef MS
 }
@@ -392,14 +452,14 @@ static void rotate12(const double R[9], const double *Lm, double *G) {
   for (int I = 0; I < 4; I++) {
     for (int Jb = 0; Jb < 4; Jb++) {
       double t[9] = {0};
-      for (int i = 0; i < 3; i++) {   // t = L_IJ R
+      for (int i = 0; i < 3; i++) {  // t = L_IJ R
         for (int j = 0; j < 3; j++) {
           double s = 0.0;
           for (int k = 0; k < 3; k++) s += Lm[(3 * I + i) * 12 + 3 * Jb + k] * R[k * 3 + j];
           t[i * 3 + j] = s;
         }
       }
-      for (int i = 0; i < 3; i++) {   // G_IJ = R' t
+      for (int i = 0; i < 3; i++) {  // G_IJ = R' t
         for (int j = 0; j < 3; j++) {
           double s = 0.0;
           for (int k = 0; k < 3; k++) s += R[k * 3 + i] * t[k * 3 + j];
@@ -436,8 +496,8 @@ int fmbd_fe_beam_lumped(const double x0[3], const double x1[3], const double v[3
   double f[6];
   for (int d = 0; d < 3; d++) f[d] = m / (Ml[d * 12 + d] + Ml[(6 + d) * 12 + 6 + d]);
   f[3] = mt > 0.0 ? mt / (Ml[3 * 12 + 3] + Ml[9 * 12 + 9]) : 0.0;
-  f[4] = f[2]; // ry pairs with w
-  f[5] = f[1]; // rz pairs with v
+  f[4] = f[2];  // ry pairs with w
+  f[5] = f[1];  // rz pairs with v
   memset(D, 0, sizeof D);
   for (int i = 0; i < 12; i++) D[i * 12 + i] = f[i % 6] * Ml[i * 12 + i];
   rotate12(R, D, Me);

@@ -10,9 +10,8 @@
 #include "fmbd_fe_impl.h"
 
 static int path_of(char *buf, size_t n, const char *prefix, const char *name) {
-  FMBD_CHECK(strchr(name, '/') == NULL && name[0] != '\0' && strcmp(name, ".") != 0,
-             FMBD_ERR_VALUE, "name \"%s\" cannot be an HDF5 object name (empty or contains '/')",
-             name);
+  FMBD_CHECK(strchr(name, '/') == NULL && name[0] != '\0' && strcmp(name, ".") != 0, FMBD_ERR_VALUE,
+             "name \"%s\" cannot be an HDF5 object name (empty or contains '/')", name);
   int k = snprintf(buf, n, "%s/%s", prefix, name);
   FMBD_CHECK(k > 0 && (size_t)k < n, FMBD_ERR_VALUE, "name \"%s\" too long", name);
   return FMBD_OK;
@@ -22,15 +21,18 @@ int fmbd_fe_write(fmbd_h5 *f, const fmbd_fe_body *b) {
   char path[1024];
   int64_t dims[2];
   // --- /mesh ---
-  dims[0] = b->nnodes; dims[1] = 3;
+  dims[0] = b->nnodes;
+  dims[1] = 3;
   FMBD_CALL(fmbd_h5_write_f64(f, "/mesh/nodes", 2, dims, b->xyz));
   if (b->ntet > 0) {
-    dims[0] = b->ntet; dims[1] = b->tet_nodes;
-    FMBD_CALL(fmbd_h5_write_i64(f, b->tet_nodes == 4 ? "/mesh/elements/tet4" : "/mesh/elements/tet10",
-                                2, dims, b->tet));
+    dims[0] = b->ntet;
+    dims[1] = b->tet_nodes;
+    FMBD_CALL(fmbd_h5_write_i64(
+        f, b->tet_nodes == 4 ? "/mesh/elements/tet4" : "/mesh/elements/tet10", 2, dims, b->tet));
   }
   if (b->nbeam > 0) {
-    dims[0] = b->nbeam; dims[1] = 2;
+    dims[0] = b->nbeam;
+    dims[1] = 2;
     FMBD_CALL(fmbd_h5_write_i64(f, "/mesh/elements/beam2", 2, dims, b->beam));
     if (b->beam_orientation) {
       dims[1] = 3;
@@ -59,7 +61,8 @@ int fmbd_fe_write(fmbd_h5 *f, const fmbd_fe_body *b) {
     FMBD_CALL(fmbd_h5_write_attr_f64(f, "/material", "J", 1, &b->J));
   }
   // --- /dofs, matrices ---
-  dims[0] = b->ndof; dims[1] = 2;
+  dims[0] = b->ndof;
+  dims[1] = 2;
   FMBD_CALL(fmbd_h5_write_i64(f, "/dofs", 2, dims, b->dofs));
   if (b->K) FMBD_CALL(fmbd_h5_write_csr(f, "/K", b->K));
   if (b->M) FMBD_CALL(fmbd_h5_write_csr(f, "/M", b->M));
@@ -94,10 +97,10 @@ int fmbd_fe_write(fmbd_h5 *f, const fmbd_fe_body *b) {
 }
 
 // Fail with the file and path as context
-#define RFAIL(path, ...)                                                                     \
-  do {                                                                                     \
-    fmbd_err_context(fmbd_h5_name(f), path);                                               \
-    FMBD_GFAIL(FMBD_ERR_FORMAT, __VA_ARGS__);                                              \
+#define RFAIL(path, ...)                      \
+  do {                                        \
+    fmbd_err_context(fmbd_h5_name(f), path);  \
+    FMBD_GFAIL(FMBD_ERR_FORMAT, __VA_ARGS__); \
   } while (0)
 
 static int check_nodes(fmbd_h5 *f, const char *path, int64_t n, const int64_t *v, int64_t nn) {
@@ -121,26 +124,32 @@ int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
   int64_t dims[2];
   FMBD_GALLOC(b = fmbd_calloc(1, sizeof *b));
   // --- /mesh ---
-  dims[0] = -1; dims[1] = 3;
+  dims[0] = -1;
+  dims[1] = 3;
   FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/nodes", 2, dims, &b->xyz));
   b->nnodes = dims[0];
-  bool t4 = fmbd_h5_exists(f, "/mesh/elements/tet4"), t10 = fmbd_h5_exists(f, "/mesh/elements/tet10");
-  if (t4 && t10) RFAIL("/mesh/elements", "both tet4 and tet10 elements (mixed orders are not supported)");
+  bool t4 = fmbd_h5_exists(f, "/mesh/elements/tet4"),
+       t10 = fmbd_h5_exists(f, "/mesh/elements/tet10");
+  if (t4 && t10)
+    RFAIL("/mesh/elements", "both tet4 and tet10 elements (mixed orders are not supported)");
   if (t4 || t10) {
     const char *p = t4 ? "/mesh/elements/tet4" : "/mesh/elements/tet10";
-    dims[0] = -1; dims[1] = t4 ? 4 : 10;
+    dims[0] = -1;
+    dims[1] = t4 ? 4 : 10;
     FMBD_GCALL(fmbd_h5_read_i64(f, p, 2, dims, &b->tet));
     b->ntet = dims[0];
     b->tet_nodes = t4 ? 4 : 10;
     FMBD_GCALL(check_nodes(f, p, b->ntet * b->tet_nodes, b->tet, b->nnodes));
   }
   if (fmbd_h5_exists(f, "/mesh/elements/beam2")) {
-    dims[0] = -1; dims[1] = 2;
+    dims[0] = -1;
+    dims[1] = 2;
     FMBD_GCALL(fmbd_h5_read_i64(f, "/mesh/elements/beam2", 2, dims, &b->beam));
     b->nbeam = dims[0];
     FMBD_GCALL(check_nodes(f, "/mesh/elements/beam2", 2 * b->nbeam, b->beam, b->nnodes));
     if (fmbd_h5_exists(f, "/mesh/beam2_orientation")) {
-      dims[0] = b->nbeam; dims[1] = 3;
+      dims[0] = b->nbeam;
+      dims[1] = 3;
       FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/beam2_orientation", 2, dims, &b->beam_orientation));
     }
   }
@@ -196,7 +205,8 @@ int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
     RFAIL("/material", "beam elements but no section attributes area, Iy, Iz, J");
   }
   // --- /dofs ---
-  dims[0] = -1; dims[1] = 2;
+  dims[0] = -1;
+  dims[1] = 2;
   FMBD_GCALL(fmbd_h5_read_i64(f, "/dofs", 2, dims, &b->dofs));
   b->ndof = dims[0];
   rc = fmbd_fe_index_dofs(b);

@@ -48,11 +48,11 @@ typedef struct rbe3_data {
 typedef struct tie_ctx {
   const fmbd_fe_body *b;
   const int64_t *fdof;
-  int8_t *status;  // per full dof
-  int *owner;      // per full dof: interface index (RBE2 slave, RBE3 dependent), else -1
-  int64_t *act;    // per full dof: active dof index, or -1
+  int8_t *status;    // per full dof
+  int *owner;        // per full dof: interface index (RBE2 slave, RBE3 dependent), else -1
+  int64_t *act;      // per full dof: active dof index, or -1
   int64_t *node_of;  // per full dof: its node
-  rbe3_data *r3;   // per interface (used for RBE3 only)
+  rbe3_data *r3;     // per interface (used for RBE3 only)
 } tie_ctx;
 
 // Row of full dof fd as (active column, value) pairs sorted by column; returns the count.
@@ -60,49 +60,76 @@ typedef struct tie_ctx {
 static int64_t row_entries(const tie_ctx *c, int64_t fd, int64_t *cols, double *vals) {
   int64_t n = 0;
   switch (c->status[fd]) {
-  case ST_ACTIVE:
-    cols[0] = c->act[fd];
-    vals[0] = 1.0;
-    return 1;
-  case ST_CLAMPED: return 0;
-  case ST_RBE2: {
-    const fmbd_fe_interface *it = &c->b->interfaces[c->owner[fd]];
-    int64_t p = c->node_of[fd], m = it->node, d = fd - c->fdof[p], m0 = c->fdof[m];
-    const double *xs = c->b->xyz + 3 * p, *xm = c->b->xyz + 3 * m;
-    double r[3] = {xs[0] - xm[0], xs[1] - xm[1], xs[2] - xm[2]};
-    int64_t md[3];
-    double mv[3];
-    int k = 0;
-    // u_s = u_m + theta_m x r:  x: u + ty rz - tz ry;  y: v + tz rx - tx rz;  z: w + tx ry - ty rx
-    if (d == 0) { md[0] = 0; mv[0] = 1; md[1] = 4; mv[1] = r[2]; md[2] = 5; mv[2] = -r[1]; k = 3; }
-    else if (d == 1) { md[0] = 1; mv[0] = 1; md[1] = 5; mv[1] = r[0]; md[2] = 3; mv[2] = -r[2]; k = 3; }
-    else if (d == 2) { md[0] = 2; mv[0] = 1; md[1] = 3; mv[1] = r[1]; md[2] = 4; mv[2] = -r[0]; k = 3; }
-    else { md[0] = d; mv[0] = 1; k = 1; }
-    for (int j = 0; j < k; j++) {
-      int64_t a = c->act[m0 + md[j]];
-      if (a >= 0 && mv[j] != 0.0) {
-        cols[n] = a;
-        vals[n] = mv[j];
-        n++;
+    case ST_ACTIVE:
+      cols[0] = c->act[fd];
+      vals[0] = 1.0;
+      return 1;
+    case ST_CLAMPED:
+      return 0;
+    case ST_RBE2: {
+      const fmbd_fe_interface *it = &c->b->interfaces[c->owner[fd]];
+      int64_t p = c->node_of[fd], m = it->node, d = fd - c->fdof[p], m0 = c->fdof[m];
+      const double *xs = c->b->xyz + 3 * p, *xm = c->b->xyz + 3 * m;
+      double r[3] = {xs[0] - xm[0], xs[1] - xm[1], xs[2] - xm[2]};
+      int64_t md[3];
+      double mv[3];
+      int k = 0;
+      // u_s = u_m + theta_m x r:  x: u + ty rz - tz ry;  y: v + tz rx - tx rz;  z: w + tx ry - ty
+      // rx
+      if (d == 0) {
+        md[0] = 0;
+        mv[0] = 1;
+        md[1] = 4;
+        mv[1] = r[2];
+        md[2] = 5;
+        mv[2] = -r[1];
+        k = 3;
+      } else if (d == 1) {
+        md[0] = 1;
+        mv[0] = 1;
+        md[1] = 5;
+        mv[1] = r[0];
+        md[2] = 3;
+        mv[2] = -r[2];
+        k = 3;
+      } else if (d == 2) {
+        md[0] = 2;
+        mv[0] = 1;
+        md[1] = 3;
+        mv[1] = r[1];
+        md[2] = 4;
+        mv[2] = -r[0];
+        k = 3;
+      } else {
+        md[0] = d;
+        mv[0] = 1;
+        k = 1;
       }
-    }
-    break;
-  }
-  case ST_RBE3: {
-    const rbe3_data *r3 = &c->r3[c->owner[fd]];
-    int row = 0;
-    while (r3->dep[row] != fd) row++;
-    for (int64_t j = 0; j < r3->ncol; j++) {
-      int64_t a = c->act[r3->col[j]];
-      double v = r3->coef[row * r3->ncol + j];
-      if (a >= 0 && v != 0.0) {
-        cols[n] = a;
-        vals[n] = v;
-        n++;
+      for (int j = 0; j < k; j++) {
+        int64_t a = c->act[m0 + md[j]];
+        if (a >= 0 && mv[j] != 0.0) {
+          cols[n] = a;
+          vals[n] = mv[j];
+          n++;
+        }
       }
+      break;
     }
-    break;
-  }
+    case ST_RBE3: {
+      const rbe3_data *r3 = &c->r3[c->owner[fd]];
+      int row = 0;
+      while (r3->dep[row] != fd) row++;
+      for (int64_t j = 0; j < r3->ncol; j++) {
+        int64_t a = c->act[r3->col[j]];
+        double v = r3->coef[row * r3->ncol + j];
+        if (a >= 0 && v != 0.0) {
+          cols[n] = a;
+          vals[n] = v;
+          n++;
+        }
+      }
+      break;
+    }
   }
   // sort by column (insertion sort on pairs; rows are short or already nearly sorted)
   for (int64_t i = 1; i < n; i++) {
@@ -166,18 +193,21 @@ static int rbe3_setup(tie_ctx *c, int ii) {
     const double *x = b->xyz + 3 * it->nodes[i];
     double r[3] = {x[0] - xr[0], x[1] - xr[1], x[2] - xr[2]};
     // A_i (3x6) = [I, -[r]x];  -[r]x = [[0, rz, -ry], [-rz, 0, rx], [ry, -rx, 0]]
-    double A[18] = {0}; // row-major 3 x 6
+    double A[18] = {0};  // row-major 3 x 6
     for (int k = 0; k < 3; k++) A[k * 6 + k] = 1.0;
-    A[0 * 6 + 4] = r[2]; A[0 * 6 + 5] = -r[1];
-    A[1 * 6 + 3] = -r[2]; A[1 * 6 + 5] = r[0];
-    A[2 * 6 + 3] = r[1]; A[2 * 6 + 4] = -r[0];
+    A[0 * 6 + 4] = r[2];
+    A[0 * 6 + 5] = -r[1];
+    A[1 * 6 + 3] = -r[2];
+    A[1 * 6 + 5] = r[0];
+    A[2 * 6 + 3] = r[1];
+    A[2 * 6 + 4] = -r[0];
     for (int p = 0; p < 6; p++) {
       for (int q = 0; q < 6; q++) {
         double s = 0.0;
         for (int k = 0; k < 3; k++) s += A[k * 6 + p] * A[k * 6 + q];
         H[p + 6 * q] += s;
       }
-      for (int k = 0; k < 3; k++) Cm[p + 6 * (3 * i + k)] = A[k * 6 + p]; // A_i' column 3i+k
+      for (int k = 0; k < 3; k++) Cm[p + 6 * (3 * i + k)] = A[k * 6 + p];  // A_i' column 3i+k
     }
   }
   {
@@ -231,7 +261,7 @@ static int rbe3_setup(tie_ctx *c, int ii) {
   for (int d = 0; d < 6; d++) cand[nc++] = c->fdof[it->node] + d;
   for (int64_t j = 0; j < n3; j++) {
     int64_t fd = c->fdof[it->nodes[j / 3]] + j % 3;
-    if (!chosen[j] && c->status[fd] == ST_ACTIVE) cand[nc++] = j; // group column index for now
+    if (!chosen[j] && c->status[fd] == ST_ACTIVE) cand[nc++] = j;  // group column index for now
   }
   r3->ncol = nc;
   FMBD_GALLOC(r3->col = fmbd_malloc((size_t)nc * sizeof *r3->col));

@@ -13,10 +13,10 @@
 #include <errno.h>
 #include <hdf5.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <signal.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -83,12 +83,12 @@ static int h5_fail(int code, const char *src, int line, const char *func, const 
 }
 
 // goto-done wrapper of an HDF5 call: a negative hid_t/herr_t/htri_t is a failure
-#define FMBD_H5(expr, code, ...)                                                   \
-  do {                                                                             \
-    if ((expr) < 0) {                                                              \
-      rc = h5_fail((code), __FILE__, __LINE__, __func__, __VA_ARGS__);             \
-      goto done;                                                                   \
-    }                                                                              \
+#define FMBD_H5(expr, code, ...)                                       \
+  do {                                                                 \
+    if ((expr) < 0) {                                                  \
+      rc = h5_fail((code), __FILE__, __LINE__, __func__, __VA_ARGS__); \
+      goto done;                                                       \
+    }                                                                  \
   } while (0)
 
 // The name used in error messages: "<stdin>" / "<stdout>" for "-".
@@ -99,7 +99,9 @@ static const char *disp(const fmbd_h5 *f) {
 }
 
 // Set the error context (file, path) of a failure; called at `done:` when rc != 0.
-static void ctx(const fmbd_h5 *f, const char *path) { fmbd_err_context(disp(f), path ? path : ""); }
+static void ctx(const fmbd_h5 *f, const char *path) {
+  fmbd_err_context(disp(f), path ? path : "");
+}
 
 static void close_id(hid_t *id, herr_t (*fn)(hid_t)) {
   if (*id >= 0) fn(*id);
@@ -169,7 +171,8 @@ done:
 static int unlink_existing(fmbd_h5 *f, const char *path) {
   int rc = FMBD_OK;
   if (fmbd_h5_exists(f, path)) {
-    FMBD_H5(H5Ldelete(f->fid, path, H5P_DEFAULT), FMBD_ERR_IO, "cannot replace the existing object");
+    FMBD_H5(H5Ldelete(f->fid, path, H5P_DEFAULT), FMBD_ERR_IO,
+            "cannot replace the existing object");
   }
 done:
   return rc;
@@ -248,8 +251,7 @@ int fmbd_h5_open(const char *name, fmbd_h5 **out) {
     fmbd_sha256_hex(image, size, f->sha);
     FMBD_H5(fapl = H5Pcreate(H5P_FILE_ACCESS), FMBD_ERR_EXTERNAL, "H5Pcreate failed");
     FMBD_H5(H5Pset_fapl_core(fapl, 1 << 20, 0), FMBD_ERR_EXTERNAL, "H5Pset_fapl_core failed");
-    FMBD_H5(H5Pset_file_image(fapl, image, size), FMBD_ERR_NOMEM,
-            "cannot hand the image to HDF5");
+    FMBD_H5(H5Pset_file_image(fapl, image, size), FMBD_ERR_NOMEM, "cannot hand the image to HDF5");
     fmbd_free(image);  // HDF5 keeps its own copy
     image = NULL;
     FMBD_H5(f->fid = H5Fopen("fmbd-stdin-image", H5F_ACC_RDONLY, fapl), FMBD_ERR_FORMAT,
@@ -296,7 +298,8 @@ int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major) {
   }
   FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &fmt));
   FMBD_GCHECK(fmt[0], FMBD_ERR_FORMAT, "the 'format' attribute is empty, expected %s", format);
-  if (strcmp(fmt, format) != 0) FMBD_GFAIL(FMBD_ERR_FORMAT, "is a %s file, expected %s", fmt, format);
+  if (strcmp(fmt, format) != 0)
+    FMBD_GFAIL(FMBD_ERR_FORMAT, "is a %s file, expected %s", fmt, format);
   FMBD_GCHECK(fmbd_h5_has_attr(f, "/", "format_version"), FMBD_ERR_FORMAT,
               "no 'format_version' attribute");
   FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format_version", &ver));
@@ -312,8 +315,12 @@ done:
   return rc;
 }
 
-const char *fmbd_h5_name(const fmbd_h5 *f) { return f->name; }
-const char *fmbd_h5_sha256(const fmbd_h5 *f) { return f->sha; }
+const char *fmbd_h5_name(const fmbd_h5 *f) {
+  return f->name;
+}
+const char *fmbd_h5_sha256(const fmbd_h5 *f) {
+  return f->sha;
+}
 
 // --- the output being written, for a signal handler ------------------------------------------
 // One slot: every program writes one output at a time. Set when a .part is created, cleared
@@ -372,8 +379,8 @@ int fmbd_h5_create(const char *name, const char *format, const char *format_vers
   if (!strcmp(name, "-")) {
     f->to_stdout = true;
     FMBD_H5(H5Pset_fapl_core(fapl, 1 << 20, 0), FMBD_ERR_EXTERNAL, "H5Pset_fapl_core failed");
-    FMBD_H5(f->fid = H5Fcreate("fmbd-stdout-image", H5F_ACC_TRUNC, H5P_DEFAULT, fapl),
-            FMBD_ERR_IO, "cannot create the in-memory file");
+    FMBD_H5(f->fid = H5Fcreate("fmbd-stdout-image", H5F_ACC_TRUNC, H5P_DEFAULT, fapl), FMBD_ERR_IO,
+            "cannot create the in-memory file");
   } else {
     size_t n = strlen(name);
     FMBD_GALLOC(f->part = fmbd_malloc(n + 6));
@@ -522,7 +529,7 @@ done:
 }
 
 // --- datasets ------------------------------------------------------------------------------
-#define CHUNK_MIN_ELEMS 8192       // smaller datasets are stored contiguous, uncompressed
+#define CHUNK_MIN_ELEMS 8192  // smaller datasets are stored contiguous, uncompressed
 // Compression policy (measured on this machine, 20 M values, CPU time of the write): int64
 // index arrays compress many times over and cheaply (deflate 4: 1.0 s, against 0.57 s
 // uncompressed); float data barely compresses and shuffle+deflate costs ~0.2 us a value
@@ -560,8 +567,8 @@ static void chunk_shape(int rank, const hsize_t *dims, hsize_t *chunk) {
 
 // Create a dataset of the given file type (replacing any object at path). *rows_per_block
 // gets the number of leading-dimension rows per chunk (all rows if contiguous).
-static int create_dataset(fmbd_h5 *f, const char *path, hid_t ftype, int rank,
-                          const int64_t *dims, hid_t *out, hsize_t *rows_per_block) {
+static int create_dataset(fmbd_h5 *f, const char *path, hid_t ftype, int rank, const int64_t *dims,
+                          hid_t *out, hsize_t *rows_per_block) {
   int rc = FMBD_OK;
   hid_t sp = -1, dcpl = -1, lcpl = -1;
   hsize_t hd[4], chunk[4];
@@ -610,8 +617,9 @@ static int write_dense(fmbd_h5 *f, const char *path, hid_t ftype, hid_t mtype, i
   FMBD_GCALL(create_dataset(f, path, ftype, rank, dims, &d, &rows));
   int64_t nelem = 1;
   for (int k = 0; k < rank; k++) nelem *= dims[k];
-  if (nelem > 0) FMBD_H5(H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), FMBD_ERR_IO,
-                         "cannot write dataset");
+  if (nelem > 0)
+    FMBD_H5(H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), FMBD_ERR_IO,
+            "cannot write dataset");
 done:
   close_id(&d, H5Dclose);
   if (rc) ctx(f, path);
@@ -634,12 +642,11 @@ static int open_numeric(fmbd_h5 *f, const char *path, int rank, int64_t *dims, h
   int rc = FMBD_OK;
   hid_t d = -1, sp = -1, t = -1;
   *out = -1;
-  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing dataset %s", path);
-  FMBD_H5(d = H5Dopen2(f->fid, path, H5P_DEFAULT), FMBD_ERR_FORMAT, "%s: not a dataset", path);
+  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing dataset");
+  FMBD_H5(d = H5Dopen2(f->fid, path, H5P_DEFAULT), FMBD_ERR_FORMAT, "not a dataset");
   FMBD_H5(t = H5Dget_type(d), FMBD_ERR_FORMAT, "cannot read the type");
   H5T_class_t cls = H5Tget_class(t);
-  FMBD_GCHECK(cls == H5T_INTEGER || cls == H5T_FLOAT, FMBD_ERR_FORMAT,
-              "not a numeric dataset");
+  FMBD_GCHECK(cls == H5T_INTEGER || cls == H5T_FLOAT, FMBD_ERR_FORMAT, "not a numeric dataset");
   *is_float = cls == H5T_FLOAT;
   FMBD_H5(sp = H5Dget_space(d), FMBD_ERR_FORMAT, "cannot read the shape");
   int r = H5Sget_simple_extent_ndims(sp);
@@ -648,8 +655,8 @@ static int open_numeric(fmbd_h5 *f, const char *path, int rank, int64_t *dims, h
   H5Sget_simple_extent_dims(sp, hd, NULL);
   for (int k = 0; k < rank; k++) {
     if (dims[k] >= 0 && (hsize_t)dims[k] != hd[k]) {
-      FMBD_GFAIL(FMBD_ERR_FORMAT, "extent %d is %llu, expected %lld", k,
-                 (unsigned long long)hd[k], (long long)dims[k]);
+      FMBD_GFAIL(FMBD_ERR_FORMAT, "extent %d is %llu, expected %lld", k, (unsigned long long)hd[k],
+                 (long long)dims[k]);
     }
     dims[k] = (int64_t)hd[k];
   }
@@ -698,8 +705,9 @@ int fmbd_h5_read_f64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, doub
   FMBD_GCALL(open_numeric(f, path, rank, dims, &d, &fl));
   int64_t n = count(rank, dims);
   FMBD_GALLOC(x = fmbd_malloc((size_t)(n ? n : 1) * sizeof *x));
-  if (n) FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x), FMBD_ERR_FORMAT,
-                 "cannot read dataset");
+  if (n)
+    FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x), FMBD_ERR_FORMAT,
+            "cannot read dataset");
   FMBD_GCALL(check_finite(x, n));
   *data = x;
   x = NULL;
@@ -729,8 +737,8 @@ int fmbd_h5_read_i64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, int6
     FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, tmp), FMBD_ERR_FORMAT,
             "cannot read dataset");
     for (int64_t i = 0; i < n; i++) {
-      FMBD_GCHECK(tmp[i] == floor(tmp[i]) && fabs(tmp[i]) <= 9007199254740992.0,
-                  FMBD_ERR_FORMAT, "element %lld = %g is not an integer", (long long)i, tmp[i]);
+      FMBD_GCHECK(tmp[i] == floor(tmp[i]) && fabs(tmp[i]) <= 9007199254740992.0, FMBD_ERR_FORMAT,
+                  "element %lld = %g is not an integer", (long long)i, tmp[i]);
       x[i] = (int64_t)tmp[i];
     }
   }
@@ -781,8 +789,7 @@ done:
   return rc;
 }
 
-int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *cols,
-                        double **A) {
+int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *cols, double **A) {
   int rc = FMBD_OK;
   hid_t d = -1, fsp = -1, msp = -1;
   double *buf = NULL, *x = NULL;
@@ -801,8 +808,8 @@ int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *co
     for (int64_t r0 = 0; r0 < m; r0 += block) {
       int64_t nr = m - r0 < block ? m - r0 : block;
       hsize_t start[2] = {(hsize_t)r0, 0}, cnt[2] = {(hsize_t)nr, (hsize_t)n};
-      FMBD_H5(H5Sselect_hyperslab(fsp, H5S_SELECT_SET, start, NULL, cnt, NULL),
-              FMBD_ERR_EXTERNAL, "H5Sselect_hyperslab failed");
+      FMBD_H5(H5Sselect_hyperslab(fsp, H5S_SELECT_SET, start, NULL, cnt, NULL), FMBD_ERR_EXTERNAL,
+              "H5Sselect_hyperslab failed");
       FMBD_H5(msp = H5Screate_simple(2, cnt, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
       FMBD_H5(H5Dread(d, H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, buf), FMBD_ERR_FORMAT,
               "cannot read dataset");
@@ -870,8 +877,9 @@ static int read_exact(fmbd_h5 *f, const char *path, hid_t mtype, int64_t n, void
   FMBD_GCALL(open_numeric(f, path, 1, dims, &d, &fl));
   FMBD_GCHECK(!(fl && mtype == H5T_NATIVE_INT64), FMBD_ERR_FORMAT,
               "floating-point dataset where integers are expected");
-  if (n) FMBD_H5(H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf), FMBD_ERR_FORMAT,
-                 "cannot read dataset");
+  if (n)
+    FMBD_H5(H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf), FMBD_ERR_FORMAT,
+            "cannot read dataset");
 done:
   close_id(&d, H5Dclose);
   return rc;
@@ -884,6 +892,7 @@ int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
   fmbd_csr *A = NULL;
   int64_t shape[2], nnz = -1;
   hid_t d = -1;
+  const char *at = path;  // where an error is: the group, or the member dataset being read
   *out = NULL;
   FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing sparse matrix");
   FMBD_GCHECK(is_group(f, path), FMBD_ERR_FORMAT, "not a CSR group");
@@ -902,11 +911,15 @@ int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
     bool fl;
     int64_t dims[1] = {-1}, ip[1] = {-1};
     FMBD_GCALL(join(p, sizeof p, path, "data"));
+    at = p;
     FMBD_GCALL(open_numeric(f, p, 1, dims, &d, &fl));
+    at = path;
     close_id(&d, H5Dclose);
     nnz = dims[0];
     FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+    at = p;
     FMBD_GCALL(open_numeric(f, p, 1, ip, &d, &fl));
+    at = path;
     close_id(&d, H5Dclose);
     FMBD_GCHECK(ip[0] == shape[0] + 1, FMBD_ERR_FORMAT,
                 "shape (%lld, %lld) does not match indptr, which has %lld entries (%lld rows)",
@@ -917,14 +930,20 @@ int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
   }
   FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
   FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+  at = p;
   FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
+  at = path;
   FMBD_GCHECK(A->indptr[shape[0]] == nnz, FMBD_ERR_FORMAT,
               "indptr ends at %lld but data has %lld entries", (long long)A->indptr[shape[0]],
               (long long)nnz);
   FMBD_GCALL(join(p, sizeof p, path, "indices"));
+  at = p;
   FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, nnz, A->indices));
+  at = path;
   FMBD_GCALL(join(p, sizeof p, path, "data"));
+  at = p;
   FMBD_GCALL(read_exact(f, p, H5T_NATIVE_DOUBLE, nnz, A->data));
+  at = path;
   FMBD_GCALL(fmbd_csr_check(A));
   *out = A;
   A = NULL;
@@ -932,7 +951,7 @@ done:
   close_id(&d, H5Dclose);
   fmbd_free(enc);
   fmbd_csr_destroy(&A);
-  if (rc) ctx(f, path);
+  if (rc) ctx(f, at);
   return rc;
 }
 
@@ -1098,8 +1117,8 @@ done:
   return rc;
 }
 
-static int write_attr_num(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
-                          hid_t ftype, hid_t mtype, const void *values) {
+static int write_attr_num(fmbd_h5 *f, const char *obj, const char *name, int64_t n, hid_t ftype,
+                          hid_t mtype, const void *values) {
   int rc = FMBD_OK;
   hid_t o = -1, sp = -1, a = -1;
   FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "write to a read handle");
@@ -1140,8 +1159,8 @@ bool fmbd_h5_has_attr(fmbd_h5 *f, const char *obj, const char *name) {
 static int open_attr(fmbd_h5 *f, const char *obj, const char *name, hid_t *out) {
   int rc = FMBD_OK;
   *out = -1;
-  FMBD_GCHECK(fmbd_h5_exists(f, obj), FMBD_ERR_FORMAT, "missing object (looking for attribute '%s')",
-              name);
+  FMBD_GCHECK(fmbd_h5_exists(f, obj), FMBD_ERR_FORMAT,
+              "missing object (looking for attribute '%s')", name);
   FMBD_GCHECK(H5Aexists_by_name(f->fid, obj, name, H5P_DEFAULT) > 0, FMBD_ERR_FORMAT,
               "missing attribute '%s'", name);
   FMBD_H5(*out = H5Aopen_by_name(f->fid, obj, name, H5P_DEFAULT, H5P_DEFAULT), FMBD_ERR_FORMAT,
@@ -1380,7 +1399,9 @@ done:
   return rc;
 }
 
-int64_t fmbd_h5_series_rows(const fmbd_h5_series *s) { return s->nrows; }
+int64_t fmbd_h5_series_rows(const fmbd_h5_series *s) {
+  return s->nrows;
+}
 
 void fmbd_h5_series_close(fmbd_h5_series **ps) {
   if (!ps || !*ps) return;

@@ -51,8 +51,7 @@ const char *fmbd_h5_sha256(const fmbd_h5 *f);
 /// with the root attributes format, format_version, creator ("prog VERSION" from
 /// fmbd_log_prog and fmbd_version) and command_line (fmbd_cli_command_line).
 /// @param[out] out caller ends with fmbd_h5_commit or fmbd_h5_close
-int fmbd_h5_create(const char *name, const char *format, const char *format_version,
-                   fmbd_h5 **out);
+int fmbd_h5_create(const char *name, const char *format, const char *format_version, fmbd_h5 **out);
 /// @brief Record one input file in the `inputs` root attribute (written at commit).
 /// sha256 may be NULL: then the file is read and hashed here ("-" not allowed then).
 int fmbd_h5_add_input(fmbd_h5 *f, const char *name, const char *sha256);
@@ -82,14 +81,12 @@ int fmbd_h5_read_f64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, doub
 int fmbd_h5_read_i64(fmbd_h5 *f, const char *path, int rank, int64_t *dims, int64_t **data);
 /// @brief Write a COLUMN-major rows x cols matrix A (A[i + j*rows]) as a dataset of shape
 /// (rows, cols), transposing a block of rows at a time (no full copy). See fmbd_dense.h.
-int fmbd_h5_write_f64_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t cols,
-                         const double *A);
+int fmbd_h5_write_f64_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t cols, const double *A);
 /// @brief Read a 2-D dataset of shape (rows, cols) into a COLUMN-major matrix. *rows, *cols
 /// >= 0 on entry require that extent (FMBD_ERR_FORMAT otherwise), -1 accepts any; on return
 /// they hold the shape. Non-finite values: FMBD_ERR_VALUE naming row and column.
 /// @param[out] A caller frees with fmbd_free
-int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *cols,
-                        double **A);
+int fmbd_h5_read_f64_cm(fmbd_h5 *f, const char *path, int64_t *rows, int64_t *cols, double **A);
 /// @brief Copy the group or dataset at `path` of src (any handle) to the same path in dst (a
 /// write handle), with everything below it (H5Ocopy); an existing object there is replaced,
 /// missing parent groups are created. Missing in src: FMBD_ERR_FORMAT "missing object".
@@ -121,7 +118,8 @@ int fmbd_h5_write_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_
 int fmbd_h5_read_attr_str(fmbd_h5 *f, const char *obj, const char *name, char **value);
 /// @brief Read exactly n numbers (FMBD_ERR_FORMAT if the attribute has another size).
 int fmbd_h5_read_attr_f64(fmbd_h5 *f, const char *obj, const char *name, int64_t n, double *values);
-int fmbd_h5_read_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n, int64_t *values);
+int fmbd_h5_read_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
+                          int64_t *values);
 /// @brief A 1-D attribute of n variable-length UTF-8 strings (h5py: an array of str).
 int fmbd_h5_write_attr_strv(fmbd_h5 *f, const char *obj, const char *name, int64_t n,
                             const char *const *values);

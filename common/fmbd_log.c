@@ -19,15 +19,23 @@ void fmbd_log_init(const char *prog, int level) {
   g_level = level;
   const char *env = getenv("FMBD_LOG");
   if (env && *env) {
-    if (!strcasecmp(env, "error")) g_level = FMBD_LOG_ERROR;
-    else if (!strcasecmp(env, "warn")) g_level = FMBD_LOG_WARN;
-    else if (!strcasecmp(env, "info")) g_level = FMBD_LOG_INFO;
-    else if (!strcasecmp(env, "debug")) g_level = FMBD_LOG_DEBUG;
+    if (!strcasecmp(env, "error"))
+      g_level = FMBD_LOG_ERROR;
+    else if (!strcasecmp(env, "warn"))
+      g_level = FMBD_LOG_WARN;
+    else if (!strcasecmp(env, "info"))
+      g_level = FMBD_LOG_INFO;
+    else if (!strcasecmp(env, "debug"))
+      g_level = FMBD_LOG_DEBUG;
   }
 }
 
-const char *fmbd_log_prog(void) { return g_prog; }
-int fmbd_log_level(void) { return g_level; }
+const char *fmbd_log_prog(void) {
+  return g_prog;
+}
+int fmbd_log_level(void) {
+  return g_level;
+}
 
 static void end_progress_line(void) {
   if (g_progress_open) {
@@ -59,7 +67,9 @@ void fmbd_log_summary(const char *fmt, ...) {
   fputc('\n', stderr);
 }
 
-bool fmbd_progress_enabled(void) { return g_level >= FMBD_LOG_WARN && isatty(STDERR_FILENO); }
+bool fmbd_progress_enabled(void) {
+  return g_level >= FMBD_LOG_WARN && isatty(STDERR_FILENO);
+}
 
 void fmbd_progress(const char *fmt, ...) {
   if (!fmbd_progress_enabled()) return;
@@ -92,5 +102,9 @@ void fmbd_timer_start(fmbd_timer *t) {
   t->wall0_s = fmbd_wall_s();
   t->cpu0_s = fmbd_cpu_s();
 }
-double fmbd_timer_wall_s(const fmbd_timer *t) { return fmbd_wall_s() - t->wall0_s; }
-double fmbd_timer_cpu_s(const fmbd_timer *t) { return fmbd_cpu_s() - t->cpu0_s; }
+double fmbd_timer_wall_s(const fmbd_timer *t) {
+  return fmbd_wall_s() - t->wall0_s;
+}
+double fmbd_timer_cpu_s(const fmbd_timer *t) {
+  return fmbd_cpu_s() - t->cpu0_s;
+}

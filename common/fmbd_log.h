@@ -9,7 +9,12 @@
 
 #include <stdbool.h>
 
-enum fmbd_log_level { FMBD_LOG_ERROR = 0, FMBD_LOG_WARN = 1, FMBD_LOG_INFO = 2, FMBD_LOG_DEBUG = 3 };
+enum fmbd_log_level {
+  FMBD_LOG_ERROR = 0,
+  FMBD_LOG_WARN = 1,
+  FMBD_LOG_INFO = 2,
+  FMBD_LOG_DEBUG = 3
+};
 
 /// @brief Set the program name used as message prefix and the level (FMBD_LOG env wins).
 void fmbd_log_init(const char *prog, int level);

@@ -38,7 +38,8 @@
 //   wb = 2 G(p) p' with G = [-e, -e~ + e0 I] (G p = 0, G G' = I, G(p') p' = 0), so
 //   wb' = 2 G p''. Virtual rotation d(pi) = 2 G dp, hence the rotational equations are the
 //   body-frame moment equations premultiplied by 2 G'.
-//   Inertia from the invariants (docs/THEORY.md section 9, the "inertia shape integrals" of Shabana):
+//   Inertia from the invariants (docs/THEORY.md section 9, the "inertia shape integrals" of
+//   Shabana):
 //     c(q) = c0 + S1 q                                   (first moment, body frame)
 //     J(q) = J0 + XSq + XSq' + sum_kl SS_kl q_k q_l  (second moment; (XSq)_ab = sum_k XS_abk q_k)
 //     I(q) = tr(J) 1 - J                                  (inertia about the frame origin)

@@ -1,21 +1,20 @@
 // common/fmbd_mesh.c: geometry and mesh input (gmsh C API; CGAL through a callback)
 // SPDX-License-Identifier: MIT
 //
-// gmsh 4.8 C API notes (docs/TOOLCHAIN.md section 3a, gotcha 7): gmshInitialize has no `run` argument
-// before 4.9; every returned array is released with gmshFree; node and element tags need not
-// be contiguous, so node tags are mapped to indices (a dense table when the tags are dense, a
+// gmsh 4.8 C API notes (docs/TOOLCHAIN.md section 3a, gotcha 7): gmshInitialize has no `run`
+// argument before 4.9; every returned array is released with gmshFree; node and element tags need
+// not be contiguous, so node tags are mapped to indices (a dense table when the tags are dense, a
 // sorted table with binary search otherwise).
 #include "fmbd_mesh.h"
 
 #include <ctype.h>
 #include <errno.h>
+#include <gmshc.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-
-#include <gmshc.h>
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
@@ -282,8 +281,8 @@ static int check_mesh(const fmbd_mesh *m, const size_t *tet_tag, const size_t *b
         FMBD_FAIL(FMBD_ERR_VALUE,
                   "tet%d element %lld%s is %s: Jacobian determinant %.6g at reference point "
                   "(%.3g, %.3g, %.3g) (relative to its longest edge cubed: %.3g)",
-                  m->tet_nodes, (long long)e, tag, d < 0 ? "inverted" : "degenerate", d,
-                  pts[q][0], pts[q][1], pts[q][2], h > 0 ? d / (h * h * h) : 0.0);
+                  m->tet_nodes, (long long)e, tag, d < 0 ? "inverted" : "degenerate", d, pts[q][0],
+                  pts[q][1], pts[q][2], h > 0 ? d / (h * h * h) : 0.0);
       }
     }
   }
@@ -322,8 +321,8 @@ static int check_mesh(const fmbd_mesh *m, const size_t *tet_tag, const size_t *b
   for (int64_t p = 0; p < m->nnodes; p++) {
     if (!used[p]) {
       fmbd_free(used);
-      FMBD_FAIL(FMBD_ERR_VALUE, "node %lld at (%g, %g, %g) is attached to no element",
-                (long long)p, m->xyz[3 * p], m->xyz[3 * p + 1], m->xyz[3 * p + 2]);
+      FMBD_FAIL(FMBD_ERR_VALUE, "node %lld at (%g, %g, %g) is attached to no element", (long long)p,
+                m->xyz[3 * p], m->xyz[3 * p + 1], m->xyz[3 * p + 2]);
     }
   }
   fmbd_free(used);
@@ -344,7 +343,9 @@ static int check_mesh(const fmbd_mesh *m, const size_t *tet_tag, const size_t *b
   return FMBD_OK;
 }
 
-int fmbd_mesh_check(const fmbd_mesh *m) { return check_mesh(m, NULL, NULL); }
+int fmbd_mesh_check(const fmbd_mesh *m) {
+  return check_mesh(m, NULL, NULL);
+}
 
 double fmbd_mesh_volume(const fmbd_mesh *m) {
   double v = 0.0;
@@ -824,8 +825,7 @@ static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_options *opt,
     }
   }
   if (!vol_type && !line_types) {
-    FMBD_GFAIL(FMBD_ERR_FORMAT,
-               "no volume (tetrahedron) or beam (line) elements%s",
+    FMBD_GFAIL(FMBD_ERR_FORMAT, "no volume (tetrahedron) or beam (line) elements%s",
                has_surface ? " (surface elements only; a .msh saved with physical groups keeps "
                              "only their elements: add a Physical Volume, or save with "
                              "Mesh.SaveAll=1)"
@@ -838,7 +838,8 @@ static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_options *opt,
   //     1 = on point elements only, 0 = on no element ---
   FMBD_GALLOC(use = fmbd_calloc(nn + 1, 1));
   for (size_t i = 0; i < ntypes; i++) {
-    int is_kept = vol_type ? types[i] == vol_type : (types[i] == GMSH_LINE2 || types[i] == GMSH_LINE3);
+    int is_kept =
+        vol_type ? types[i] == vol_type : (types[i] == GMSH_LINE2 || types[i] == GMSH_LINE3);
     unsigned char level = is_kept ? 3 : types[i] == GMSH_POINT ? 1 : 2;
     gmshModelMeshGetElementsByType(types[i], &etag, &ne, &enode, &nen, -1, 0, 1, &ierr);
     if (ierr) {
@@ -857,7 +858,8 @@ static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_options *opt,
         // line2 -> one beam, line3 (ends 0, 1, middle 2) -> two beams
         int nb = k == 3 ? 2 : 1;
         int64_t first = m->nbeam;
-        int64_t *b = fmbd_realloc(m->beam, (size_t)(2 * (m->nbeam + nb * (int64_t)ne) + 1) * sizeof *b);
+        int64_t *b =
+            fmbd_realloc(m->beam, (size_t)(2 * (m->nbeam + nb * (int64_t)ne) + 1) * sizeof *b);
         size_t *kt = fmbd_realloc(kept_tag, (size_t)(m->nbeam + nb * (int64_t)ne + 1) * sizeof *kt);
         if (b) {
           m->beam = b;
@@ -909,8 +911,8 @@ static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_options *opt,
   for (size_t p = 0; p < nn; p++) {
     if (use[p] == 0) {
       fmbd_err_contextf(NULL, "node tag %zu", ntag[p]);
-      FMBD_GFAIL(FMBD_ERR_VALUE, "the node at (%g, %g, %g) is attached to no element",
-                 coord[3 * p], coord[3 * p + 1], coord[3 * p + 2]);
+      FMBD_GFAIL(FMBD_ERR_VALUE, "the node at (%g, %g, %g) is attached to no element", coord[3 * p],
+                 coord[3 * p + 1], coord[3 * p + 2]);
     }
     if (use[p] == 2) {
       fmbd_err_contextf(NULL, "node tag %zu", ntag[p]);
@@ -1147,7 +1149,8 @@ static int read_stl(const char *path, surface *s) {
       s->nv++;
     }
     if (s->nv == 0 || s->nv % 3 != 0) {
-      FMBD_GFAIL(FMBD_ERR_FORMAT, "ASCII STL with %lld vertices (a positive multiple of 3 expected)",
+      FMBD_GFAIL(FMBD_ERR_FORMAT,
+                 "ASCII STL with %lld vertices (a positive multiple of 3 expected)",
                  (long long)s->nv);
     }
     s->nf = s->nv / 3;
@@ -1401,7 +1404,8 @@ int fmbd_mesh_read(const char *path, const fmbd_mesh_options *opt, fmbd_mesh *m)
 
 // --- box groups --------------------------------------------------------------------------------
 
-int fmbd_mesh_add_box_group(fmbd_mesh *m, const char *name, const double lo[3], const double hi[3]) {
+int fmbd_mesh_add_box_group(fmbd_mesh *m, const char *name, const double lo[3],
+                            const double hi[3]) {
   for (int k = 0; k < 3; k++) {
     if (!(lo[k] <= hi[k])) {
       FMBD_FAIL(FMBD_ERR_USAGE, "group '%s': box min %g > max %g in direction %c", name, lo[k],

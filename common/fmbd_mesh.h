@@ -29,12 +29,12 @@ typedef int (*fmbd_surface_mesher)(int64_t nv, const double *xyz, int64_t nf, co
 
 /// Options of fmbd_mesh_read. Fill with fmbd_mesh_options_defaults, then change.
 typedef struct fmbd_mesh_options {
-  int order;        ///< 1 (tet4) or 2 (tet10); 0 (default): 2 for geometry and surfaces, as
-                    ///< stored for .msh. Beams are always 2-node (order ignored).
-  double size;      ///< target element size in m; <= 0 (default): gmsh's own sizes from the
-                    ///< geometry, and for .stl/.off the bounding-box diagonal / 25
-  int gmsh_verbose; ///< 0 (default): gmsh silent; 1: gmsh's Info lines on standard output (!)
-  fmbd_surface_mesher surface_mesher; ///< needed for .stl/.off (NULL default: FMBD_ERR_USAGE)
+  int order;         ///< 1 (tet4) or 2 (tet10); 0 (default): 2 for geometry and surfaces, as
+                     ///< stored for .msh. Beams are always 2-node (order ignored).
+  double size;       ///< target element size in m; <= 0 (default): gmsh's own sizes from the
+                     ///< geometry, and for .stl/.off the bounding-box diagonal / 25
+  int gmsh_verbose;  ///< 0 (default): gmsh silent; 1: gmsh's Info lines on standard output (!)
+  fmbd_surface_mesher surface_mesher;  ///< needed for .stl/.off (NULL default: FMBD_ERR_USAGE)
 } fmbd_mesh_options;
 
 /// @brief Default options (order 0 = automatic, size 0 = from the geometry, gmsh silent).

@@ -11,7 +11,9 @@
 #include "fmbd_dense.h"
 #include "fmbd_err.h"
 
-static void *xcalloc(size_t n, size_t sz) { return fmbd_calloc(n ? n : 1, sz); }
+static void *xcalloc(size_t n, size_t sz) {
+  return fmbd_calloc(n ? n : 1, sz);
+}
 
 void fmbd_rflex_destroy(fmbd_rflex **pr) {
   if (!pr || !*pr) {
@@ -114,6 +116,39 @@ double fmbd_von_mises(const double s[6]) {
   return sqrt(0.5 * (a * a + b * b + c * c) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
 }
 
+// --- the mass of the invariants -------------------------------------------------------------
+// A solid body meshed with consistent mass: its translational mass is the scalar consistent
+// mass of the elements repeated per direction, and the invariants use it too, so that modes
+// M-orthogonal to rigid motion get S1 = 0 exactly. Beams (whose consistent mass couples
+// translations and rotations) and lumped-mass bodies use the lumped nodal masses.
+bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b) {
+  return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->ntet > 0 && b->tet && b->nbeam == 0;
+}
+
+// W = M_n U for the 3 nm columns of U (nn x 3nm, column-major), element by element with the
+// scalar consistent mass of each tet (never assembled).
+static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *U, double *W) {
+  int nn = b->tet_nodes;
+  int64_t nnodes = b->nnodes;
+  double xyz[30], Me[100], vol;
+  memset(W, 0, sizeof(double) * (size_t)(3 * nnodes * nm));
+  for (int64_t e = 0; e < b->ntet; e++) {
+    const int64_t *nd = b->tet + (int64_t)nn * e;
+    for (int i = 0; i < nn; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
+    FMBD_CALL(fmbd_fe_tet_matrices(nn, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
+    for (int64_t j = 0; j < 3 * nm; j++) {
+      const double *u = U + nnodes * j;
+      double *w = W + nnodes * j;
+      for (int i = 0; i < nn; i++) {
+        double acc = 0.0;
+        for (int q = 0; q < nn; q++) acc += Me[nn * i + q] * u[nd[q]];
+        w[nd[i]] += acc;
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
 // --- secondary reduction ------------------------------------------------------------------
 int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
   int rc = FMBD_OK;
@@ -192,8 +227,8 @@ int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
     FMBD_GALLOC(it->name = fmbd_strdup(fi->name));
     FMBD_GALLOC(it->kind = fmbd_strdup(fi->kind == FMBD_FE_RBE3 ? "rbe3" : "rbe2"));
     it->node = fi->node;
-    FMBD_GCHECK(fi->node >= 0 && fi->node < nn, FMBD_ERR_VALUE, "interface %s: node %lld out of range",
-                fi->name, (long long)fi->node);
+    FMBD_GCHECK(fi->node >= 0 && fi->node < nn, FMBD_ERR_VALUE,
+                "interface %s: node %lld out of range", fi->name, (long long)fi->node);
     memcpy(it->x0, b->xyz + 3 * fi->node, sizeof it->x0);
     FMBD_GALLOC(it->translation = xcalloc((size_t)(3 * nm), sizeof(double)));
     FMBD_GALLOC(it->rotation = xcalloc((size_t)(3 * nm), sizeof(double)));
@@ -214,8 +249,9 @@ int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
     double tr = Ic[0] + Ic[4] + Ic[8];
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
-        r->second_moment[a + 3 * bb] =
-            (a == bb ? 0.5 * tr : 0.0) - 0.5 * (Ic[3 * a + bb] + Ic[3 * bb + a]) + b->mass * c[a] * c[bb];
+        r->second_moment[a + 3 * bb] = (a == bb ? 0.5 * tr : 0.0) -
+                                       0.5 * (Ic[3 * a + bb] + Ic[3 * bb + a]) +
+                                       b->mass * c[a] * c[bb];
       }
     }
   }
@@ -228,43 +264,40 @@ int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
     r->Mff[k + nm * k] = 1.0;
     r->Kff[k + nm * k] = in->chibar[k];
   }
-  for (int64_t p = 0; p < nn; p++) {
-    double mp = r->node_mass[p];
-    if (mp == 0) {
-      continue;
-    }
-    const double *x = r->node_xyz + 3 * p;
-    for (int64_t k = 0; k < nm; k++) {
-      for (int bb = 0; bb < 3; bb++) {
-        double u = mp * U[6 * p + bb + 6 * nn * k];
-        r->S1[bb + 3 * k] += u;
-        for (int a = 0; a < 3; a++) {
-          r->XS[a + 3 * bb + 9 * k] += x[a] * u;
-        }
-      }
-    }
-  }
-  // SS_ab = Ua' diag(m) Ub with Ua the nn x nm matrix of component a: 9 gemms
   if (nm > 0) {
-    double *Sab = NULL;
+    // Ub: component b of the nodal motion (nn x nm per b); Wa = M_n Ua, the mass-weighted
+    // motion, with M_n the body's nodal mass: the scalar consistent mass of the solid elements
+    // (the one the modes come from: M = M_n (x) I3 on the translations) for a consistent-mass
+    // solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
+    //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
-    fmbd_free(Wa);
-    Wa = NULL;
-    Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double));
-    if (!Wa) {
-      fmbd_free(Sab);
-      FMBD_GFAIL(FMBD_ERR_NOMEM, "out of memory");
-    }
+    FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int64_t k = 0; k < nm; k++) {
-        for (int64_t p = 0; p < nn; p++) {
-          double u = U[6 * p + a + 6 * nn * k];
-          Ub[p + nn * (a * nm + k)] = u;
-          Wa[p + nn * (a * nm + k)] = r->node_mass[p] * u;
-        }
+        for (int64_t p = 0; p < nn; p++) Ub[p + nn * (a * nm + k)] = U[6 * p + a + 6 * nn * k];
       }
     }
+    if (fmbd_rflex_consistent_invariants(b)) {
+      FMBD_GCALL(consistent_weighted(b, nm, Ub, Wa));
+    } else {
+      for (int64_t j = 0; j < 3 * nm; j++) {
+        for (int64_t p = 0; p < nn; p++) Wa[p + nn * j] = r->node_mass[p] * Ub[p + nn * j];
+      }
+    }
+    for (int bb = 0; bb < 3; bb++) {
+      for (int64_t k = 0; k < nm; k++) {
+        const double *w = Wa + nn * (bb * nm + k);
+        double s1 = 0.0, xs[3] = {0.0, 0.0, 0.0};
+        for (int64_t p = 0; p < nn; p++) {
+          s1 += w[p];
+          for (int a = 0; a < 3; a++) xs[a] += r->node_xyz[3 * p + a] * w[p];
+        }
+        r->S1[bb + 3 * k] = s1;
+        for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
+      }
+    }
+    double *Sab = NULL;
+    FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
         fmbd_dense_gemm('T', 'N', nm, nm, nn, 1.0, Wa + nn * a * nm, nn, Ub + nn * bb * nm, nn, 0.0,
@@ -372,7 +405,8 @@ int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out) {
   FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
   // --- description ---
   int64_t dn[2] = {-1, 3};
-  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/nodes", 2, dn, &r->node_xyz));  // row-major (nn,3) = 3 x nn col-major
+  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/nodes", 2, dn,
+                              &r->node_xyz));  // row-major (nn,3) = 3 x nn col-major
   int64_t nn = r->nnodes = dn[0];
   int64_t dm[1] = {nn};
   FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/node_mass", 1, dm, &r->node_mass));

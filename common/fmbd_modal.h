@@ -25,9 +25,8 @@
 #ifndef FMBD_MODAL_H
 #define FMBD_MODAL_H
 
-#include <stdint.h>
-
 #include <stdbool.h>
+#include <stdint.h>
 
 #include "fmbd_csr.h"
 #include "fmbd_fe.h"
@@ -40,12 +39,12 @@
 
 /// One interface (joint) node of the body and its modal motion.
 typedef struct fmbd_rflex_interface {
-  char *name;          ///< group name under /interfaces (owned)
-  char *kind;          ///< "rbe2" or "rbe3" (owned)
-  int64_t node;        ///< the interface node (index into the nodes)
-  double x0[3];        ///< its position in the body (FE) frame (/mesh/nodes row `node`)
-  double *translation; ///< 3 x nm modal translations T[a + 3*k] (owned)
-  double *rotation;    ///< 3 x nm modal rotations (small-angle vector) R[a + 3*k] (owned)
+  char *name;           ///< group name under /interfaces (owned)
+  char *kind;           ///< "rbe2" or "rbe3" (owned)
+  int64_t node;         ///< the interface node (index into the nodes)
+  double x0[3];         ///< its position in the body (FE) frame (/mesh/nodes row `node`)
+  double *translation;  ///< 3 x nm modal translations T[a + 3*k] (owned)
+  double *rotation;     ///< 3 x nm modal rotations (small-angle vector) R[a + 3*k] (owned)
 } fmbd_rflex_interface;
 
 /// The reduced flexible body.
@@ -56,33 +55,37 @@ typedef struct fmbd_rflex {
   double *eigenvalue;    ///< nm: chibar_k (rad^2/s^2), ascending, rigid-body modes excluded
   double *frequency_hz;  ///< nm: sqrt(chibar_k) / (2 pi)
   double *shapes;        ///< ndof x nm, mass-normalised (shapes' M shapes = I)
-  double *stress;        ///< 6 x nnodes x nm modal nodal stress (Pa per unit modal coordinate), or NULL
-  double *node_xyz;      ///< 3 x nnodes reference positions
-  double *node_mass;     ///< nnodes lumped (HRZ) translational masses (/mesh/node_mass)
-  int64_t *dofs;         ///< 2 x ndof (node, direction 0..5)
-  fmbd_csr *expand;      ///< (6 nnodes) x ndof: row 6p+d = component d of node p (/expand)
+  double *stress;    ///< 6 x nnodes x nm modal nodal stress (Pa per unit modal coordinate), or NULL
+  double *node_xyz;  ///< 3 x nnodes reference positions
+  double *node_mass;  ///< nnodes lumped (HRZ) translational masses (/mesh/node_mass)
+  int64_t *dofs;      ///< 2 x ndof (node, direction 0..5)
+  fmbd_csr *expand;   ///< (6 nnodes) x ndof: row 6p+d = component d of node p (/expand)
   int ninterfaces;
-  fmbd_rflex_interface *interfaces; ///< ninterfaces entries, sorted by name
+  fmbd_rflex_interface *interfaces;  ///< ninterfaces entries, sorted by name
   // --- FFRF inertia invariants (docs/THEORY.md section 9) ---
-  double mass;             ///< m = int rho dV (from /body)
-  double first_moment[3];  ///< c = int rho x0 dV = m * centre of mass
-  double second_moment[9]; ///< J[a + 3b] = int rho x0_a x0_b dV (inertia = tr(J) I - J)
-  double *S1;              ///< 3 x nm: int rho S_k,a dV
-  double *XS;              ///< 3 x 3 x nm: int rho x0_a S_k,b dV
-  double *SS;              ///< 3 x 3 x nm x nm: int rho S_k,a S_l,b dV
-  double *Mff;             ///< nm x nm modal mass (identity up to round-off)
-  double *Kff;             ///< nm x nm modal stiffness (diag eigenvalue)
+  double mass;              ///< m = int rho dV (from /body)
+  double first_moment[3];   ///< c = int rho x0 dV = m * centre of mass
+  double second_moment[9];  ///< J[a + 3b] = int rho x0_a x0_b dV (inertia = tr(J) I - J)
+  double *S1;               ///< 3 x nm: int rho S_k,a dV
+  double *XS;               ///< 3 x 3 x nm: int rho x0_a S_k,b dV
+  double *SS;               ///< 3 x 3 x nm x nm: int rho S_k,a S_l,b dV
+  double *Mff;              ///< nm x nm modal mass (identity up to round-off)
+  double *Kff;              ///< nm x nm modal stiffness (diag eigenvalue)
 } fmbd_rflex;
 
 // --- accessors (no bounds checks) ---------------------------------------------------------
-static inline double fmbd_rflex_S1(const fmbd_rflex *r, int a, int64_t k) { return r->S1[a + 3 * k]; }
+static inline double fmbd_rflex_S1(const fmbd_rflex *r, int a, int64_t k) {
+  return r->S1[a + 3 * k];
+}
 static inline double fmbd_rflex_XS(const fmbd_rflex *r, int a, int b, int64_t k) {
   return r->XS[a + 3 * b + 9 * k];
 }
 static inline double fmbd_rflex_SS(const fmbd_rflex *r, int a, int b, int64_t k, int64_t l) {
   return r->SS[a + 3 * b + 9 * k + 9 * r->nm * l];
 }
-static inline double fmbd_rflex_J(const fmbd_rflex *r, int a, int b) { return r->second_moment[a + 3 * b]; }
+static inline double fmbd_rflex_J(const fmbd_rflex *r, int a, int b) {
+  return r->second_moment[a + 3 * b];
+}
 
 /// @brief Read a .rflex.h5 (format fmbd-rflex, major <= FMBD_RFLEX_MAJOR) into a new struct.
 /// /modes/stress is optional (stress = NULL without it). Errors name the file and the path.
@@ -110,22 +113,28 @@ typedef struct fmbd_modal_input {
   int64_t nd;                    ///< fixed-interface modes of the reduced body
   const double *Phi;             ///< ns x nd (leading dimension ldphi >= ns)
   int64_t ldphi;
-  const double *Psi;             ///< ns x nb constraint modes
-  int64_t nm;                    ///< flexible modes kept
-  const double *chibar;          ///< (nm) their eigenvalues (> 0)
-  const double *Xi;              ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
-  int64_t ldxi;                  ///< leading dimension of Xi (>= nd+nb)
-  bool stress;                   ///< compute /modes/stress (fmbd_fe_nodal_stress)
+  const double *Psi;     ///< ns x nb constraint modes
+  int64_t nm;            ///< flexible modes kept
+  const double *chibar;  ///< (nm) their eigenvalues (> 0)
+  const double *Xi;      ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
+  int64_t ldxi;          ///< leading dimension of Xi (>= nd+nb)
+  bool stress;           ///< compute /modes/stress (fmbd_fe_nodal_stress)
 } fmbd_modal_input;
 
 /// @brief The secondary reduction [H46-H50]: shapes qF = T0 PhiT (T0 = [Phi_d Psi; 0 I] in
 /// the s/b partition), node and interface modal motion through /expand, the /ffrf invariants
-/// with the lumped nodal masses (mass, first and second moments from /body:
+/// with the mass the modes come from (fmbd_rflex_consistent_invariants; docs/THEORY.md
+/// section 9) (mass, first and second moments from /body:
 /// J = tr(Ic)/2 I - Ic + m c c'), Mff = I, Kff = diag(chibar), optional modal stress.
 /// @param[out] out caller releases with fmbd_rflex_destroy
 /// @return FMBD_OK, FMBD_ERR_VALUE (inconsistent sizes), FMBD_ERR_NOMEM, errors of
 ///         fmbd_fe_nodal_stress
 int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out);
+
+/// @brief True when fmbd_modal_build evaluates the invariants S1, XS, SS with the body's
+/// scalar consistent mass (a solid body, tet4/tet10, meshed with consistent mass: the mass the
+/// modes come from), false when with the lumped nodal masses (lumped-mass bodies, beams).
+bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b);
 
 /// @brief Release r and its arrays; NULL and *r == NULL are fine; sets *r = NULL.
 void fmbd_rflex_destroy(fmbd_rflex **r);

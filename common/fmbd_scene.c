@@ -39,28 +39,36 @@ void fmbd_scene_context(const fmbd_scene *s, fmbd_scene_loc loc) {
 }
 
 // Record a scene error at node n; returns FMBD_ERR_SCENE.
-#define fail_at(c, n, ...)                                                                   \
-  (fmbd_err_contextf((c)->file, "%d:%d", loc_of(n).line, loc_of(n).column),                \
+#define fail_at(c, n, ...)                                                  \
+  (fmbd_err_contextf((c)->file, "%d:%d", loc_of(n).line, loc_of(n).column), \
    fmbd_err_set(FMBD_ERR_SCENE, __FILE__, __LINE__, __func__, __VA_ARGS__))
 
-#define TRY(expr)                                                                            \
-  do {                                                                                     \
-    int rc_ = (expr);                                                                      \
-    if (rc_) return rc_;                                                                   \
+#define TRY(expr)        \
+  do {                   \
+    int rc_ = (expr);    \
+    if (rc_) return rc_; \
   } while (0)
 
-static yaml_node_t *node(ctx *c, int idx) { return yaml_document_get_node(&c->doc, idx); }
+static yaml_node_t *node(ctx *c, int idx) {
+  return yaml_document_get_node(&c->doc, idx);
+}
 
 static const char *kind_name(const yaml_node_t *n) {
   switch (n->type) {
-    case YAML_SCALAR_NODE: return "a scalar";
-    case YAML_SEQUENCE_NODE: return "a list";
-    case YAML_MAPPING_NODE: return "a mapping";
-    default: return "empty";
+    case YAML_SCALAR_NODE:
+      return "a scalar";
+    case YAML_SEQUENCE_NODE:
+      return "a list";
+    case YAML_MAPPING_NODE:
+      return "a mapping";
+    default:
+      return "empty";
   }
 }
 
-static const char *scalar(const yaml_node_t *n) { return (const char *)n->data.scalar.value; }
+static const char *scalar(const yaml_node_t *n) {
+  return (const char *)n->data.scalar.value;
+}
 
 // --- mappings: allowed keys and lookup -----------------------------------------------------
 static int check_map(ctx *c, yaml_node_t *m, const char *what, const char *const *allowed) {
@@ -120,7 +128,8 @@ static int as_int(ctx *c, yaml_node_t *n, const char *what, int64_t lo, int64_t 
   char *end = NULL;
   errno = 0;
   long long x = strtoll(t, &end, 10);
-  if (end == t || *end || errno == ERANGE) return fail_at(c, n, "%s: '%s' is not an integer", what, t);
+  if (end == t || *end || errno == ERANGE)
+    return fail_at(c, n, "%s: '%s' is not an integer", what, t);
   if (x < lo) return fail_at(c, n, "%s must be >= %lld, not %lld", what, (long long)lo, x);
   *v = x;
   return 0;
@@ -172,7 +181,8 @@ static int as_numbers(ctx *c, yaml_node_t *n, const char *what, int max, double 
   for (yaml_node_item_t *it = n->data.sequence.items.start; it < n->data.sequence.items.top; it++) {
     yaml_node_t *e = node(c, *it);
     if (e->type == YAML_SEQUENCE_NODE) {
-      for (yaml_node_item_t *jt = e->data.sequence.items.start; jt < e->data.sequence.items.top; jt++) {
+      for (yaml_node_item_t *jt = e->data.sequence.items.start; jt < e->data.sequence.items.top;
+           jt++) {
         if (k >= max) return fail_at(c, n, "%s has more than %d numbers", what, max);
         TRY(as_double(c, node(c, *jt), what, &v[k++]));
       }
@@ -228,20 +238,21 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
     f->kind = FMBD_FN_CONSTANT;
     return as_double(c, n, what, &f->value);
   }
-  static const char *const keys[] = {"type", "value", "t0", "t1", "v0", "v1", "smooth",
-                                     "amplitude", "frequency_hz", "phase", "phase_deg",
-                                     "offset", "t", "v", "points", "rate", NULL};
+  static const char *const keys[] = {
+      "type",  "value",     "t0",     "t1", "v0", "v1",     "smooth", "amplitude", "frequency_hz",
+      "phase", "phase_deg", "offset", "t",  "v",  "points", "rate",   NULL};
   char buf[160];
   snprintf(buf, sizeof buf, "function of %s", what);
   TRY(check_map(c, n, buf, keys));
   yaml_node_t *ty = get(c, n, "type");
-  if (!ty) return fail_at(c, n, "%s: missing key 'type' (constant, linear, ramp, sine or table)", buf);
+  if (!ty)
+    return fail_at(c, n, "%s: missing key 'type' (constant, linear, ramp, sine or table)", buf);
   const char *t;
   TRY(as_str(c, ty, "function type", &t));
   // keys each type accepts
   static const char *const kconst[] = {"type", "value", NULL};
   static const char *const kramp[] = {"type", "t0", "t1", "v0", "v1", "smooth", NULL};
-  static const char *const ksine[] = {"type", "amplitude", "frequency_hz", "phase", "phase_deg",
+  static const char *const ksine[] = {"type",   "amplitude", "frequency_hz", "phase", "phase_deg",
                                       "offset", NULL};
   static const char *const ktable[] = {"type", "t", "v", "points", NULL};
   static const char *const klinear[] = {"type", "t0", "v0", "rate", NULL};
@@ -267,7 +278,8 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
   } else if (!strcmp(t, "sine")) {
     f->kind = FMBD_FN_SINE;
     TRY(check_map(c, n, "a sine function", ksine));
-    if (!(x = get(c, n, "amplitude"))) return fail_at(c, n, "sine function: missing key 'amplitude'");
+    if (!(x = get(c, n, "amplitude")))
+      return fail_at(c, n, "sine function: missing key 'amplitude'");
     TRY(as_double(c, x, "amplitude", &f->amplitude));
     if (!(x = get(c, n, "frequency_hz"))) {
       return fail_at(c, n, "sine function: missing key 'frequency_hz'");
@@ -291,10 +303,12 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
     f->kind = FMBD_FN_TABLE;
     TRY(check_map(c, n, "a table function", ktable));
     yaml_node_t *pts = get(c, n, "points"), *tn = get(c, n, "t"), *vn = get(c, n, "v");
-    if (pts && (tn || vn)) return fail_at(c, pts, "table function: give points or t and v, not both");
+    if (pts && (tn || vn))
+      return fail_at(c, pts, "table function: give points or t and v, not both");
     int m;
     if (pts) {
-      if (pts->type != YAML_SEQUENCE_NODE) return fail_at(c, pts, "points must be a list of [t, v] pairs");
+      if (pts->type != YAML_SEQUENCE_NODE)
+        return fail_at(c, pts, "points must be a list of [t, v] pairs");
       m = nitems(pts);
     } else {
       if (!tn || !vn) return fail_at(c, n, "table function: missing key 'points' (or 't' and 'v')");
@@ -308,11 +322,13 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
     if (!f->t || !f->v) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
     if (pts) {
       int i = 0;
-      for (yaml_node_item_t *it = pts->data.sequence.items.start; it < pts->data.sequence.items.top; it++, i++) {
+      for (yaml_node_item_t *it = pts->data.sequence.items.start; it < pts->data.sequence.items.top;
+           it++, i++) {
         double tv[2];
         int k = 0;
         yaml_node_t *e = node(c, *it);
-        if (e->type != YAML_SEQUENCE_NODE) return fail_at(c, e, "a table point must be a pair [t, v]");
+        if (e->type != YAML_SEQUENCE_NODE)
+          return fail_at(c, e, "a table point must be a pair [t, v]");
         TRY(as_numbers(c, e, "table point", 2, tv, &k));
         if (k != 2) return fail_at(c, e, "a table point must be a pair [t, v]");
         f->t[i] = tv[0];
@@ -338,8 +354,8 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
 }
 
 // --- names -------------------------------------------------------------------------------
-static const char *const joint_names[] = {"spherical", "revolute", "universal",
-                                          "prismatic", "cylindrical", "fixed", NULL};
+static const char *const joint_names[] = {"spherical",   "revolute", "universal", "prismatic",
+                                          "cylindrical", "fixed",    NULL};
 const char *fmbd_scene_joint_name(int kind) {
   return kind >= 0 && kind <= FMBD_JOINT_FIXED ? joint_names[kind] : "?";
 }
@@ -370,7 +386,8 @@ static int body_ref(ctx *c, yaml_node_t *n, const char *what, int *idx) {
     return 0;
   }
   *idx = fmbd_scene_find_body(c->s, t);
-  if (*idx < 0) return fail_at(c, n, "%s: no body named '%s' (bodies are declared under 'bodies')", what, t);
+  if (*idx < 0)
+    return fail_at(c, n, "%s: no body named '%s' (bodies are declared under 'bodies')", what, t);
   return 0;
 }
 
@@ -399,7 +416,8 @@ static int parse_orientation(ctx *c, yaml_node_t *n, const char *what, double R[
         double d = 0;
         for (int l = 0; l < 3; l++) d += R[3 * l + i] * R[3 * l + j];
         if (fabs(d - (i == j)) > 1e-6) {
-          return fail_at(c, mx, "orientation matrix is not a rotation (R'R differs from I by %.2g)", fabs(d - (i == j)));
+          return fail_at(c, mx, "orientation matrix is not a rotation (R'R differs from I by %.2g)",
+                         fabs(d - (i == j)));
         }
       }
     }
@@ -408,7 +426,8 @@ static int parse_orientation(ctx *c, yaml_node_t *n, const char *what, double R[
     if (det < 0) return fail_at(c, mx, "orientation matrix is a reflection (det = -1)");
     return 0;
   }
-  if (!ax) return fail_at(c, n, "%s: missing key 'axis' (with 'angle' or 'angle_deg') or 'matrix'", what);
+  if (!ax)
+    return fail_at(c, n, "%s: missing key 'axis' (with 'angle' or 'angle_deg') or 'matrix'", what);
   double a[3], th = 0;
   TRY(as_axis(c, ax, "orientation axis", a));
   if (an && ad) return fail_at(c, ad, "%s: give angle or angle_deg, not both", what);
@@ -464,8 +483,9 @@ static int grow(void **arr, int n, size_t size) {
 }
 
 static int parse_solver(ctx *c, yaml_node_t *n) {
-  static const char *const keys[] = {"t_end", "rho_inf", "step", "first_step", "max_step",
-                                     "min_step", "tolerance", "newton_tol", "newton_max", NULL};
+  static const char *const keys[] = {"t_end",      "rho_inf",  "step",      "first_step",
+                                     "max_step",   "min_step", "tolerance", "newton_tol",
+                                     "newton_max", NULL};
   TRY(check_map(c, n, "solver", keys));
   fmbd_scene_solver *v = &c->s->solver;
   yaml_node_t *x;
@@ -489,8 +509,10 @@ static int parse_solver(ctx *c, yaml_node_t *n) {
   struct {
     const char *k;
     double *p;
-  } pos[] = {{"first_step", &v->first_step}, {"max_step", &v->max_step},
-             {"min_step", &v->min_step}, {"tolerance", &v->tolerance},
+  } pos[] = {{"first_step", &v->first_step},
+             {"max_step", &v->max_step},
+             {"min_step", &v->min_step},
+             {"tolerance", &v->tolerance},
              {"newton_tol", &v->newton_tol}};
   for (size_t i = 0; i < sizeof pos / sizeof pos[0]; i++) {
     if ((x = get(c, n, pos[i].k))) {
@@ -518,8 +540,8 @@ static void cylinder_inertia(double m, double r, double L, const double a[3], do
 }
 
 static int parse_geometry(ctx *c, yaml_node_t *n, fmbd_scene_body *b, const char *what) {
-  static const char *const keys[] = {"shape", "length", "radius", "size", "density", "mass",
-                                     "axis", "center", NULL};
+  static const char *const keys[] = {"shape", "length", "radius", "size", "density",
+                                     "mass",  "axis",   "center", NULL};
   TRY(check_map(c, n, what, keys));
   yaml_node_t *sh = get(c, n, "shape"), *x;
   if (!sh) return fail_at(c, n, "%s: missing key 'shape' (cylinder, box or sphere)", what);
@@ -536,13 +558,17 @@ static int parse_geometry(ctx *c, yaml_node_t *n, fmbd_scene_body *b, const char
   } else {
     return fail_at(c, sh, "unknown shape '%s' (cylinder, box or sphere)", shape);
   }
-  const char *need[3][3] = {{"length", "radius", NULL}, {"size", NULL, NULL}, {"radius", NULL, NULL}};
+  const char *need[3][3] = {
+      {"length", "radius", NULL}, {"size", NULL, NULL}, {"radius", NULL, NULL}};
   for (int i = 0; need[kind][i]; i++) {
-    if (!get(c, n, need[kind][i])) return fail_at(c, n, "%s: a %s needs key '%s'", what, shape, need[kind][i]);
+    if (!get(c, n, need[kind][i]))
+      return fail_at(c, n, "%s: a %s needs key '%s'", what, shape, need[kind][i]);
   }
-  const char *other[3][3] = {{"size", NULL}, {"length", "radius", "axis"}, {"length", "size", "axis"}};
+  const char *other[3][3] = {
+      {"size", NULL}, {"length", "radius", "axis"}, {"length", "size", "axis"}};
   for (int i = 0; i < 3 && other[kind][i]; i++) {
-    if ((x = get(c, n, other[kind][i]))) return fail_at(c, x, "key '%s' does not apply to a %s", other[kind][i], shape);
+    if ((x = get(c, n, other[kind][i])))
+      return fail_at(c, x, "key '%s' does not apply to a %s", other[kind][i], shape);
   }
   if ((x = get(c, n, "length"))) TRY(as_double(c, x, "length", &L));
   if ((x = get(c, n, "radius"))) TRY(as_double(c, x, "radius", &r));
@@ -552,7 +578,8 @@ static int parse_geometry(ctx *c, yaml_node_t *n, fmbd_scene_body *b, const char
     if (!(L > 0) || !(r > 0)) return fail_at(c, n, "%s: length and radius must be positive", what);
     vol = M_PI * r * r * L;
   } else if (kind == 1) {
-    if (!(sz[0] > 0 && sz[1] > 0 && sz[2] > 0)) return fail_at(c, n, "%s: size must be positive", what);
+    if (!(sz[0] > 0 && sz[1] > 0 && sz[2] > 0))
+      return fail_at(c, n, "%s: size must be positive", what);
     vol = sz[0] * sz[1] * sz[2];
   } else {
     if (!(r > 0)) return fail_at(c, n, "%s: radius must be positive", what);
@@ -568,7 +595,9 @@ static int parse_geometry(ctx *c, yaml_node_t *n, fmbd_scene_body *b, const char
     TRY(as_double(c, mn, "mass", &m));
   }
   if (!(m > 0)) {
-    return fail_at(c, dn ? dn : mn, "%s: the mass must be positive (a massless body makes the mass matrix singular)", what);
+    return fail_at(c, dn ? dn : mn,
+                   "%s: the mass must be positive (a massless body makes the mass matrix singular)",
+                   what);
   }
   b->mass = m;
   memset(b->com, 0, sizeof b->com);
@@ -610,7 +639,8 @@ static int parse_inertia(ctx *c, yaml_node_t *n, double I[9]) {
       }
     }
   } else {
-    return fail_at(c, n, "inertia: give 3 (principal), 6 (xx yy zz xy yz zx) or 9 numbers, not %d", k);
+    return fail_at(c, n, "inertia: give 3 (principal), 6 (xx yy zz xy yz zx) or 9 numbers, not %d",
+                   k);
   }
   // positive definite (Sylvester) and the triangle inequality of principal moments
   double d1 = I[0], d2 = I[0] * I[4] - I[1] * I[3];
@@ -630,21 +660,25 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   fmbd_scene_body *b = &c->s->bodies[idx];
   char what[160];
   snprintf(what, sizeof what, "body %d", idx + 1);
-  if (n->type != YAML_MAPPING_NODE) return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
+  if (n->type != YAML_MAPPING_NODE)
+    return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
   b->loc = loc_of(n);
   yaml_node_t *x = get(c, n, "name");
   if (!x) return fail_at(c, n, "%s: missing key 'name'", what);
   TRY(check_name(c, x, "body name", &b->name));
-  if (!strcmp(b->name, "ground")) return fail_at(c, x, "'ground' is reserved for the fixed world frame");
+  if (!strcmp(b->name, "ground"))
+    return fail_at(c, x, "'ground' is reserved for the fixed world frame");
   for (int i = 0; i < idx; i++) {
     if (!strcmp(c->s->bodies[i].name, b->name)) {
-      return fail_at(c, x, "a second body named '%s' (the first is at line %d)", b->name, c->s->bodies[i].loc.line);
+      return fail_at(c, x, "a second body named '%s' (the first is at line %d)", b->name,
+                     c->s->bodies[i].loc.line);
     }
   }
   snprintf(what, sizeof what, "body '%s'", b->name);
-  static const char *const keys[] = {"name", "type", "mass", "com", "inertia", "geometry",
-                                     "file", "modes", "damping_ratio", "make", "position",
-                                     "orientation", "velocity", "angular_velocity", NULL};
+  static const char *const keys[] = {
+      "name",  "type",          "mass", "com",      "inertia",     "geometry", "file",
+      "modes", "damping_ratio", "make", "position", "orientation", "velocity", "angular_velocity",
+      NULL};
   TRY(check_map(c, n, what, keys));
   const char *type = "rigid";
   if ((x = get(c, n, "type"))) TRY(as_str(c, x, "body type", &type));
@@ -655,14 +689,19 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     static const char *const flexkeys[] = {"file", "modes", "damping_ratio", "make", NULL};
     for (int i = 0; flexkeys[i]; i++) {
       if ((x = get(c, n, flexkeys[i]))) {
-        return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)", flexkeys[i], what);
+        return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)",
+                       flexkeys[i], what);
       }
     }
     yaml_node_t *g = get(c, n, "geometry"), *mn = get(c, n, "mass"), *in = get(c, n, "inertia"),
                 *cn = get(c, n, "com");
     if (g) {
       if (mn || in || cn) {
-        return fail_at(c, mn ? mn : in ? in : cn, "%s: give geometry or mass/com/inertia, not both", what);
+        return fail_at(c,
+                       mn   ? mn
+                       : in ? in
+                            : cn,
+                       "%s: give geometry or mass/com/inertia, not both", what);
       }
       TRY(parse_geometry(c, g, b, "geometry"));
     } else {
@@ -670,7 +709,9 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       if (!in) return fail_at(c, n, "%s: missing key 'inertia' (or 'geometry')", what);
       TRY(as_double(c, mn, "mass", &b->mass));
       if (!(b->mass > 0)) {
-        return fail_at(c, mn, "%s: mass must be positive (a massless body makes the mass matrix singular)", what);
+        return fail_at(c, mn,
+                       "%s: mass must be positive (a massless body makes the mass matrix singular)",
+                       what);
       }
       if (cn) TRY(as_vec3(c, cn, "com", b->com));
       TRY(parse_inertia(c, in, b->inertia));
@@ -680,10 +721,13 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     static const char *const rigkeys[] = {"mass", "com", "inertia", "geometry", NULL};
     for (int i = 0; rigkeys[i]; i++) {
       if ((x = get(c, n, rigkeys[i]))) {
-        return fail_at(c, x, "key '%s' is for rigid bodies; a flexible body takes its inertia from its file", rigkeys[i]);
+        return fail_at(
+            c, x, "key '%s' is for rigid bodies; a flexible body takes its inertia from its file",
+            rigkeys[i]);
       }
     }
-    if (!(x = get(c, n, "file"))) return fail_at(c, n, "%s: missing key 'file' (a .rflex.h5 or .cb.h5)", what);
+    if (!(x = get(c, n, "file")))
+      return fail_at(c, n, "%s: missing key 'file' (a .rflex.h5 or .cb.h5)", what);
     b->file_loc = loc_of(x);
     const char *f;
     TRY(as_str(c, x, "file", &f));
@@ -710,9 +754,12 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
         const char *k;
         char **p;
         bool path;
-      } fields[] = {{"geometry", &b->chain.geometry, true}, {"mesh2fe", &b->chain.mesh2fe_args, false},
-                    {"fe", &b->chain.fe, true},             {"fe2cb", &b->chain.fe2cb_args, false},
-                    {"cb", &b->chain.cb, true},             {"cbcheck", &b->chain.cbcheck_args, false}};
+      } fields[] = {{"geometry", &b->chain.geometry, true},
+                    {"mesh2fe", &b->chain.mesh2fe_args, false},
+                    {"fe", &b->chain.fe, true},
+                    {"fe2cb", &b->chain.fe2cb_args, false},
+                    {"cb", &b->chain.cb, true},
+                    {"cbcheck", &b->chain.cbcheck_args, false}};
       for (size_t i = 0; i < sizeof fields / sizeof fields[0]; i++) {
         yaml_node_t *y = get(c, x, fields[i].k);
         if (!y) continue;
@@ -733,10 +780,14 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
           snprintf(*fields[i].p, l2, "%s/%s", fdir, t);
         }
       }
-      if (b->chain.mesh2fe_args && !b->chain.geometry) return fail_at(c, x, "make: 'mesh2fe' options need 'geometry'");
-      if (b->chain.geometry && !b->chain.fe) return fail_at(c, x, "make: 'geometry' needs 'fe' (the fe file it makes)");
-      if (b->chain.fe2cb_args && !b->chain.fe) return fail_at(c, x, "make: 'fe2cb' options need 'fe'");
-      if (b->chain.cbcheck_args && !b->chain.cb) return fail_at(c, x, "make: 'cbcheck' options need 'cb'");
+      if (b->chain.mesh2fe_args && !b->chain.geometry)
+        return fail_at(c, x, "make: 'mesh2fe' options need 'geometry'");
+      if (b->chain.geometry && !b->chain.fe)
+        return fail_at(c, x, "make: 'geometry' needs 'fe' (the fe file it makes)");
+      if (b->chain.fe2cb_args && !b->chain.fe)
+        return fail_at(c, x, "make: 'fe2cb' options need 'fe'");
+      if (b->chain.cbcheck_args && !b->chain.cb)
+        return fail_at(c, x, "make: 'cbcheck' options need 'cb'");
     }
   } else {
     return fail_at(c, x, "unknown body type '%s' (rigid or flexible)", type);
@@ -744,7 +795,8 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   if ((x = get(c, n, "position"))) TRY(as_vec3(c, x, "position", b->position));
   if ((x = get(c, n, "orientation"))) TRY(parse_orientation(c, x, "orientation", b->rotation));
   if ((x = get(c, n, "velocity"))) TRY(as_vec3(c, x, "velocity", b->velocity));
-  if ((x = get(c, n, "angular_velocity"))) TRY(as_vec3(c, x, "angular_velocity", b->angular_velocity));
+  if ((x = get(c, n, "angular_velocity")))
+    TRY(as_vec3(c, x, "angular_velocity", b->angular_velocity));
   return 0;
 }
 
@@ -752,13 +804,15 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
   fmbd_scene_joint *j = &c->s->joints[idx];
   char what[160];
   snprintf(what, sizeof what, "joint %d", idx + 1);
-  if (n->type != YAML_MAPPING_NODE) return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
+  if (n->type != YAML_MAPPING_NODE)
+    return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
   j->loc = loc_of(n);
   yaml_node_t *x = get(c, n, "name");
   if (x) {
     TRY(check_name(c, x, "joint name", &j->name));
     for (int i = 0; i < idx; i++) {
-      if (!strcmp(c->s->joints[i].name, j->name)) return fail_at(c, x, "a second joint named '%s'", j->name);
+      if (!strcmp(c->s->joints[i].name, j->name))
+        return fail_at(c, x, "a second joint named '%s'", j->name);
     }
   } else {
     char nm[32];
@@ -767,11 +821,14 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
     if (!j->name) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
   }
   snprintf(what, sizeof what, "joint '%s'", j->name);
-  static const char *const keys[] = {"name", "type", "body1", "body2", "point", "at1", "at2",
-                                     "axis", "axis2", NULL};
+  static const char *const keys[] = {"name", "type", "body1", "body2", "point",
+                                     "at1",  "at2",  "axis",  "axis2", NULL};
   TRY(check_map(c, n, what, keys));
   if (!(x = get(c, n, "type"))) {
-    return fail_at(c, n, "%s: missing key 'type' (spherical, revolute, universal, prismatic, cylindrical or fixed)", what);
+    return fail_at(
+        c, n,
+        "%s: missing key 'type' (spherical, revolute, universal, prismatic, cylindrical or fixed)",
+        what);
   }
   const char *t;
   TRY(as_str(c, x, "joint type", &t));
@@ -780,11 +837,15 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
     if (!strcmp(joint_names[i], t)) j->kind = i;
   }
   if (j->kind < 0) {
-    return fail_at(c, x, "unknown joint type '%s' (spherical, revolute, universal, prismatic, cylindrical or fixed)", t);
+    return fail_at(
+        c, x,
+        "unknown joint type '%s' (spherical, revolute, universal, prismatic, cylindrical or fixed)",
+        t);
   }
   const char *bk[2] = {"body1", "body2"}, *ak[2] = {"at1", "at2"};
   for (int s = 0; s < 2; s++) {
-    if (!(x = get(c, n, bk[s]))) return fail_at(c, n, "%s: missing key '%s' (a body name or ground)", what, bk[s]);
+    if (!(x = get(c, n, bk[s])))
+      return fail_at(c, n, "%s: missing key '%s' (a body name or ground)", what, bk[s]);
     j->body_loc[s] = loc_of(x);
     TRY(body_ref(c, x, bk[s], &j->body[s]));
     if ((x = get(c, n, ak[s]))) {
@@ -793,18 +854,23 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
       snprintf(w2, sizeof w2, "%s of %s", ak[s], what);
       TRY(check_map(c, x, w2, atk));
       TRY(parse_at_keys(c, x, w2, &j->at[s]));
-      if (j->at[s].kind == FMBD_AT_DEFAULT) return fail_at(c, x, "%s: give point, interface, node or nearest", w2);
+      if (j->at[s].kind == FMBD_AT_DEFAULT)
+        return fail_at(c, x, "%s: give point, interface, node or nearest", w2);
       if (j->body[s] < 0 && j->at[s].kind != FMBD_AT_POINT) {
         return fail_at(c, x, "%s: ground has only points (point: [x, y, z])", w2);
       }
-      if (j->body[s] >= 0 && c->s->bodies[j->body[s]].kind == FMBD_SCENE_RIGID && j->at[s].kind != FMBD_AT_POINT) {
-        return fail_at(c, x, "%s: body '%s' is rigid: it has points (point: [x, y, z]), not nodes or interfaces", w2,
-                       c->s->bodies[j->body[s]].name);
+      if (j->body[s] >= 0 && c->s->bodies[j->body[s]].kind == FMBD_SCENE_RIGID &&
+          j->at[s].kind != FMBD_AT_POINT) {
+        return fail_at(
+            c, x,
+            "%s: body '%s' is rigid: it has points (point: [x, y, z]), not nodes or interfaces", w2,
+            c->s->bodies[j->body[s]].name);
       }
     }
   }
   if (j->body[0] == j->body[1]) {
-    return fail_at(c, n, "%s joins %s to itself", what, j->body[0] < 0 ? "ground" : c->s->bodies[j->body[0]].name);
+    return fail_at(c, n, "%s joins %s to itself", what,
+                   j->body[0] < 0 ? "ground" : c->s->bodies[j->body[0]].name);
   }
   if ((x = get(c, n, "point"))) {
     j->has_point = true;
@@ -815,7 +881,8 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
     // the point must follow from an attachment on a flexible body
     bool from_at = false;
     for (int s = 0; s < 2; s++) from_at |= j->at[s].kind != FMBD_AT_DEFAULT;
-    if (!from_at) return fail_at(c, n, "%s: missing key 'point' (the joint's world point at the start)", what);
+    if (!from_at)
+      return fail_at(c, n, "%s: missing key 'point' (the joint's world point at the start)", what);
   }
   bool wants_axis = j->kind == FMBD_JOINT_REVOLUTE || j->kind == FMBD_JOINT_PRISMATIC ||
                     j->kind == FMBD_JOINT_CYLINDRICAL || j->kind == FMBD_JOINT_UNIVERSAL;
@@ -825,10 +892,13 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
   if (x) TRY(as_axis(c, x, "axis", j->axis));
   x = get(c, n, "axis2");
   if (j->kind == FMBD_JOINT_UNIVERSAL) {
-    if (!x) return fail_at(c, n, "%s: a universal joint needs key 'axis2' (the axis fixed in body2)", what);
+    if (!x)
+      return fail_at(c, n, "%s: a universal joint needs key 'axis2' (the axis fixed in body2)",
+                     what);
     TRY(as_axis(c, x, "axis2", j->axis2));
     double d = j->axis[0] * j->axis2[0] + j->axis[1] * j->axis2[1] + j->axis[2] * j->axis2[2];
-    if (fabs(d) > 1e-9) return fail_at(c, x, "universal joint: axis2 must be orthogonal to axis (cos = %.3g)", d);
+    if (fabs(d) > 1e-9)
+      return fail_at(c, x, "universal joint: axis2 must be orthogonal to axis (cos = %.3g)", d);
   } else if (x) {
     return fail_at(c, x, "key 'axis2' applies to universal joints only");
   }
@@ -851,7 +921,8 @@ static int parse_driver(ctx *c, yaml_node_t *n, int idx) {
   fmbd_scene_driver *d = &c->s->drivers[idx];
   char what[160];
   snprintf(what, sizeof what, "driver %d", idx + 1);
-  if (n->type != YAML_MAPPING_NODE) return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
+  if (n->type != YAML_MAPPING_NODE)
+    return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
   d->loc = loc_of(n);
   yaml_node_t *x = get(c, n, "name");
   if (x) {
@@ -868,12 +939,18 @@ static int parse_driver(ctx *c, yaml_node_t *n, int idx) {
   yaml_node_t *jn = get(c, n, "joint"), *bn = get(c, n, "body"), *cn = get(c, n, "coordinate");
   if (jn && bn) return fail_at(c, bn, "%s: give joint or body, not both", what);
   if (jn) {
-    if (cn) return fail_at(c, cn, "%s: 'coordinate' is for body drivers; a joint driver drives the joint's own coordinate", what);
+    if (cn)
+      return fail_at(
+          c, cn,
+          "%s: 'coordinate' is for body drivers; a joint driver drives the joint's own coordinate",
+          what);
     TRY(find_joint(c, jn, "joint", &d->joint));
     int k = c->s->joints[d->joint].kind;
     if (k != FMBD_JOINT_REVOLUTE && k != FMBD_JOINT_PRISMATIC && k != FMBD_JOINT_CYLINDRICAL) {
-      return fail_at(c, jn, "%s: a %s joint has no single coordinate to drive (revolute, prismatic or cylindrical)", what,
-                     joint_names[k]);
+      return fail_at(
+          c, jn,
+          "%s: a %s joint has no single coordinate to drive (revolute, prismatic or cylindrical)",
+          what, joint_names[k]);
     }
   } else if (bn) {
     TRY(body_ref(c, bn, "body", &d->body));
@@ -881,7 +958,8 @@ static int parse_driver(ctx *c, yaml_node_t *n, int idx) {
     if (!cn) return fail_at(c, n, "%s: missing key 'coordinate' (x, y or z)", what);
     const char *t;
     TRY(as_str(c, cn, "coordinate", &t));
-    if (strlen(t) != 1 || t[0] < 'x' || t[0] > 'z') return fail_at(c, cn, "coordinate must be x, y or z, not '%s'", t);
+    if (strlen(t) != 1 || t[0] < 'x' || t[0] > 'z')
+      return fail_at(c, cn, "coordinate must be x, y or z, not '%s'", t);
     d->coordinate = t[0] - 'x';
   } else {
     return fail_at(c, n, "%s: missing key 'joint' (or 'body' and 'coordinate')", what);
@@ -892,7 +970,8 @@ static int parse_driver(ctx *c, yaml_node_t *n, int idx) {
     fmbd_scene_driver *e = &c->s->drivers[i];
     if ((d->joint >= 0 && e->joint == d->joint) ||
         (d->body >= 0 && e->body == d->body && e->coordinate == d->coordinate)) {
-      return fail_at(c, n, "%s drives the same coordinate as driver '%s' (line %d)", what, e->name, e->loc.line);
+      return fail_at(c, n, "%s drives the same coordinate as driver '%s' (line %d)", what, e->name,
+                     e->loc.line);
     }
   }
   return 0;
@@ -902,7 +981,8 @@ static int parse_load(ctx *c, yaml_node_t *n, int idx) {
   fmbd_scene_load *l = &c->s->loads[idx];
   char what[160];
   snprintf(what, sizeof what, "load %d", idx + 1);
-  if (n->type != YAML_MAPPING_NODE) return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
+  if (n->type != YAML_MAPPING_NODE)
+    return fail_at(c, n, "%s must be a mapping, not %s", what, kind_name(n));
   l->loc = loc_of(n);
   yaml_node_t *x = get(c, n, "name");
   if (x) {
@@ -913,10 +993,12 @@ static int parse_load(ctx *c, yaml_node_t *n, int idx) {
     if (!l->name) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
     snprintf(l->name, 32, "load%d", idx + 1);
   }
-  static const char *const keys[] = {"name", "type", "body", "point", "interface", "node",
-                                     "nearest", "direction", "frame", "function", NULL};
+  static const char *const keys[] = {"name",      "type",     "body",    "point",
+                                     "interface", "node",     "nearest", "direction",
+                                     "frame",     "function", NULL};
   TRY(check_map(c, n, what, keys));
-  if (!(x = get(c, n, "type"))) return fail_at(c, n, "%s: missing key 'type' (force or torque)", what);
+  if (!(x = get(c, n, "type")))
+    return fail_at(c, n, "%s: missing key 'type' (force or torque)", what);
   const char *t;
   TRY(as_str(c, x, "load type", &t));
   if (!strcmp(t, "force")) {
@@ -933,10 +1015,13 @@ static int parse_load(ctx *c, yaml_node_t *n, int idx) {
   if (l->kind == FMBD_LOAD_TORQUE && l->at.kind == FMBD_AT_POINT) {
     return fail_at(c, get(c, n, "point"), "%s: a torque has no point of application", what);
   }
-  if (c->s->bodies[l->body].kind == FMBD_SCENE_RIGID && l->at.kind != FMBD_AT_POINT && l->at.kind != FMBD_AT_DEFAULT) {
-    return fail_at(c, n, "%s: body '%s' is rigid: give 'point' (body frame)", what, c->s->bodies[l->body].name);
+  if (c->s->bodies[l->body].kind == FMBD_SCENE_RIGID && l->at.kind != FMBD_AT_POINT &&
+      l->at.kind != FMBD_AT_DEFAULT) {
+    return fail_at(c, n, "%s: body '%s' is rigid: give 'point' (body frame)", what,
+                   c->s->bodies[l->body].name);
   }
-  if (!(x = get(c, n, "direction"))) return fail_at(c, n, "%s: missing key 'direction' (a vector, scaled by function)", what);
+  if (!(x = get(c, n, "direction")))
+    return fail_at(c, n, "%s: missing key 'direction' (a vector, scaled by function)", what);
   TRY(as_vec3(c, x, "direction", l->direction));
   if ((x = get(c, n, "frame"))) {
     TRY(as_str(c, x, "frame", &t));
@@ -968,22 +1053,26 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
   if ((x = get(c, n, "momentum"))) TRY(as_bool(c, x, "momentum", &s->momentum));
   if ((x = get(c, n, "points"))) {
     if (x->type != YAML_SEQUENCE_NODE) return fail_at(c, x, "points must be a list");
-    for (yaml_node_item_t *it = x->data.sequence.items.start; it < x->data.sequence.items.top; it++) {
+    for (yaml_node_item_t *it = x->data.sequence.items.start; it < x->data.sequence.items.top;
+         it++) {
       yaml_node_t *p = node(c, *it);
       TRY(grow((void **)&s->outputs, s->noutputs, sizeof *s->outputs));
       fmbd_scene_output *o = &s->outputs[s->noutputs++];
       char what[160];
       snprintf(what, sizeof what, "output point %d", s->noutputs);
-      if (p->type != YAML_MAPPING_NODE) return fail_at(c, p, "%s must be a mapping, not %s", what, kind_name(p));
+      if (p->type != YAML_MAPPING_NODE)
+        return fail_at(c, p, "%s must be a mapping, not %s", what, kind_name(p));
       o->loc = loc_of(p);
       yaml_node_t *y = get(c, p, "name");
       if (!y) return fail_at(c, p, "%s: missing key 'name' (the group /outputs/NAME)", what);
       TRY(check_name(c, y, "output name", &o->name));
       for (int i = 0; i + 1 < s->noutputs; i++) {
-        if (!strcmp(s->outputs[i].name, o->name)) return fail_at(c, y, "a second output named '%s'", o->name);
+        if (!strcmp(s->outputs[i].name, o->name))
+          return fail_at(c, y, "a second output named '%s'", o->name);
       }
       snprintf(what, sizeof what, "output '%s'", o->name);
-      static const char *const pk[] = {"name", "body", "point", "interface", "node", "nearest", "quantities", NULL};
+      static const char *const pk[] = {"name", "body",    "point",      "interface",
+                                       "node", "nearest", "quantities", NULL};
       TRY(check_map(c, p, what, pk));
       if (!(y = get(c, p, "body"))) return fail_at(c, p, "%s: missing key 'body'", what);
       TRY(body_ref(c, y, "body", &o->body));
@@ -991,14 +1080,18 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
       TRY(parse_at_keys(c, p, what, &o->at));
       bool flex = s->bodies[o->body].kind == FMBD_SCENE_FLEXIBLE;
       if (!flex && o->at.kind != FMBD_AT_POINT && o->at.kind != FMBD_AT_DEFAULT) {
-        return fail_at(c, p, "%s: body '%s' is rigid: give 'point' (body frame)", what, s->bodies[o->body].name);
+        return fail_at(c, p, "%s: body '%s' is rigid: give 'point' (body frame)", what,
+                       s->bodies[o->body].name);
       }
       o->quantities = FMBD_OUT_POSITION;
       if ((y = get(c, p, "quantities"))) {
-        if (y->type != YAML_SEQUENCE_NODE) return fail_at(c, y, "quantities must be a list, e.g. [position, velocity]");
+        if (y->type != YAML_SEQUENCE_NODE)
+          return fail_at(c, y, "quantities must be a list, e.g. [position, velocity]");
         o->quantities = 0;
-        static const char *const qn[] = {"position", "velocity", "acceleration", "von_mises", "stress", "strain", NULL};
-        for (yaml_node_item_t *qt = y->data.sequence.items.start; qt < y->data.sequence.items.top; qt++) {
+        static const char *const qn[] = {
+            "position", "velocity", "acceleration", "von_mises", "stress", "strain", NULL};
+        for (yaml_node_item_t *qt = y->data.sequence.items.start; qt < y->data.sequence.items.top;
+             qt++) {
           yaml_node_t *q = node(c, *qt);
           const char *t;
           TRY(as_str(c, q, "quantity", &t));
@@ -1007,11 +1100,17 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
             if (!strcmp(qn[i], t)) k = i;
           }
           if (k < 0) {
-            return fail_at(c, q, "unknown quantity '%s' (position, velocity, acceleration, von_mises, stress, strain)", t);
+            return fail_at(c, q,
+                           "unknown quantity '%s' (position, velocity, acceleration, von_mises, "
+                           "stress, strain)",
+                           t);
           }
-          if (k >= 3 && !flex) return fail_at(c, q, "%s: '%s' needs a flexible body; '%s' is rigid", what, t, s->bodies[o->body].name);
+          if (k >= 3 && !flex)
+            return fail_at(c, q, "%s: '%s' needs a flexible body; '%s' is rigid", what, t,
+                           s->bodies[o->body].name);
           if (k >= 3 && (o->at.kind == FMBD_AT_POINT || o->at.kind == FMBD_AT_DEFAULT)) {
-            return fail_at(c, q, "%s: '%s' is known at nodes: give node, interface or nearest", what, t);
+            return fail_at(c, q, "%s: '%s' is known at nodes: give node, interface or nearest",
+                           what, t);
           }
           o->quantities |= 1u << k;
         }
@@ -1020,15 +1119,18 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
     }
   }
   if ((x = get(c, n, "reactions"))) {
-    if (x->type != YAML_SEQUENCE_NODE) return fail_at(c, x, "reactions must be a list of joint names");
-    for (yaml_node_item_t *it = x->data.sequence.items.start; it < x->data.sequence.items.top; it++) {
+    if (x->type != YAML_SEQUENCE_NODE)
+      return fail_at(c, x, "reactions must be a list of joint names");
+    for (yaml_node_item_t *it = x->data.sequence.items.start; it < x->data.sequence.items.top;
+         it++) {
       TRY(grow((void **)&s->reactions, s->nreactions, sizeof *s->reactions));
       TRY(grow((void **)&s->reaction_locs, s->nreactions, sizeof *s->reaction_locs));
       yaml_node_t *r = node(c, *it);
       s->reaction_locs[s->nreactions] = loc_of(r);
       TRY(find_joint(c, r, "reaction", &s->reactions[s->nreactions]));
       for (int i = 0; i < s->nreactions; i++) {
-        if (s->reactions[i] == s->reactions[s->nreactions]) return fail_at(c, r, "joint '%s' listed twice", scalar(r));
+        if (s->reactions[i] == s->reactions[s->nreactions])
+          return fail_at(c, r, "joint '%s' listed twice", scalar(r));
       }
       s->nreactions++;
     }
@@ -1037,9 +1139,11 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
 }
 
 typedef int (*item_fn)(ctx *, yaml_node_t *, int);
-static int parse_list(ctx *c, yaml_node_t *n, const char *what, void **arr, int *count, size_t size, item_fn f) {
+static int parse_list(ctx *c, yaml_node_t *n, const char *what, void **arr, int *count, size_t size,
+                      item_fn f) {
   if (n->type != YAML_SEQUENCE_NODE) {
-    return fail_at(c, n, "%s must be a list (lines starting with '- '), not %s", what, kind_name(n));
+    return fail_at(c, n, "%s must be a list (lines starting with '- '), not %s", what,
+                   kind_name(n));
   }
   for (yaml_node_item_t *it = n->data.sequence.items.start; it < n->data.sequence.items.top; it++) {
     TRY(grow(arr, *count, size));
@@ -1050,23 +1154,26 @@ static int parse_list(ctx *c, yaml_node_t *n, const char *what, void **arr, int 
 }
 
 static int parse_root(ctx *c, yaml_node_t *root) {
-  static const char *const keys[] = {"title", "gravity", "solver", "bodies", "joints", "drivers",
-                                     "loads", "outputs", NULL};
+  static const char *const keys[] = {"title",   "gravity", "solver",  "bodies", "joints",
+                                     "drivers", "loads",   "outputs", NULL};
   TRY(check_map(c, root, "the scene", keys));
   fmbd_scene *s = c->s;
   yaml_node_t *x;
   if ((x = get(c, root, "title"))) TRY(dup_str(c, x, "title", &s->title));
   if ((x = get(c, root, "gravity"))) TRY(as_vec3(c, x, "gravity", s->gravity));
-  if (!(x = get(c, root, "solver"))) return fail_at(c, root, "the scene has no 'solver' section (t_end at least)");
+  if (!(x = get(c, root, "solver")))
+    return fail_at(c, root, "the scene has no 'solver' section (t_end at least)");
   TRY(parse_solver(c, x));
   if (!(x = get(c, root, "bodies"))) return fail_at(c, root, "the scene has no 'bodies' section");
   TRY(parse_list(c, x, "bodies", (void **)&s->bodies, &s->nbodies, sizeof *s->bodies, parse_body));
   if (s->nbodies == 0) return fail_at(c, x, "bodies is empty");
   if ((x = get(c, root, "joints"))) {
-    TRY(parse_list(c, x, "joints", (void **)&s->joints, &s->njoints, sizeof *s->joints, parse_joint));
+    TRY(parse_list(c, x, "joints", (void **)&s->joints, &s->njoints, sizeof *s->joints,
+                   parse_joint));
   }
   if ((x = get(c, root, "drivers"))) {
-    TRY(parse_list(c, x, "drivers", (void **)&s->drivers, &s->ndrivers, sizeof *s->drivers, parse_driver));
+    TRY(parse_list(c, x, "drivers", (void **)&s->drivers, &s->ndrivers, sizeof *s->drivers,
+                   parse_driver));
   }
   if ((x = get(c, root, "loads"))) {
     TRY(parse_list(c, x, "loads", (void **)&s->loads, &s->nloads, sizeof *s->loads, parse_load));
@@ -1116,9 +1223,11 @@ int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *tex
   parser_ok = true;
   yaml_parser_set_input_string(&parser, (const unsigned char *)text, (size_t)len);
   if (!yaml_parser_load(&parser, &c.doc)) {
-    fmbd_err_contextf(file, "%d:%d", (int)parser.problem_mark.line + 1, (int)parser.problem_mark.column + 1);
-    FMBD_GFAIL(FMBD_ERR_SCENE, "not valid YAML: %s%s%s", parser.problem ? parser.problem : "syntax error",
-               parser.context ? " " : "", parser.context ? parser.context : "");
+    fmbd_err_contextf(file, "%d:%d", (int)parser.problem_mark.line + 1,
+                      (int)parser.problem_mark.column + 1);
+    FMBD_GFAIL(FMBD_ERR_SCENE, "not valid YAML: %s%s%s",
+               parser.problem ? parser.problem : "syntax error", parser.context ? " " : "",
+               parser.context ? parser.context : "");
   }
   doc_ok = true;
   yaml_node_t *root = yaml_document_get_root_node(&c.doc);
@@ -1133,7 +1242,8 @@ int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *tex
     if (yaml_parser_load(&parser, &extra)) {
       yaml_node_t *r2 = yaml_document_get_root_node(&extra);
       if (r2) {
-        fmbd_err_contextf(file, "%d:%d", (int)r2->start_mark.line + 1, (int)r2->start_mark.column + 1);
+        fmbd_err_contextf(file, "%d:%d", (int)r2->start_mark.line + 1,
+                          (int)r2->start_mark.column + 1);
         yaml_document_delete(&extra);
         FMBD_GFAIL(FMBD_ERR_SCENE, "a second YAML document: a scene is one document");
       }
@@ -1149,7 +1259,9 @@ done:
   return rc;
 }
 
-int fmbd_scene_read(const char *file, fmbd_scene **out) { return fmbd_scene_read_dir(file, NULL, out); }
+int fmbd_scene_read(const char *file, fmbd_scene **out) {
+  return fmbd_scene_read_dir(file, NULL, out);
+}
 
 int fmbd_scene_read_dir(const char *file, const char *body_dir, fmbd_scene **out) {
   int rc = 0;
@@ -1294,16 +1406,18 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
     if (!is_cb && ch->cb) {
       sb_add(&b, "\n%s: %s%s%s\n\tcbcheck %s%s%s%s%s -o $@\n", bd->file, ch->cb, ch->fe ? " " : "",
              ch->fe ? ch->fe : "", ch->cb, ch->fe ? " --fe " : "", ch->fe ? ch->fe : "",
-             ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "", ch->cbcheck_args ? ch->cbcheck_args : "");
+             ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
+             ch->cbcheck_args ? ch->cbcheck_args : "");
     }
     const char *cb = is_cb ? bd->file : ch->cb;
     if (cb && ch->fe) {
-      sb_add(&b, "\n%s: %s\n\tfe2cb %s%s%s -o $@\n", cb, ch->fe, ch->fe, ch->fe2cb_args && ch->fe2cb_args[0] ? " " : "",
-             ch->fe2cb_args ? ch->fe2cb_args : "");
+      sb_add(&b, "\n%s: %s\n\tfe2cb %s%s%s -o $@\n", cb, ch->fe, ch->fe,
+             ch->fe2cb_args && ch->fe2cb_args[0] ? " " : "", ch->fe2cb_args ? ch->fe2cb_args : "");
     }
     if (ch->fe && ch->geometry) {
       sb_add(&b, "\n%s: %s\n\tmesh2fe %s%s%s -o $@\n", ch->fe, ch->geometry, ch->geometry,
-             ch->mesh2fe_args && ch->mesh2fe_args[0] ? " " : "", ch->mesh2fe_args ? ch->mesh2fe_args : "");
+             ch->mesh2fe_args && ch->mesh2fe_args[0] ? " " : "",
+             ch->mesh2fe_args ? ch->mesh2fe_args : "");
     }
   }
   if (b.bad) {

@@ -33,14 +33,14 @@ enum fmbd_scene_fn_kind {
   FMBD_FN_LINEAR,        ///< v0 + rate (t - t0) for all t (constant-speed drivers)
 };
 typedef struct fmbd_scene_fn {
-  int kind;                 ///< fmbd_scene_fn_kind
-  double value;             ///< constant
-  double t0, t1, v0, v1;    ///< ramp; linear uses t0, v0
-  double rate;              ///< linear: slope (unit/s)
-  bool smooth;              ///< ramp: 3s^2 - 2s^3 blend instead of linear
+  int kind;                                       ///< fmbd_scene_fn_kind
+  double value;                                   ///< constant
+  double t0, t1, v0, v1;                          ///< ramp; linear uses t0, v0
+  double rate;                                    ///< linear: slope (unit/s)
+  bool smooth;                                    ///< ramp: 3s^2 - 2s^3 blend instead of linear
   double amplitude, frequency_hz, phase, offset;  ///< sine
-  int64_t n;                ///< table: number of points (>= 2, t strictly increasing)
-  double *t, *v;            ///< table points (owned)
+  int64_t n;      ///< table: number of points (>= 2, t strictly increasing)
+  double *t, *v;  ///< table points (owned)
 } fmbd_scene_fn;
 
 /// @brief The same function as the multibody core's fmbd_mbs_fn (table points borrowed from
@@ -59,22 +59,22 @@ typedef struct fmbd_scene_chain {
 typedef struct fmbd_scene_body {
   char *name;
   fmbd_scene_loc loc;
-  int kind;                  ///< fmbd_scene_body_kind
+  int kind;  ///< fmbd_scene_body_kind
   // --- rigid: inertia in the body frame (geometry shorthand filled these) ---
-  double mass;               ///< kg
-  double com[3];             ///< centre of mass, body frame
-  double inertia[9];         ///< 3x3 row-major about the centre of mass, body frame
+  double mass;        ///< kg
+  double com[3];      ///< centre of mass, body frame
+  double inertia[9];  ///< 3x3 row-major about the centre of mass, body frame
   // --- flexible ---
-  char *file;                ///< .rflex.h5 or .cb.h5, resolved against the scene's folder
+  char *file;  ///< .rflex.h5 or .cb.h5, resolved against the scene's folder
   fmbd_scene_loc file_loc;
-  int64_t modes;             ///< first N flexible modes kept; 0 = all in the file
+  int64_t modes;  ///< first N flexible modes kept; 0 = all in the file
   bool damping_set;
-  double damping_ratio;      ///< modal damping ratio of every kept mode (default 0)
+  double damping_ratio;  ///< modal damping ratio of every kept mode (default 0)
   fmbd_scene_chain chain;
   // --- initial state (world) ---
-  double position[3];        ///< body-frame origin
-  double rotation[9];        ///< body -> world, row-major
-  double velocity[3];        ///< of the body-frame origin
+  double position[3];  ///< body-frame origin
+  double rotation[9];  ///< body -> world, row-major
+  double velocity[3];  ///< of the body-frame origin
   double angular_velocity[3];
 } fmbd_scene_body;
 
@@ -98,7 +98,7 @@ enum fmbd_scene_at_kind {
   FMBD_AT_NEAREST,      ///< p: the flexible-body node nearest to this body-frame point
 };
 typedef struct fmbd_scene_at {
-  int kind;             ///< fmbd_scene_at_kind
+  int kind;  ///< fmbd_scene_at_kind
   double p[3];
   char *interface;
   int64_t node;
@@ -108,23 +108,23 @@ typedef struct fmbd_scene_at {
 typedef struct fmbd_scene_joint {
   char *name;
   fmbd_scene_loc loc;
-  int kind;                 ///< fmbd_scene_joint_kind
-  int body[2];              ///< body indices, -1 = ground
+  int kind;     ///< fmbd_scene_joint_kind
+  int body[2];  ///< body indices, -1 = ground
   fmbd_scene_loc body_loc[2];
-  fmbd_scene_at at[2];      ///< attachment on each side
+  fmbd_scene_at at[2];  ///< attachment on each side
   bool has_point;
-  double point[3];          ///< world point at the initial configuration
+  double point[3];  ///< world point at the initial configuration
   fmbd_scene_loc point_loc;
-  double axis[3];           ///< unit, world: revolute/prismatic/cylindrical axis, universal axis on body 1
-  double axis2[3];          ///< unit, world: universal axis on body 2 (orthogonal to axis)
+  double axis[3];   ///< unit, world: revolute/prismatic/cylindrical axis, universal axis on body 1
+  double axis2[3];  ///< unit, world: universal axis on body 2 (orthogonal to axis)
 } fmbd_scene_joint;
 
 typedef struct fmbd_scene_driver {
   char *name;
   fmbd_scene_loc loc;
-  int joint;                ///< joint index (revolute/prismatic/cylindrical coordinate), or -1
-  int body;                 ///< body index for a body coordinate, or -1
-  int coordinate;           ///< body coordinate 0..2 = x y z of the origin (world)
+  int joint;       ///< joint index (revolute/prismatic/cylindrical coordinate), or -1
+  int body;        ///< body index for a body coordinate, or -1
+  int coordinate;  ///< body coordinate 0..2 = x y z of the origin (world)
   fmbd_scene_fn fn;
 } fmbd_scene_driver;
 
@@ -132,12 +132,12 @@ enum fmbd_scene_load_kind { FMBD_LOAD_FORCE = 0, FMBD_LOAD_TORQUE };
 typedef struct fmbd_scene_load {
   char *name;
   fmbd_scene_loc loc;
-  int kind;                 ///< fmbd_scene_load_kind
+  int kind;  ///< fmbd_scene_load_kind
   int body;
-  fmbd_scene_at at;         ///< point of application (forces)
-  bool body_frame;          ///< direction given in the body frame (default world)
-  double direction[3];      ///< load = direction * fn(t)
-  fmbd_scene_fn fn;         ///< default constant 1
+  fmbd_scene_at at;     ///< point of application (forces)
+  bool body_frame;      ///< direction given in the body frame (default world)
+  double direction[3];  ///< load = direction * fn(t)
+  fmbd_scene_fn fn;     ///< default constant 1
 } fmbd_scene_load;
 
 /// Quantities of a point output (bit flags).
@@ -145,37 +145,37 @@ enum {
   FMBD_OUT_POSITION = 1,
   FMBD_OUT_VELOCITY = 2,
   FMBD_OUT_ACCELERATION = 4,
-  FMBD_OUT_VON_MISES = 8,   ///< flexible nodes; needs /modes/stress
-  FMBD_OUT_STRESS = 16,     ///< the 6 components xx yy zz xy yz zx
-  FMBD_OUT_STRAIN = 32,     ///< von Mises equivalent strain and the 6 components (Hooke)
+  FMBD_OUT_VON_MISES = 8,  ///< flexible nodes; needs /modes/stress
+  FMBD_OUT_STRESS = 16,    ///< the 6 components xx yy zz xy yz zx
+  FMBD_OUT_STRAIN = 32,    ///< von Mises equivalent strain and the 6 components (Hooke)
 };
 typedef struct fmbd_scene_output {
   char *name;
   fmbd_scene_loc loc;
   int body;
   fmbd_scene_at at;
-  unsigned quantities;      ///< FMBD_OUT_* flags
+  unsigned quantities;  ///< FMBD_OUT_* flags
 } fmbd_scene_output;
 
 typedef struct fmbd_scene_solver {
-  double t_end;             ///< s (required)
-  double rho_inf;           ///< spectral radius at infinity, default 0.9
-  bool fixed;               ///< fixed step (`step` given)
-  double step;              ///< fixed step, s
-  double first_step;        ///< variable: default 1e-6 (paper [H])
-  double max_step;          ///< variable: default 1e-2 (paper [H])
-  double min_step;          ///< default 1e-12: Newton failure at this size stops the run
-  double tolerance;         ///< local error tolerance (variable steps), default 1e-4
-  double newton_tol;        ///< scaled Newton increment tolerance, default 1e-8
-  int newton_max;           ///< Newton iterations per step, default 10
+  double t_end;       ///< s (required)
+  double rho_inf;     ///< spectral radius at infinity, default 0.9
+  bool fixed;         ///< fixed step (`step` given)
+  double step;        ///< fixed step, s
+  double first_step;  ///< variable: default 1e-6 (paper [H])
+  double max_step;    ///< variable: default 1e-2 (paper [H])
+  double min_step;    ///< default 1e-12: Newton failure at this size stops the run
+  double tolerance;   ///< local error tolerance (variable steps), default 1e-4
+  double newton_tol;  ///< scaled Newton increment tolerance, default 1e-8
+  int newton_max;     ///< Newton iterations per step, default 10
 } fmbd_scene_solver;
 
 typedef struct fmbd_scene {
-  char *file;               ///< the scene file's name as given
-  char *dir;                ///< its folder ("." if none), against which body files resolve
+  char *file;  ///< the scene file's name as given
+  char *dir;   ///< its folder ("." if none), against which body files resolve
   char *title;
-  char *text;               ///< the scene file's text as read (provenance in the run file)
-  double gravity[3];        ///< default 0
+  char *text;         ///< the scene file's text as read (provenance in the run file)
+  double gravity[3];  ///< default 0
   fmbd_scene_solver solver;
   int nbodies;
   fmbd_scene_body *bodies;
@@ -188,11 +188,11 @@ typedef struct fmbd_scene {
   int noutputs;
   fmbd_scene_output *outputs;
   int nreactions;
-  int *reactions;           ///< joint indices whose reactions are written
+  int *reactions;  ///< joint indices whose reactions are written
   fmbd_scene_loc *reaction_locs;
-  bool energy;              ///< write /energy/{kinetic,potential,strain}
-  bool momentum;            ///< write /momentum/{linear,angular} (about the world origin)
-  double output_every;      ///< output interval in s; 0 = every accepted step
+  bool energy;          ///< write /energy/{kinetic,potential,strain}
+  bool momentum;        ///< write /momentum/{linear,angular} (about the world origin)
+  double output_every;  ///< output interval in s; 0 = every accepted step
 } fmbd_scene;
 
 /// @brief Read a scene file ("-": standard input). Every fault is reported with
@@ -227,21 +227,21 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text);
 
 /// A scene turned into an fmbd_mbs system, with what the outputs need to be evaluated.
 typedef struct fmbd_scene_model {
-  fmbd_mbs *mbs;             ///< owned; fmbd_mbs_init not yet called
-  int nbodies;               ///< = scene nbodies
-  int *body_id;              ///< scene body -> mbs body id
-  fmbd_rflex **flex;         ///< per body: the modal body (NULL for rigid), owned
-  double *E, *nu;            ///< per body: material of a flexible body (strain outputs)
-  char **file_kind;          ///< per body: "fmbd-rflex" / "fmbd-cb" / NULL (rigid)
-  int *joint_id;             ///< scene joint -> mbs joint id
+  fmbd_mbs *mbs;      ///< owned; fmbd_mbs_init not yet called
+  int nbodies;        ///< = scene nbodies
+  int *body_id;       ///< scene body -> mbs body id
+  fmbd_rflex **flex;  ///< per body: the modal body (NULL for rigid), owned
+  double *E, *nu;     ///< per body: material of a flexible body (strain outputs)
+  char **file_kind;   ///< per body: "fmbd-rflex" / "fmbd-cb" / NULL (rigid)
+  int *joint_id;      ///< scene joint -> mbs joint id
   int noutputs;
-  int *out_point;            ///< per output: mbs point id
-  int *out_body;             ///< per output: scene body index
-  int64_t *out_node;         ///< per output: node of a flexible body, or -1
-  double **out_sigma;        ///< per output: 6 x nm modal stress (stress/strain asked), or NULL
-  int ninputs;               ///< body files read (provenance)
-  char **input_name;         ///< owned names
-  char (*input_sha)[65];     ///< their SHA-256
+  int *out_point;         ///< per output: mbs point id
+  int *out_body;          ///< per output: scene body index
+  int64_t *out_node;      ///< per output: node of a flexible body, or -1
+  double **out_sigma;     ///< per output: 6 x nm modal stress (stress/strain asked), or NULL
+  int ninputs;            ///< body files read (provenance)
+  char **input_name;      ///< owned names
+  char (*input_sha)[65];  ///< their SHA-256
 } fmbd_scene_model;
 
 /// @brief Build the multibody system of a scene: open every body file (.rflex.h5 or .cb.h5;
@@ -263,8 +263,9 @@ double fmbd_scene_strain(double E, double nu, const double sigma[6], double eps[
 void fmbd_scene_model_destroy(fmbd_scene_model **m);
 /// @brief A flexible body from a .cb.h5 (format fmbd-cb): the flexible eigenvectors of the
 /// reduced problem (/reduced/eigenvectors without /reduced/rigid), expanded to the FE dofs
-/// (qF = [Phi Psi; 0 I] Xi, mass-normalised), and its inertia invariants from the lumped
-/// nodal masses (docs/THEORY.md section 9: Adams-style). Modal stress is not available from a cb file.
+/// (qF = [Phi Psi; 0 I] Xi, mass-normalised), built by fmbd_modal_build (the one producer of
+/// reduced bodies, as cbcheck's), its inertia invariants with the mass the modes come from
+/// (docs/THEORY.md section 9). No modal stress (computed on demand by cbcheck).
 /// @param[out] out caller destroys with fmbd_rflex_destroy
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out);
 

@@ -8,15 +8,16 @@
 #include <string.h>
 
 #include "fmbd_alloc.h"
+#include "fmbd_cb.h"
 #include "fmbd_err.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
 #include "fmbd_scene.h"
 
-#define SFAIL(s, loc, code, ...)                                                             \
-  do {                                                                                     \
-    fmbd_scene_context((s), (loc));                                                        \
-    FMBD_GFAIL(code, __VA_ARGS__);                                                         \
+#define SFAIL(s, loc, code, ...)    \
+  do {                              \
+    fmbd_scene_context((s), (loc)); \
+    FMBD_GFAIL(code, __VA_ARGS__);  \
   } while (0)
 
 void fmbd_scene_settings(const fmbd_scene *s, fmbd_mbs_settings *set) {
@@ -37,11 +38,16 @@ void fmbd_scene_settings(const fmbd_scene *s, fmbd_mbs_settings *set) {
 
 fmbd_mbs_fn fmbd_scene_fn_to_mbs(const fmbd_scene_fn *f) {
   switch (f->kind) {
-    case FMBD_FN_RAMP: return fmbd_mbs_fn_ramp(f->t0, f->v0, f->t1, f->v1, f->smooth);
-    case FMBD_FN_SINE: return fmbd_mbs_fn_sine(f->offset, f->amplitude, f->frequency_hz, f->phase);
-    case FMBD_FN_TABLE: return fmbd_mbs_fn_table(f->n, f->t, f->v);
-    case FMBD_FN_LINEAR: return fmbd_mbs_fn_linear(f->t0, f->v0, f->rate);
-    default: return fmbd_mbs_fn_constant(f->value);
+    case FMBD_FN_RAMP:
+      return fmbd_mbs_fn_ramp(f->t0, f->v0, f->t1, f->v1, f->smooth);
+    case FMBD_FN_SINE:
+      return fmbd_mbs_fn_sine(f->offset, f->amplitude, f->frequency_hz, f->phase);
+    case FMBD_FN_TABLE:
+      return fmbd_mbs_fn_table(f->n, f->t, f->v);
+    case FMBD_FN_LINEAR:
+      return fmbd_mbs_fn_linear(f->t0, f->v0, f->rate);
+    default:
+      return fmbd_mbs_fn_constant(f->value);
   }
 }
 
@@ -77,169 +83,33 @@ static int truncate_modes(fmbd_rflex *r, int64_t n) {
 }
 
 // --- a modal body from a cb file ------------------------------------------------------------
+// The flexible modes of the reduced eigenproblem (those /reduced/rigid does not flag), turned
+// into a body by the one producer, fmbd_modal_build, exactly as cbcheck does for a selection.
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out) {
-  int rc = 0;
-  fmbd_rflex *r = NULL;
-  double *Phi = NULL, *Psi = NULL, *Xi = NULL, *chibar = NULL, *nodes = NULL, *nmass = NULL;
-  int64_t *idof = NULL, *bdof = NULL, *rigid = NULL, *dofs = NULL;
-  double *U = NULL;  // 3 x nm translations of the current node
-  char **inames = NULL;
-  int nif = 0;
+  int rc = FMBD_OK;
+  fmbd_cb *cb = NULL;
+  fmbd_fe_body *desc = NULL;
+  double *Xi = NULL, *chibar = NULL;
   *out = NULL;
-  int64_t d2[2] = {-1, 3}, d1[1] = {-1};
-  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/nodes", 2, d2, &nodes));
-  d2[1] = 3;
-  int64_t nnodes = d2[0];
-  d1[0] = nnodes;
-  FMBD_GCALL(fmbd_h5_read_f64(f, "/mesh/node_mass", 1, d1, &nmass));
-  int64_t dd[2] = {-1, 2};
-  FMBD_GCALL(fmbd_h5_read_i64(f, "/dofs", 2, dd, &dofs));
-  int64_t ndof = dd[0];
-  int64_t di[1] = {-1}, db[1] = {-1};
-  FMBD_GCALL(fmbd_h5_read_i64(f, "/cb/interior_dofs", 1, di, &idof));
-  FMBD_GCALL(fmbd_h5_read_i64(f, "/cb/boundary_dofs", 1, db, &bdof));
-  int64_t ns = di[0], nb = db[0];
-  int64_t dphi[2] = {ns, -1}, dpsi[2] = {ns, nb};
-  FMBD_GCALL(fmbd_h5_read_f64(f, "/cb/Phi", 2, dphi, &Phi));  // row-major (ns, Nd)
-  int64_t nd = dphi[1];
-  if (nb > 0) FMBD_GCALL(fmbd_h5_read_f64(f, "/cb/Psi", 2, dpsi, &Psi));  // (ns, nb)
-  int64_t dxi[2] = {nd + nb, -1}, dch[1] = {-1}, drg[1] = {-1};
-  FMBD_GCALL(fmbd_h5_read_f64(f, "/reduced/eigenvectors", 2, dxi, &Xi));  // (Nd+nb, n)
-  FMBD_GCALL(fmbd_h5_read_f64(f, "/reduced/eigenvalues", 1, dch, &chibar));
-  int64_t nev = dxi[1];
-  FMBD_GCHECK(dch[0] == nev, FMBD_ERR_FORMAT, "/reduced/eigenvalues has %lld entries, /reduced/eigenvectors %lld columns",
-              (long long)dch[0], (long long)nev);
-  if (fmbd_h5_exists(f, "/reduced/rigid")) {
-    drg[0] = nev;
-    FMBD_GCALL(fmbd_h5_read_i64(f, "/reduced/rigid", 1, drg, &rigid));
-  }
-  FMBD_GALLOC(r = fmbd_calloc(1, sizeof *r));
-  int64_t nm = 0;
-  for (int64_t k = 0; k < nev; k++) nm += !(rigid ? rigid[k] : chibar[k] < 1e-6 * fabs(chibar[nev - 1]));
-  r->nm = nm;
-  r->ndof = ndof;
-  r->nnodes = nnodes;
-  FMBD_GALLOC(r->eigenvalue = fmbd_malloc(sizeof(double) * (size_t)(nm + 1)));
-  FMBD_GALLOC(r->frequency_hz = fmbd_malloc(sizeof(double) * (size_t)(nm + 1)));
-  FMBD_GALLOC(r->shapes = fmbd_calloc((size_t)(ndof * nm + 1), sizeof(double)));
-  // --- shapes: interior rows Phi xi_d + Psi xi_b, boundary rows xi_b ---
-  for (int64_t k = 0, j = 0; k < nev; k++) {
-    if (rigid ? rigid[k] : chibar[k] < 1e-6 * fabs(chibar[nev - 1])) continue;
-    r->eigenvalue[j] = chibar[k];
-    r->frequency_hz[j] = sqrt(fmax(chibar[k], 0)) / (2 * 3.14159265358979323846);
-    double *sh = r->shapes + ndof * j;
-    for (int64_t i = 0; i < ns; i++) {
-      double v = 0;
-      for (int64_t a = 0; a < nd; a++) v += Phi[i * nd + a] * Xi[a * nev + k];
-      for (int64_t b = 0; b < nb; b++) v += Psi[i * nb + b] * Xi[(nd + b) * nev + k];
-      FMBD_GCHECK(idof[i] >= 0 && idof[i] < ndof, FMBD_ERR_FORMAT, "/cb/interior_dofs: dof out of range");
-      sh[idof[i]] = v;
-    }
-    for (int64_t b = 0; b < nb; b++) {
-      FMBD_GCHECK(bdof[b] >= 0 && bdof[b] < ndof, FMBD_ERR_FORMAT, "/cb/boundary_dofs: dof out of range");
-      sh[bdof[b]] = Xi[(nd + b) * nev + k];
-    }
+  FMBD_GCALL(fmbd_cb_read(f, &cb));
+  FMBD_GCALL(fmbd_fe_read(f, &desc));
+  int64_t nr = cb->nr, nm = nr - cb->n_rigid;
+  FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nm + 1)));
+  FMBD_GALLOC(chibar = fmbd_malloc(sizeof(double) * (size_t)(nm + 1)));
+  for (int64_t k = 0, j = 0; k < nr && j < nm; k++) {
+    if (cb->rigid[k]) continue;
+    chibar[j] = cb->chibar[k];
+    memcpy(Xi + nr * j, cb->Xi + nr * k, sizeof(double) * (size_t)nr);
     j++;
   }
-  FMBD_GALLOC(r->node_xyz = fmbd_malloc(sizeof(double) * (size_t)(3 * nnodes)));
-  memcpy(r->node_xyz, nodes, sizeof(double) * (size_t)(3 * nnodes));  // (nnodes,3) row-major = 3 x nnodes col-major
-  r->node_mass = nmass;
-  nmass = NULL;
-  FMBD_GALLOC(r->dofs = fmbd_malloc(sizeof(int64_t) * (size_t)(2 * ndof)));
-  memcpy(r->dofs, dofs, sizeof(int64_t) * (size_t)(2 * ndof));
-  FMBD_GCALL(fmbd_h5_read_csr(f, "/expand", &r->expand));
-  FMBD_GCHECK(r->expand->nrows == 6 * nnodes && r->expand->ncols == ndof, FMBD_ERR_FORMAT,
-              "/expand is %lld x %lld, expected %lld x %lld", (long long)r->expand->nrows,
-              (long long)r->expand->ncols, (long long)(6 * nnodes), (long long)ndof);
-  // --- rigid-body invariants from /body ---
-  double com[3], Ic[9];
-  FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "mass", 1, &r->mass));
-  FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "center_of_mass", 3, com));
-  FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "inertia", 9, Ic));
-  double tr = (Ic[0] + Ic[4] + Ic[8]) / 2;
-  for (int a = 0; a < 3; a++) {
-    r->first_moment[a] = r->mass * com[a];
-    for (int b = 0; b < 3; b++) {
-      r->second_moment[a + 3 * b] = tr * (a == b) - Ic[3 * a + b] + r->mass * com[a] * com[b];
-    }
-  }
-  // --- flexible invariants: sums over nodes with lumped masses (Adams-style) ---
-  FMBD_GALLOC(r->S1 = fmbd_calloc((size_t)(3 * nm + 1), sizeof(double)));
-  FMBD_GALLOC(r->XS = fmbd_calloc((size_t)(9 * nm + 1), sizeof(double)));
-  FMBD_GALLOC(r->SS = fmbd_calloc((size_t)(9 * nm * nm + 1), sizeof(double)));
-  FMBD_GALLOC(r->Mff = fmbd_calloc((size_t)(nm * nm + 1), sizeof(double)));
-  FMBD_GALLOC(r->Kff = fmbd_calloc((size_t)(nm * nm + 1), sizeof(double)));
-  FMBD_GALLOC(U = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
-  const fmbd_csr *E = r->expand;
-  for (int64_t p = 0; p < nnodes; p++) {
-    double mp = r->node_mass[p];
-    if (mp == 0) continue;
-    for (int a = 0; a < 3; a++) {
-      int64_t row = 6 * p + a;
-      for (int64_t k = 0; k < nm; k++) {
-        double v = 0;
-        for (int64_t e = E->indptr[row]; e < E->indptr[row + 1]; e++) v += E->data[e] * r->shapes[E->indices[e] + ndof * k];
-        U[a + 3 * k] = v;
-      }
-    }
-    const double *x0 = nodes + 3 * p;
-    for (int64_t k = 0; k < nm; k++) {
-      for (int a = 0; a < 3; a++) {
-        r->S1[a + 3 * k] += mp * U[a + 3 * k];
-        for (int b = 0; b < 3; b++) r->XS[a + 3 * b + 9 * k] += mp * x0[a] * U[b + 3 * k];
-      }
-      for (int64_t l = 0; l < nm; l++) {
-        for (int a = 0; a < 3; a++) {
-          for (int b = 0; b < 3; b++) r->SS[a + 3 * b + 9 * k + 9 * nm * l] += mp * U[a + 3 * k] * U[b + 3 * l];
-        }
-      }
-    }
-  }
-  for (int64_t k = 0; k < nm; k++) {
-    r->Mff[k + nm * k] = 1;  // Xi is M_-orthonormal
-    r->Kff[k + nm * k] = r->eigenvalue[k];
-  }
-  // --- interfaces ---
-  FMBD_GCALL(fmbd_h5_list(f, "/interfaces", &nif, &inames));
-  FMBD_GALLOC(r->interfaces = fmbd_calloc((size_t)nif + 1, sizeof *r->interfaces));
-  r->ninterfaces = nif;
-  for (int i = 0; i < nif; i++) {
-    fmbd_rflex_interface *it = &r->interfaces[i];
-    char path[600];
-    snprintf(path, sizeof path, "/interfaces/%s", inames[i]);
-    FMBD_GALLOC(it->name = fmbd_strdup(inames[i]));
-    FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "node", 1, &it->node));
-    FMBD_GCHECK(it->node >= 0 && it->node < nnodes, FMBD_ERR_FORMAT, "%s: node out of range", path);
-    if (fmbd_h5_has_attr(f, path, "kind")) FMBD_GCALL(fmbd_h5_read_attr_str(f, path, "kind", &it->kind));
-    memcpy(it->x0, nodes + 3 * it->node, sizeof it->x0);
-    FMBD_GALLOC(it->translation = fmbd_calloc((size_t)(3 * nm + 1), sizeof(double)));
-    FMBD_GALLOC(it->rotation = fmbd_calloc((size_t)(3 * nm + 1), sizeof(double)));
-    for (int a = 0; a < 6; a++) {
-      int64_t row = 6 * it->node + a;
-      for (int64_t k = 0; k < nm; k++) {
-        double v = 0;
-        for (int64_t e = E->indptr[row]; e < E->indptr[row + 1]; e++) v += E->data[e] * r->shapes[E->indices[e] + ndof * k];
-        (a < 3 ? it->translation : it->rotation)[a % 3 + 3 * k] = v;
-      }
-    }
-  }
-  *out = r;
-  r = NULL;
+  fmbd_modal_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
+                         cb->ns, cb->Psi, nm,     chibar,       Xi,           nr,     false};
+  FMBD_GCALL(fmbd_modal_build(&mi, out));
 done:
-  for (int i = 0; i < nif; i++) fmbd_free(inames[i]);
-  fmbd_free(inames);
-  fmbd_rflex_destroy(&r);
-  fmbd_free(Phi);
-  fmbd_free(Psi);
   fmbd_free(Xi);
   fmbd_free(chibar);
-  fmbd_free(nodes);
-  fmbd_free(nmass);
-  fmbd_free(idof);
-  fmbd_free(bdof);
-  fmbd_free(rigid);
-  fmbd_free(dofs);
-  fmbd_free(U);
+  fmbd_fe_body_destroy(&desc);
+  fmbd_cb_destroy(&cb);
   return rc;
 }
 
@@ -285,16 +155,16 @@ static int flex_node(const fmbd_scene *s, int bi, const fmbd_rflex *r, const fmb
           strcat(list, k ? ", " : "");
           strcat(list, r->interfaces[k].name);
         }
-        SFAIL(s, at->loc, FMBD_ERR_SCENE, "%s: body '%s' (%s) has no interface '%s' (it has: %s)", what, b->name,
-              b->file, at->interface, r->ninterfaces ? list : "none");
+        SFAIL(s, at->loc, FMBD_ERR_SCENE, "%s: body '%s' (%s) has no interface '%s' (it has: %s)",
+              what, b->name, b->file, at->interface, r->ninterfaces ? list : "none");
       }
       *node = r->interfaces[i].node;
       break;
     }
     case FMBD_AT_NODE:
       if (at->node >= r->nnodes) {
-        SFAIL(s, at->loc, FMBD_ERR_SCENE, "%s: body '%s' has nodes 0..%lld, not %lld", what, b->name,
-              (long long)r->nnodes - 1, (long long)at->node);
+        SFAIL(s, at->loc, FMBD_ERR_SCENE, "%s: body '%s' has nodes 0..%lld, not %lld", what,
+              b->name, (long long)r->nnodes - 1, (long long)at->node);
       }
       *node = at->node;
       break;
@@ -311,10 +181,11 @@ static int flex_node(const fmbd_scene *s, int bi, const fmbd_rflex *r, const fmb
           if (r->interfaces[k].node == p) itf = r->interfaces[k].name;
         }
         SFAIL(s, loc, FMBD_ERR_SCENE,
-              "%s: the point (%g, %g, %g) (body frame) is not on body '%s': the nearest node %lld%s%s%s is %.3g m "
+              "%s: the point (%g, %g, %g) (body frame) is not on body '%s': the nearest node "
+              "%lld%s%s%s is %.3g m "
               "away; name an interface, a node or 'nearest'",
-              what, x0b[0], x0b[1], x0b[2], b->name, (long long)p, itf ? " (interface '" : "", itf ? itf : "",
-              itf ? "')" : "", dist);
+              what, x0b[0], x0b[1], x0b[2], b->name, (long long)p, itf ? " (interface '" : "",
+              itf ? itf : "", itf ? "')" : "", dist);
       }
       *node = p;
     }
@@ -326,7 +197,8 @@ done:
 // Add the mbs point of an attachment on scene body bi (or ground, bi < 0). xw: the world
 // point to use for DEFAULT (may be NULL for loads/outputs: the body origin).
 static int add_point(fmbd_scene_model *m, const fmbd_scene *s, int bi, const fmbd_scene_at *at,
-                     const double *xw, fmbd_scene_loc loc, const char *what, int *pid, int64_t *node_out) {
+                     const double *xw, fmbd_scene_loc loc, const char *what, int *pid,
+                     int64_t *node_out) {
   int rc = 0;
   double *T = NULL, *R = NULL;
   if (node_out) *node_out = -1;
@@ -388,7 +260,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     SFAIL(s, b->file_loc, rc, "body '%s': %s: %s", b->name, b->file, msg);
   }
-  if (fmbd_h5_has_attr(f, "/", "format")) FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &format));
+  if (fmbd_h5_has_attr(f, "/", "format"))
+    FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &format));
   if (format && !strcmp(format, "fmbd-rflex")) {
     rc = fmbd_rflex_read(f, &m->flex[bi]);
   } else if (format && !strcmp(format, "fmbd-cb")) {
@@ -396,8 +269,10 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     if (!rc) rc = fmbd_scene_rflex_from_cb(f, &m->flex[bi]);
   } else {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
-          "body '%s': %s is %s%s%s; a flexible body needs a fmbd-rflex file (cbcheck) or a fmbd-cb file (fe2cb)",
-          b->name, b->file, format ? "a " : "not a toolchain file", format ? format : "", format ? " file" : "");
+          "body '%s': %s is %s%s%s; a flexible body needs a fmbd-rflex file (cbcheck) or a fmbd-cb "
+          "file (fe2cb)",
+          b->name, b->file, format ? "a " : "not a toolchain file", format ? format : "",
+          format ? " file" : "");
   }
   if (rc) {
     // keep the HDF5 path of the failure, prefix the scene item
@@ -409,8 +284,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
   fmbd_rflex *r = m->flex[bi];
   if (b->modes > r->nm) {
-    SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name, (long long)b->modes,
-          b->file, (long long)r->nm);
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name,
+          (long long)b->modes, b->file, (long long)r->nm);
   }
   if (b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
   if (!need_stress && r->stress) {  // nothing asks for stress: do not keep it
@@ -480,8 +355,9 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
     } else {
       bool need_stress = false;
       for (int o = 0; o < s->noutputs; o++) {
-        need_stress |= s->outputs[o].body == i &&
-                       (s->outputs[o].quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN));
+        need_stress |=
+            s->outputs[o].body == i &&
+            (s->outputs[o].quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN));
       }
       FMBD_GCALL(load_flex(m, s, i, need_stress));
     }
@@ -538,7 +414,8 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
     int pid;
     FMBD_GCALL(add_point(m, s, l->body, &l->at, NULL, l->loc, what, &pid, NULL));
     fmbd_mbs_fn fn = fmbd_scene_fn_to_mbs(&l->fn);
-    rc = fmbd_mbs_add_load(m->mbs, l->name, l->kind == FMBD_LOAD_TORQUE ? FMBD_MBS_TORQUE : FMBD_MBS_FORCE, pid,
+    rc = fmbd_mbs_add_load(m->mbs, l->name,
+                           l->kind == FMBD_LOAD_TORQUE ? FMBD_MBS_TORQUE : FMBD_MBS_FORCE, pid,
                            l->body_frame, l->direction, &fn, NULL);
     if (rc) SFAIL(s, l->loc, rc, "%s: %s", what, fmbd_err_get()->msg);
   }
@@ -549,18 +426,21 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
     char what[200];
     snprintf(what, sizeof what, "output '%s'", op->name);
     m->out_body[o] = op->body;
-    FMBD_GCALL(add_point(m, s, op->body, &op->at, NULL, op->loc, what, &m->out_point[o], &m->out_node[o]));
+    FMBD_GCALL(
+        add_point(m, s, op->body, &op->at, NULL, op->loc, what, &m->out_point[o], &m->out_node[o]));
     if (op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN)) {
       const fmbd_rflex *r = m->flex[op->body];
       if (!r->stress) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE,
-              "%s asks for stress or strain, but %s has no /modes/stress (%s)", what, s->bodies[op->body].file,
-              !strcmp(m->file_kind[op->body], "fmbd-cb") ? "a cb file never has it; use the .rflex.h5 of cbcheck"
-                                                         : "cbcheck writes it when the fe file is at hand");
+              "%s asks for stress or strain, but %s has no /modes/stress (%s)", what,
+              s->bodies[op->body].file,
+              !strcmp(m->file_kind[op->body], "fmbd-cb")
+                  ? "a cb file never has it; use the .rflex.h5 of cbcheck"
+                  : "cbcheck writes it when the fe file is at hand");
       }
       if ((op->quantities & FMBD_OUT_STRAIN) && !(m->E[op->body] > 0)) {
-        SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for strain, but %s has no /material E and nu", what,
-              s->bodies[op->body].file);
+        SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for strain, but %s has no /material E and nu",
+              what, s->bodies[op->body].file);
       }
       FMBD_GALLOC(m->out_sigma[o] = fmbd_malloc(sizeof(double) * (size_t)(6 * r->nm + 1)));
       FMBD_GCALL(fmbd_rflex_node_stress(r, m->out_node[o], m->out_sigma[o]));
@@ -574,7 +454,8 @@ done:
 }
 
 int fmbd_scene_output_stress(const fmbd_scene_model *m, int o, double sigma[6]) {
-  FMBD_CHECK(o >= 0 && o < m->noutputs && m->out_sigma[o], FMBD_ERR_VALUE, "output %d has no stress", o);
+  FMBD_CHECK(o >= 0 && o < m->noutputs && m->out_sigma[o], FMBD_ERR_VALUE,
+             "output %d has no stress", o);
   const double *q = NULL;
   int64_t nm = fmbd_mbs_modal(m->mbs, m->body_id[m->out_body[o]], &q, NULL, NULL);
   const double *S = m->out_sigma[o];
@@ -590,7 +471,8 @@ double fmbd_scene_strain(double E, double nu, const double s[6], double e[6]) {
   double tr = s[0] + s[1] + s[2];
   for (int i = 0; i < 3; i++) e[i] = ((1 + nu) * s[i] - nu * tr) / E;
   for (int i = 3; i < 6; i++) e[i] = (1 + nu) * s[i] / E;  // tensor (not engineering) shear
-  double sv = sqrt(0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) + (s[2] - s[0]) * (s[2] - s[0])) +
+  double sv = sqrt(0.5 * ((s[0] - s[1]) * (s[0] - s[1]) + (s[1] - s[2]) * (s[1] - s[2]) +
+                          (s[2] - s[0]) * (s[2] - s[0])) +
                    3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
   return 2 * (1 + nu) * sv / (3 * E);
 }

@@ -24,8 +24,8 @@ void fmbd_svg_plot_defaults(fmbd_svg_plot *p) {
 // one axis: data range -> pixel map, with ticks
 typedef struct axis {
   bool log;
-  double lo, hi;   // in data units (log: positive)
-  double p0, p1;   // pixels of lo and hi
+  double lo, hi;  // in data units (log: positive)
+  double p0, p1;  // pixels of lo and hi
 } axis;
 
 static double amap(const axis *a, double v) {
@@ -34,7 +34,9 @@ static double amap(const axis *a, double v) {
   return a->p0 + t * (a->p1 - a->p0);
 }
 
-static bool drawable(const axis *a, double v) { return isfinite(v) && (!a->log || v > 0); }
+static bool drawable(const axis *a, double v) {
+  return isfinite(v) && (!a->log || v > 0);
+}
 
 // "nice" step for a linear axis: 1, 2 or 5 times a power of ten giving ~n ticks
 static double nice_step(double span, int n) {
@@ -42,7 +44,8 @@ static double nice_step(double span, int n) {
   return (f < 1.5 ? 1 : f < 3.5 ? 2 : f < 7.5 ? 5 : 10) * p;
 }
 
-static int set_range(axis *a, double dmin, double dmax, double umin, double umax, const char *name) {
+static int set_range(axis *a, double dmin, double dmax, double umin, double umax,
+                     const char *name) {
   double lo = isnan(umin) ? dmin : umin, hi = isnan(umax) ? dmax : umax;
   if (!isfinite(lo) || !isfinite(hi)) {
     if (a->log) {
@@ -95,11 +98,20 @@ static int set_range(axis *a, double dmin, double dmax, double umin, double umax
 static void xml_text(FILE *fp, const char *s) {
   for (; s && *s; s++) {
     switch (*s) {
-      case '<': fputs("&lt;", fp); break;
-      case '>': fputs("&gt;", fp); break;
-      case '&': fputs("&amp;", fp); break;
-      case '"': fputs("&quot;", fp); break;
-      default: fputc(*s, fp);
+      case '<':
+        fputs("&lt;", fp);
+        break;
+      case '>':
+        fputs("&gt;", fp);
+        break;
+      case '&':
+        fputs("&amp;", fp);
+        break;
+      case '"':
+        fputs("&quot;", fp);
+        break;
+      default:
+        fputc(*s, fp);
     }
   }
 }
@@ -139,8 +151,8 @@ static void draw_ticks(FILE *fp, const axis *a, bool is_x, double other0, double
         if (is_x) {
           fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"%s\"/>\n", p,
                   other0, p, other1, major ? "#dddddd" : "#f2f2f2");
-          fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"black\"/>\n", p,
-                  other0, p, other0 + (major ? 6 : 3));
+          fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"black\"/>\n",
+                  p, other0, p, other0 + (major ? 6 : 3));
           if (major) {
             tick_label(buf, sizeof buf, v, true);
             fprintf(fp, "<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"middle\">%s</text>\n", p,
@@ -188,8 +200,8 @@ static void marker(FILE *fp, int kind, double x, double y, const char *c) {
   const double r = 3.5;
   switch (kind) {
     case FMBD_SVG_CIRCLE:
-      fprintf(fp, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"%.1f\" fill=\"none\" stroke=\"%s\"/>\n", x, y,
-              r, c);
+      fprintf(fp, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"%.1f\" fill=\"none\" stroke=\"%s\"/>\n", x,
+              y, r, c);
       break;
     case FMBD_SVG_SQUARE:
       fprintf(fp,
@@ -211,11 +223,13 @@ static void marker(FILE *fp, int kind, double x, double y, const char *c) {
               "stroke=\"%s\"/>\n",
               x, y - r, x + r, y, x, y + r, x - r, y, c);
       break;
-    default: break;
+    default:
+      break;
   }
 }
 
-int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries, const fmbd_svg_series *s) {
+int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries,
+                   const fmbd_svg_series *s) {
   int rc = FMBD_OK;
   FILE *fp = NULL;
   char *tmp = NULL;
@@ -253,16 +267,20 @@ int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries, const 
           "font-size=\"12\">\n<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
           W, H, W, H);
   if (p->title) {
-    fprintf(fp, "<text x=\"%.1f\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">", (left + right) / 2);
+    fprintf(fp, "<text x=\"%.1f\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">",
+            (left + right) / 2);
     xml_text(fp, p->title);
     fputs("</text>\n", fp);
   }
   draw_ticks(fp, &ax, true, bottom, top);
   draw_ticks(fp, &ay, false, left, right);
-  fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"black\"/>\n",
+  fprintf(fp,
+          "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" "
+          "stroke=\"black\"/>\n",
           left, top, right - left, bottom - top);
   if (p->xlabel) {
-    fprintf(fp, "<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"middle\">", (left + right) / 2, bottom + 42.0);
+    fprintf(fp, "<text x=\"%.1f\" y=\"%.1f\" text-anchor=\"middle\">", (left + right) / 2,
+            bottom + 42.0);
     xml_text(fp, p->xlabel);
     fputs("</text>\n", fp);
   }
@@ -272,11 +290,13 @@ int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries, const 
     xml_text(fp, p->ylabel);
     fputs("</text>\n", fp);
   }
-  fprintf(fp, "<clipPath id=\"plotarea\"><rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\"/></clipPath>\n",
+  fprintf(fp,
+          "<clipPath id=\"plotarea\"><rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" "
+          "height=\"%.1f\"/></clipPath>\n",
           left, top, right - left, bottom - top);
   for (int k = 0; k < nseries; k++) {
     const char *c = s[k].color ? s[k].color : palette[k % 10];
-    const char *dash = s[k].line == FMBD_SVG_DASHED ? " stroke-dasharray=\"6 4\""
+    const char *dash = s[k].line == FMBD_SVG_DASHED   ? " stroke-dasharray=\"6 4\""
                        : s[k].line == FMBD_SVG_DOTTED ? " stroke-dasharray=\"2 3\""
                                                       : "";
     fputs("<g clip-path=\"url(#plotarea)\">\n", fp);
@@ -352,8 +372,10 @@ int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries, const 
     }
     double lx = (corner == 2 || corner == 4) ? left + 10 : right - lw - 10;
     double ly = (corner >= 3) ? bottom - lh - 10 : top + 10;
-    fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"white\" "
-                "fill-opacity=\"0.85\" stroke=\"#999999\"/>\n", lx, ly, lw, lh);
+    fprintf(fp,
+            "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"white\" "
+            "fill-opacity=\"0.85\" stroke=\"#999999\"/>\n",
+            lx, ly, lw, lh);
     int row = 0;
     for (int k = 0; k < nseries; k++) {
       if (!s[k].label || !s[k].label[0]) {
@@ -362,10 +384,13 @@ int fmbd_svg_write(const char *path, const fmbd_svg_plot *p, int nseries, const 
       const char *c = s[k].color ? s[k].color : palette[k % 10];
       double yy = ly + 14 + 18.0 * row++;
       if (s[k].line != FMBD_SVG_NOLINE) {
-        fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"%s\" stroke-width=\"1.5\"%s/>\n",
+        fprintf(fp,
+                "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"%s\" "
+                "stroke-width=\"1.5\"%s/>\n",
                 lx + 8, yy - 4, lx + 36, yy - 4, c,
-                s[k].line == FMBD_SVG_DASHED ? " stroke-dasharray=\"6 4\""
-                : s[k].line == FMBD_SVG_DOTTED ? " stroke-dasharray=\"2 3\"" : "");
+                s[k].line == FMBD_SVG_DASHED   ? " stroke-dasharray=\"6 4\""
+                : s[k].line == FMBD_SVG_DOTTED ? " stroke-dasharray=\"2 3\""
+                                               : "");
       }
       marker(fp, s[k].marker, lx + 22, yy - 4, c);
       fprintf(fp, "<text x=\"%.1f\" y=\"%.1f\">", lx + 42, yy);

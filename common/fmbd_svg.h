@@ -24,21 +24,21 @@ enum fmbd_svg_line { FMBD_SVG_SOLID = 0, FMBD_SVG_NOLINE, FMBD_SVG_DASHED, FMBD_
 
 /// One series: n points (x[i], y[i]) (borrowed arrays).
 typedef struct fmbd_svg_series {
-  const char *label;   ///< legend text (NULL or "": not in the legend)
-  int64_t n;           ///< number of points
-  const double *x, *y; ///< n values each
-  const char *color;   ///< CSS colour ("#1f77b4"); NULL: the next of a 10-colour cycle
-  int marker;          ///< enum fmbd_svg_marker (default FMBD_SVG_NONE)
-  int line;            ///< enum fmbd_svg_line (default FMBD_SVG_SOLID)
+  const char *label;    ///< legend text (NULL or "": not in the legend)
+  int64_t n;            ///< number of points
+  const double *x, *y;  ///< n values each
+  const char *color;    ///< CSS colour ("#1f77b4"); NULL: the next of a 10-colour cycle
+  int marker;           ///< enum fmbd_svg_marker (default FMBD_SVG_NONE)
+  int line;             ///< enum fmbd_svg_line (default FMBD_SVG_SOLID)
 } fmbd_svg_series;
 
 /// The axes and frame. Fill with fmbd_svg_plot_defaults, then set what you need.
 typedef struct fmbd_svg_plot {
-  const char *title;        ///< above the plot (NULL: none)
-  const char *xlabel;       ///< below the x axis (NULL: none)
-  const char *ylabel;       ///< left of the y axis, rotated (NULL: none)
-  bool xlog, ylog;          ///< logarithmic axes (default false)
-  double xmin, xmax;        ///< axis range; NaN (default): from the data, rounded outward
+  const char *title;   ///< above the plot (NULL: none)
+  const char *xlabel;  ///< below the x axis (NULL: none)
+  const char *ylabel;  ///< left of the y axis, rotated (NULL: none)
+  bool xlog, ylog;     ///< logarithmic axes (default false)
+  double xmin, xmax;   ///< axis range; NaN (default): from the data, rounded outward
   double ymin, ymax;
   int width_px, height_px;  ///< image size (default 720 x 480)
   int legend;               ///< 0 none, 1 top right, 2 top left, 3 bottom right, 4 bottom left,

@@ -79,10 +79,10 @@ static int split_groups(args *a, const char *text) {
 static int parse_args(int argc, char **argv, args *a) {
   for (int i = 1; i < argc; i++) {
     const char *arg = argv[i], *val = NULL;
-#define NEED_VALUE()                                                                       \
-  do {                                                                                     \
-    if (i + 1 >= argc) return fmbd_cli_usage_error("option %s needs a value", arg);        \
-    val = argv[++i];                                                                       \
+#define NEED_VALUE()                                                                \
+  do {                                                                              \
+    if (i + 1 >= argc) return fmbd_cli_usage_error("option %s needs a value", arg); \
+    val = argv[++i];                                                                \
   } while (0)
     int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
     if (common == FMBD_CLI_DONE) {
@@ -121,7 +121,8 @@ static int parse_args(int argc, char **argv, args *a) {
     } else if (arg[0] == '-' && arg[1] != '\0') {
       return fmbd_cli_usage_error("unknown option '%s'", arg);
     } else {
-      if (a->input) return fmbd_cli_usage_error("one BODY.fe.h5 expected, got '%s' and '%s'", a->input, arg);
+      if (a->input)
+        return fmbd_cli_usage_error("one BODY.fe.h5 expected, got '%s' and '%s'", a->input, arg);
       a->input = arg;
     }
 #undef NEED_VALUE
@@ -150,20 +151,25 @@ static double peak_mb(void) {
 
 static void breakdown(const fmbd_cb *cb, double t_read, double t_write) {
   const fmbd_cb_timing *t = &cb->time;
-  fmbd_log(FMBD_LOG_INFO, "%lld dofs: %lld interior, %lld boundary; factor of Ks: %s ordering, "
-           "%.3g entries in L", (long long)cb->ndof, (long long)cb->ns,
-           (long long)(cb->nb + cb->nheld), t->ordering_name ? t->ordering_name : "-", t->nnz_l);
-  fmbd_log(FMBD_LOG_INFO, "time: read %.3g s, partition %.3g s, ordering %.3g s, factorisation "
+  fmbd_log(FMBD_LOG_INFO,
+           "%lld dofs: %lld interior, %lld boundary; factor of Ks: %s ordering, "
+           "%.3g entries in L",
+           (long long)cb->ndof, (long long)cb->ns, (long long)(cb->nb + cb->nheld),
+           t->ordering_name ? t->ordering_name : "-", t->nnz_l);
+  fmbd_log(FMBD_LOG_INFO,
+           "time: read %.3g s, partition %.3g s, ordering %.3g s, factorisation "
            "%.3g s, Lanczos %.3g s (%d runs, %lld solves), Sturm check %.3g s, residuals %.3g s, "
            "constraint modes %.3g s, projections %.3g s, reduced eigensolution %.3g s, "
-           "write %.3g s", t_read, t->partition, t->ordering, t->factor, t->lanczos,
-           t->eig_passes, (long long)t->solves, t->sturm, t->residuals, t->constraint,
-           t->projection, t->reduced_eig, t_write);
+           "write %.3g s",
+           t_read, t->partition, t->ordering, t->factor, t->lanczos, t->eig_passes,
+           (long long)t->solves, t->sturm, t->residuals, t->constraint, t->projection,
+           t->reduced_eig, t_write);
   if (cb->nd > 0) {
-    fmbd_log(FMBD_LOG_INFO, "modes: %.6g .. %.6g Hz, largest residual %.2g; Sturm count %lld "
-             "below %.6g Hz", sqrt(cb->kappa[0]) / (2 * M_PI),
-             sqrt(cb->kappa[cb->nd - 1]) / (2 * M_PI), cb->max_residual,
-             (long long)cb->sturm_count,
+    fmbd_log(FMBD_LOG_INFO,
+             "modes: %.6g .. %.6g Hz, largest residual %.2g; Sturm count %lld "
+             "below %.6g Hz",
+             sqrt(cb->kappa[0]) / (2 * M_PI), sqrt(cb->kappa[cb->nd - 1]) / (2 * M_PI),
+             cb->max_residual, (long long)cb->sturm_count,
              isnan(cb->sturm_shift) ? NAN : sqrt(fabs(cb->sturm_shift)) / (2 * M_PI));
   }
 }
@@ -203,8 +209,10 @@ int main(int argc, char **argv) {
   double t_read = fmbd_wall_s() - t0;
   fmbd_log(FMBD_LOG_DEBUG, "peak memory after reading: %.0f MB", peak_mb());
   if (nb == 0 && !(a.cb.nm && !a.cb.hold)) {
-    fmbd_log(FMBD_LOG_WARN, "%s: no interface and no --boundary group: the fixed-interface modes "
-             "are the body's own (it must be clamped)", a.input);
+    fmbd_log(FMBD_LOG_WARN,
+             "%s: no interface and no --boundary group: the fixed-interface modes "
+             "are the body's own (it must be clamped)",
+             a.input);
   }
 
   // --- reduce ---

@@ -23,13 +23,15 @@
 #include "fmbd_svg.h"
 
 static volatile sig_atomic_t g_signal = 0;
-static void on_signal(int sig) { g_signal = sig; }
+static void on_signal(int sig) {
+  g_signal = sig;
+}
 
 // --- a buffered series: rows kept in memory, appended in blocks ---------------------------
 enum { BLOCK_ROWS = 256 };
 typedef struct col {
   fmbd_h5_series *s;
-  int ncols;   // 0: scalar series
+  int ncols;  // 0: scalar series
   int nbuf;
   double *buf;
 } col;
@@ -80,8 +82,8 @@ static int hist_push(hist *h, const double *x, int k) {
 
 // Per output: which series, and their history.
 enum { Q_POS, Q_VEL, Q_ACC, Q_VM, Q_STRESS, Q_STRAIN, Q_VMSTRAIN, NQ };
-static const char *const q_name[NQ] = {"position", "velocity", "acceleration", "von_mises", "stress",
-                                       "strain", "von_mises_strain"};
+static const char *const q_name[NQ] = {"position", "velocity", "acceleration",    "von_mises",
+                                       "stress",   "strain",   "von_mises_strain"};
 static const int q_cols[NQ] = {3, 3, 3, 0, 6, 6, 0};
 
 typedef struct run {
@@ -89,13 +91,13 @@ typedef struct run {
   fmbd_scene_model *m;
   fmbd_h5 *f;
   col time;
-  col (*out)[NQ];      // noutputs x NQ (s == NULL: not asked)
+  col (*out)[NQ];  // noutputs x NQ (s == NULL: not asked)
   col energy[3];
   col momentum[2];
-  col (*react)[2];     // reactions x {force, torque}
+  col (*react)[2];  // reactions x {force, torque}
   hist t_hist;
-  hist *h[3];          // per output: position, velocity, acceleration history (NULL arrays unused)
-  bool keep_hist;      // --plot or --reference
+  hist *h[3];      // per output: position, velocity, acceleration history (NULL arrays unused)
+  bool keep_hist;  // --plot or --reference
   double last_progress_s;
   double t0_wall, t0_cpu;  // start of the integration (after reading and initialising)
   int64_t rows;
@@ -106,15 +108,21 @@ static int write_stats(run *r, bool complete) {
   fmbd_mbs_get_stats(r->m->mbs, &st);
   fmbd_h5 *f = r->f;
   FMBD_CALL(fmbd_h5_make_group(f, "/stats"));
-  int64_t iv[] = {st.steps, st.rejected, st.newton_iterations, complete ? 1 : 0, st.factorizations,
-                  st.coordinates, st.equations, st.redundant, r->rows};
-  const char *in[] = {"steps", "rejected_steps", "newton_iterations", "complete", "factorizations",
-                      "coordinates", "equations", "redundant_equations", "output_rows"};
-  for (size_t i = 0; i < sizeof iv / sizeof iv[0]; i++) FMBD_CALL(fmbd_h5_write_attr_i64(f, "/stats", in[i], 1, &iv[i]));
-  double rw = r->t0_wall > 0 ? fmbd_wall_s() - r->t0_wall : 0, rc = r->t0_wall > 0 ? fmbd_cpu_s() - r->t0_cpu : 0;
+  int64_t iv[] = {st.steps,         st.rejected,       st.newton_iterations,
+                  complete ? 1 : 0, st.factorizations, st.coordinates,
+                  st.equations,     st.redundant,      r->rows};
+  const char *in[] = {"steps",     "rejected_steps",      "newton_iterations",
+                      "complete",  "factorizations",      "coordinates",
+                      "equations", "redundant_equations", "output_rows"};
+  for (size_t i = 0; i < sizeof iv / sizeof iv[0]; i++)
+    FMBD_CALL(fmbd_h5_write_attr_i64(f, "/stats", in[i], 1, &iv[i]));
+  double rw = r->t0_wall > 0 ? fmbd_wall_s() - r->t0_wall : 0,
+         rc = r->t0_wall > 0 ? fmbd_cpu_s() - r->t0_cpu : 0;
   double dv[] = {fmbd_cli_wall_s(), fmbd_cli_cpu_s(), fmbd_mbs_time(r->m->mbs), st.h_last, rw, rc};
-  const char *dn[] = {"wall_time_s", "cpu_time_s", "t_reached", "last_step_s", "run_wall_time_s", "run_cpu_time_s"};
-  for (size_t i = 0; i < sizeof dv / sizeof dv[0]; i++) FMBD_CALL(fmbd_h5_write_attr_f64(f, "/stats", dn[i], 1, &dv[i]));
+  const char *dn[] = {"wall_time_s", "cpu_time_s",      "t_reached",
+                      "last_step_s", "run_wall_time_s", "run_cpu_time_s"};
+  for (size_t i = 0; i < sizeof dv / sizeof dv[0]; i++)
+    FMBD_CALL(fmbd_h5_write_attr_f64(f, "/stats", dn[i], 1, &dv[i]));
   return 0;
 }
 
@@ -208,8 +216,8 @@ static int on_step(fmbd_mbs *mb, bool at_output, void *user) {
     fmbd_mbs_get_stats(mb, &st);
     double t = fmbd_mbs_time(mb), el = now - r->t0_wall;
     fmbd_progress("t = %.4f s (%3.0f%%), h = %.2e s, %lld steps, %.0f steps/s, %.2fx real time", t,
-                  100 * t / r->s->solver.t_end, st.h_last, (long long)st.steps, el > 0 ? st.steps / el : 0,
-                  el > 0 ? t / el : 0);
+                  100 * t / r->s->solver.t_end, st.h_last, (long long)st.steps,
+                  el > 0 ? st.steps / el : 0, el > 0 ? t / el : 0);
     r->last_progress_s = now;
   }
   if (g_signal) return 2;  // stop: the caller reports the interruption
@@ -247,8 +255,10 @@ static int check_reference(fmbd_h5 *g, const char *ref_name, double **rt, int64_
   int64_t complete = 0;
   fmbd_err_context(ref_name, "/stats");
   FMBD_GCALL(fmbd_h5_read_attr_i64(g, "/stats", "complete", 1, &complete));
-  FMBD_GCHECK(complete == 1, FMBD_ERR_FORMAT, "attribute complete = %lld: the reference is an "
-              "interrupted run (a valid prefix only); give a complete run", (long long)complete);
+  FMBD_GCHECK(complete == 1, FMBD_ERR_FORMAT,
+              "attribute complete = %lld: the reference is an "
+              "interrupted run (a valid prefix only); give a complete run",
+              (long long)complete);
   int64_t dt[1] = {-1};
   FMBD_GCALL(fmbd_h5_read_f64(g, "/time", 1, dt, &t));
   fmbd_err_context(ref_name, "/time");
@@ -256,8 +266,10 @@ static int check_reference(fmbd_h5 *g, const char *ref_name, double **rt, int64_
               (long long)dt[0]);
   for (int64_t i = 0; i < dt[0]; i++) {
     FMBD_GCHECK(isfinite(t[i]), FMBD_ERR_FORMAT, "instant %lld is not finite", (long long)i);
-    FMBD_GCHECK(i == 0 || t[i] > t[i - 1], FMBD_ERR_FORMAT, "not strictly increasing at "
-                "instant %lld (%.17g after %.17g)", (long long)i, t[i], t[i - 1]);
+    FMBD_GCHECK(i == 0 || t[i] > t[i - 1], FMBD_ERR_FORMAT,
+                "not strictly increasing at "
+                "instant %lld (%.17g after %.17g)",
+                (long long)i, t[i], t[i - 1]);
   }
   fmbd_err_context("", "");
   *nr = dt[0];
@@ -317,12 +329,14 @@ static int compare_reference(run *r, const char *ref_name) {
       FMBD_GCALL(fmbd_h5_write_attr_f64(r->f, grp, an, 1, &worst));
       FMBD_GCALL(fmbd_h5_write_attr_i64(r->f, grp, "instants", 1, &n));
       static const char *const unit[3] = {"m", "m/s", "m/s^2"};
-      fmbd_log_summary("%s: RMS %s error %.4e %s (max %.4e) against %s over %lld instants", name, q_name[q], rms,
-                       unit[q], worst, ref_name, (long long)n);
+      fmbd_log_summary("%s: RMS %s error %.4e %s (max %.4e) against %s over %lld instants", name,
+                       q_name[q], rms, unit[q], worst, ref_name, (long long)n);
       compared++;
     }
   }
-  if (!compared) fmbd_log(FMBD_LOG_WARN, "%s: no output of this run has a counterpart in the reference", ref_name);
+  if (!compared)
+    fmbd_log(FMBD_LOG_WARN, "%s: no output of this run has a counterpart in the reference",
+             ref_name);
 done:
   fmbd_free(fmt);
   fmbd_free(rt);
@@ -356,7 +370,8 @@ static int write_plots(run *r, const char *prefix) {
     // components against time
     fmbd_svg_plot p;
     fmbd_svg_plot_defaults(&p);
-    snprintf(title, sizeof title, "%s: position of '%s'", r->s->title ? r->s->title : r->s->file, name);
+    snprintf(title, sizeof title, "%s: position of '%s'", r->s->title ? r->s->title : r->s->file,
+             name);
     p.title = title;
     p.xlabel = "time (s)";
     p.ylabel = "position (m)";
@@ -369,8 +384,10 @@ static int write_plots(run *r, const char *prefix) {
     int a = 0, b = 1, c = 2;
     double rg[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
     if (rg[2] > rg[a] && rg[2] > rg[b]) {
-      if (rg[0] < rg[1]) a = 2;
-      else b = 2;
+      if (rg[0] < rg[1])
+        a = 2;
+      else
+        b = 2;
     }
     if (a > b) {
       c = a;
@@ -380,7 +397,8 @@ static int write_plots(run *r, const char *prefix) {
     const double *comp[3] = {x, y, z};
     static const char *const axn[3] = {"x (m)", "y (m)", "z (m)"};
     fmbd_svg_plot_defaults(&p);
-    snprintf(title, sizeof title, "%s: trajectory of '%s'", r->s->title ? r->s->title : r->s->file, name);
+    snprintf(title, sizeof title, "%s: trajectory of '%s'", r->s->title ? r->s->title : r->s->file,
+             name);
     p.title = title;
     p.xlabel = axn[a];
     p.ylabel = axn[b];
@@ -420,7 +438,8 @@ static void usage(void) {
       "  -v, --verbose           progress and details (-vv: debug)\n"
       "  -h, --help              this help\n"
       "  -V, --version           the version\n\n"
-      "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step) keeps\n"
+      "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step) "
+      "keeps\n"
       "its valid prefix in RUN.h5.part with /stats attribute complete = 0, and exits 1.\n\n%s",
       fmbd_cli_exit_help());
 }
@@ -435,24 +454,28 @@ int main(int argc, char **argv) {
   fmbd_scene *s = NULL;
   fmbd_scene_model *m = NULL;
   run r = {0};
-  static const struct option longopts[] = {{"output", required_argument, NULL, 'o'},
-                                           {"reference", required_argument, NULL, 'r'},
-                                           {"plot", required_argument, NULL, 'p'},
-                                           {"t-end", required_argument, NULL, 't'},
-                                           {"body-dir", required_argument, NULL, 'b'},
-                                           {"quiet", no_argument, NULL, 'q'},
-                                           {"verbose", no_argument, NULL, 'v'},
-                                           {"help", no_argument, NULL, 'h'},
-                                           {"version", no_argument, NULL, 'V'},
-                                           {NULL, 0, NULL, 0}};
+  static const struct option longopts[] = {
+      {"output", required_argument, NULL, 'o'},   {"reference", required_argument, NULL, 'r'},
+      {"plot", required_argument, NULL, 'p'},     {"t-end", required_argument, NULL, 't'},
+      {"body-dir", required_argument, NULL, 'b'}, {"quiet", no_argument, NULL, 'q'},
+      {"verbose", no_argument, NULL, 'v'},        {"help", no_argument, NULL, 'h'},
+      {"version", no_argument, NULL, 'V'},        {NULL, 0, NULL, 0}};
   int c;
   opterr = 0;
   while ((c = getopt_long(argc, argv, ":o:MqvhV", longopts, NULL)) != -1) {
     switch (c) {
-      case 'o': opt_o = optarg; break;
-      case 'r': ref = optarg; break;
-      case 'p': plot = optarg; break;
-      case 'b': body_dir = optarg; break;
+      case 'o':
+        opt_o = optarg;
+        break;
+      case 'r':
+        ref = optarg;
+        break;
+      case 'p':
+        plot = optarg;
+        break;
+      case 'b':
+        body_dir = optarg;
+        break;
       case 't':
         rc = fmbd_cli_parse_double("--t-end", optarg, &t_end);
         if (rc) goto done;
@@ -461,18 +484,33 @@ int main(int argc, char **argv) {
           goto out;
         }
         break;
-      case 'M': make_rules = true; break;
-      case 'q': quiet++; break;
-      case 'v': verbose++; break;
-      case 'h': usage(); return 0;
-      case 'V': printf("fmbd-run %s\n", fmbd_version()); return 0;
-      case ':': rc = fmbd_cli_usage_error("option '%s' needs an argument", argv[optind - 1]); goto out;
-      default: rc = fmbd_cli_usage_error("unknown option '%s'", argv[optind - 1]); goto out;
+      case 'M':
+        make_rules = true;
+        break;
+      case 'q':
+        quiet++;
+        break;
+      case 'v':
+        verbose++;
+        break;
+      case 'h':
+        usage();
+        return 0;
+      case 'V':
+        printf("fmbd-run %s\n", fmbd_version());
+        return 0;
+      case ':':
+        rc = fmbd_cli_usage_error("option '%s' needs an argument", argv[optind - 1]);
+        goto out;
+      default:
+        rc = fmbd_cli_usage_error("unknown option '%s'", argv[optind - 1]);
+        goto out;
     }
   }
   fmbd_cli_set_verbosity(quiet, verbose);
   if (optind != argc - 1) {
-    rc = fmbd_cli_usage_error(optind >= argc ? "no scene file given" : "one scene file, not %d", argc - optind);
+    rc = fmbd_cli_usage_error(optind >= argc ? "no scene file given" : "one scene file, not %d",
+                              argc - optind);
     goto out;
   }
   const char *scene_file = argv[optind];
@@ -514,16 +552,20 @@ int main(int argc, char **argv) {
 
   // --- runaway runs: say so before the work (a 1e-12 s step to 1e3 s is 1e15 steps) ------------
   {
-    double steps = s->solver.fixed ? s->solver.t_end / s->solver.step : s->solver.t_end / s->solver.max_step;
+    double steps =
+        s->solver.fixed ? s->solver.t_end / s->solver.step : s->solver.t_end / s->solver.max_step;
     double rows = s->output_every > 0 ? s->solver.t_end / s->output_every : steps;
     if (steps > 1e8) {
-      fmbd_log(FMBD_LOG_WARN, "%s: %s %.3g steps (t_end %g s, %s %g s): this run may take days", scene_file,
-               s->solver.fixed ? "fixed step:" : "at least", steps, s->solver.t_end,
-               s->solver.fixed ? "step" : "max_step", s->solver.fixed ? s->solver.step : s->solver.max_step);
+      fmbd_log(FMBD_LOG_WARN, "%s: %s %.3g steps (t_end %g s, %s %g s): this run may take days",
+               scene_file, s->solver.fixed ? "fixed step:" : "at least", steps, s->solver.t_end,
+               s->solver.fixed ? "step" : "max_step",
+               s->solver.fixed ? s->solver.step : s->solver.max_step);
     }
     if (rows > 1e7 && s->noutputs > 0) {
-      fmbd_log(FMBD_LOG_WARN, "%s: about %.3g output rows (t_end %g s, every %g s): the run file may be "
-               "very large; set outputs.every", scene_file, rows, s->solver.t_end, s->output_every);
+      fmbd_log(FMBD_LOG_WARN,
+               "%s: about %.3g output rows (t_end %g s, every %g s): the run file may be "
+               "very large; set outputs.every",
+               scene_file, rows, s->solver.t_end, s->output_every);
     }
   }
 
@@ -539,18 +581,22 @@ int main(int argc, char **argv) {
   {
     fmbd_mbs_stats st;
     fmbd_mbs_get_stats(m->mbs, &st);
-    fmbd_log(FMBD_LOG_INFO, "%s: %d bodies, %lld coordinates, %lld constraint equations (%lld redundant removed)",
-             scene_file, s->nbodies, (long long)st.coordinates, (long long)st.equations, (long long)st.redundant);
+    fmbd_log(FMBD_LOG_INFO,
+             "%s: %d bodies, %lld coordinates, %lld constraint equations (%lld redundant removed)",
+             scene_file, s->nbodies, (long long)st.coordinates, (long long)st.equations,
+             (long long)st.redundant);
   }
 
   // --- the run file -------------------------------------------------------------------------
-  for (int i = 0; i < m->ninputs; i++) FMBD_GCALL(fmbd_cli_check_not_input(out_name, m->input_name[i]));
+  for (int i = 0; i < m->ninputs; i++)
+    FMBD_GCALL(fmbd_cli_check_not_input(out_name, m->input_name[i]));
   r.s = s;
   r.m = m;
   r.keep_hist = plot || ref;
   FMBD_GCALL(fmbd_h5_create(out_name, "fmbd-run", "1.0", &r.f));
   if (strcmp(scene_file, "-")) FMBD_GCALL(fmbd_h5_add_input(r.f, scene_file, NULL));
-  for (int i = 0; i < m->ninputs; i++) FMBD_GCALL(fmbd_h5_add_input(r.f, m->input_name[i], m->input_sha[i]));
+  for (int i = 0; i < m->ninputs; i++)
+    FMBD_GCALL(fmbd_h5_add_input(r.f, m->input_name[i], m->input_sha[i]));
   FMBD_GCALL(fmbd_h5_make_group(r.f, "/scene"));
   FMBD_GCALL(fmbd_h5_write_attr_str(r.f, "/scene", "file", scene_file));
   if (s->title) FMBD_GCALL(fmbd_h5_write_attr_str(r.f, "/scene", "title", s->title));
@@ -558,7 +604,8 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_h5_write_attr_f64(r.f, "/scene", "t_end", 1, &s->solver.t_end));
   FMBD_GCALL(col_open(r.f, "/time", 0, &r.time));
   FMBD_GALLOC(r.out = fmbd_calloc((size_t)s->noutputs + 1, sizeof *r.out));
-  for (int k = 0; k < 3; k++) FMBD_GALLOC(r.h[k] = fmbd_calloc((size_t)s->noutputs + 1, sizeof(hist)));
+  for (int k = 0; k < 3; k++)
+    FMBD_GALLOC(r.h[k] = fmbd_calloc((size_t)s->noutputs + 1, sizeof(hist)));
   for (int o = 0; o < s->noutputs; o++) {
     const fmbd_scene_output *op = &s->outputs[o];
     char path[600];
@@ -607,8 +654,8 @@ int main(int argc, char **argv) {
   if (rc == 2 && g_signal) {
     interrupted = true;
     fmbd_err_context(out_name, "");
-    fmbd_err_set(FMBD_ERR_IO, __FILE__, __LINE__, __func__, "interrupted by signal %d at t = %g s", (int)g_signal,
-                 fmbd_mbs_time(m->mbs));
+    fmbd_err_set(FMBD_ERR_IO, __FILE__, __LINE__, __func__, "interrupted by signal %d at t = %g s",
+                 (int)g_signal, fmbd_mbs_time(m->mbs));
     rc = FMBD_ERR_IO;
   } else if (rc == FMBD_ERR_CONVERGE || rc == FMBD_ERR_SINGULAR) {
     interrupted = true;  // a failure on the way: keep the prefix computed so far
@@ -636,10 +683,12 @@ int main(int argc, char **argv) {
     double wall = fmbd_cli_wall_s(), cpu = fmbd_cli_cpu_s();
     FMBD_GCALL(fmbd_h5_commit(&r.f, wall, cpu));
     double run_cpu = fmbd_cpu_s() - r.t0_cpu;
-    fmbd_cli_summary("%s: %lld steps, %lld rejected, %lld Newton iterations, %lld rows to t = %g s (%.3gx real time on CPU time)",
-                     strcmp(out_name, "-") ? out_name : "standard output", (long long)st.steps, (long long)st.rejected,
-                     (long long)st.newton_iterations, (long long)r.rows, fmbd_mbs_time(m->mbs),
-                     run_cpu > 0 ? fmbd_mbs_time(m->mbs) / run_cpu : INFINITY);
+    fmbd_cli_summary(
+        "%s: %lld steps, %lld rejected, %lld Newton iterations, %lld rows to t = %g s (%.3gx real "
+        "time on CPU time)",
+        strcmp(out_name, "-") ? out_name : "standard output", (long long)st.steps,
+        (long long)st.rejected, (long long)st.newton_iterations, (long long)r.rows,
+        fmbd_mbs_time(m->mbs), run_cpu > 0 ? fmbd_mbs_time(m->mbs) / run_cpu : INFINITY);
   }
 done:
   if (r.f) {
@@ -659,8 +708,10 @@ done:
         col_close(&r.react[k][1]);
       }
       fmbd_h5_abandon(&r.f);
-      fmbd_log(FMBD_LOG_WARN, "the run stopped at t = %g s; its valid prefix is kept in %s.part (/stats complete = 0)",
-               fmbd_mbs_time(m->mbs), out_name);
+      fmbd_log(
+          FMBD_LOG_WARN,
+          "the run stopped at t = %g s; its valid prefix is kept in %s.part (/stats complete = 0)",
+          fmbd_mbs_time(m->mbs), out_name);
     } else {
       fmbd_h5_close(&r.f);
     }

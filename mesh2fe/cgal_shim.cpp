@@ -51,8 +51,8 @@ void set_msg(char *msg, int msglen, const char *text) {
 }
 
 int mesh_surface(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri,
-                 const fmbd_cgal_criteria *crit, int64_t *nnodes, double **nodes,
-                 int64_t *ntet, int64_t **tet, char *msg, int msglen) {
+                 const fmbd_cgal_criteria *crit, int64_t *nnodes, double **nodes, int64_t *ntet,
+                 int64_t **tet, char *msg, int msglen) {
   // --- the polygon soup -> a closed, consistently oriented polyhedron ---
   std::vector<K::Point_3> points;
   points.reserve((size_t)nv);
@@ -97,11 +97,10 @@ int mesh_surface(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri,
   // --- domain with protected sharp features, criteria, mesh ---
   Mesh_domain domain(poly);
   domain.detect_features(crit->feature_angle_deg);
-  Mesh_criteria criteria(params::edge_size = crit->size, params::facet_angle = crit->facet_angle_deg,
-                         params::facet_size = crit->size,
-                         params::facet_distance = crit->facet_distance,
-                         params::cell_radius_edge_ratio = crit->radius_edge,
-                         params::cell_size = crit->size);
+  Mesh_criteria criteria(
+      params::edge_size = crit->size, params::facet_angle = crit->facet_angle_deg,
+      params::facet_size = crit->size, params::facet_distance = crit->facet_distance,
+      params::cell_radius_edge_ratio = crit->radius_edge, params::cell_size = crit->size);
   C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, params::no_perturb(), params::exude());
 
   // --- gather the tetrahedra of the complex and their vertices ---
@@ -151,10 +150,10 @@ int mesh_surface(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri,
 
 }  // namespace
 
-extern "C" int fmbd_cgal_mesh_surface(int64_t nv, const double *xyz, int64_t nf,
-                                      const int64_t *tri, const fmbd_cgal_criteria *crit,
-                                      int64_t *nnodes, double **nodes, int64_t *ntet,
-                                      int64_t **tet, char *msg, int msglen) {
+extern "C" int fmbd_cgal_mesh_surface(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri,
+                                      const fmbd_cgal_criteria *crit, int64_t *nnodes,
+                                      double **nodes, int64_t *ntet, int64_t **tet, char *msg,
+                                      int msglen) {
   set_msg(msg, msglen, "");
   *nnodes = 0;
   *nodes = nullptr;

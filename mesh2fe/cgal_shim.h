@@ -27,7 +27,8 @@ typedef struct fmbd_cgal_criteria {
   double facet_distance;   ///< max distance of facet centres to the input surface (> 0)
   double facet_angle_deg;  ///< min facet angle (25 is CGAL's usual; <= 30)
   double radius_edge;      ///< max cell radius-edge ratio (2 to 3)
-  double feature_angle_deg;///< dihedral angle above which an input edge is kept as a sharp feature
+  double
+      feature_angle_deg;  ///< dihedral angle above which an input edge is kept as a sharp feature
 } fmbd_cgal_criteria;
 
 /// @brief Mesh the inside of a closed triangle surface with tetrahedra (CGAL Mesh_3 on a
@@ -37,7 +38,8 @@ typedef struct fmbd_cgal_criteria {
 ///                     but consistent neighbours are required)
 /// @param[in] crit     criteria
 /// @param[out] nnodes, nodes  mesh vertices (nnodes, 3); caller frees *nodes with fmbd_free
-/// @param[out] ntet, tet      tetrahedra (ntet, 4), positively oriented; caller frees with fmbd_free
+/// @param[out] ntet, tet      tetrahedra (ntet, 4), positively oriented; caller frees with
+/// fmbd_free
 /// @param[out] msg     a message on failure (NUL-terminated, at most msglen bytes)
 /// @return FMBD_CGAL_OK or another fmbd_cgal_status; on failure nothing is allocated.
 int fmbd_cgal_mesh_surface(int64_t nv, const double *xyz, int64_t nf, const int64_t *tri,

@@ -74,13 +74,14 @@ static int cgal_mesher(int64_t nv, const double *xyz, int64_t nf, const int64_t 
   if (st == FMBD_CGAL_OK) {
     return FMBD_OK;
   }
-  int code = st == FMBD_CGAL_NOMEM          ? FMBD_ERR_NOMEM
+  int code = st == FMBD_CGAL_NOMEM         ? FMBD_ERR_NOMEM
              : st == FMBD_CGAL_BAD_SURFACE ? FMBD_ERR_VALUE
                                            : FMBD_ERR_EXTERNAL;
   return fmbd_err_set(code, __FILE__, __LINE__, __func__, "%s", msg);
 }
 
-// --- option parsing helpers -----------------------------------------------------------------------
+// --- option parsing helpers
+// -----------------------------------------------------------------------
 
 // parse exactly n comma-separated numbers
 static int parse_list(const char *opt, const char *text, int n, double *v) {
@@ -151,7 +152,8 @@ static int parse_interface(args *a, const char *text) {
     } else if (!strcmp(colon + 1, "rbe3")) {
       spec.kind = FMBD_FE_RBE3;
     } else {
-      int st = fmbd_cli_usage_error("--interface %s: tie '%s' is not rbe2 or rbe3", text, colon + 1);
+      int st =
+          fmbd_cli_usage_error("--interface %s: tie '%s' is not rbe2 or rbe3", text, colon + 1);
       fmbd_free(s);
       return st;
     }
@@ -236,14 +238,14 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
       val = eq + 1;
       arg = name;
     }
-#define NEED_VALUE()                                                                     \
-  do {                                                                                   \
-    if (!val) {                                                                          \
-      if (i + 1 >= argc) {                                                               \
-        return fmbd_cli_usage_error("option %s needs a value", arg);                     \
-      }                                                                                  \
-      val = argv[++i];                                                                   \
-    }                                                                                    \
+#define NEED_VALUE()                                                 \
+  do {                                                               \
+    if (!val) {                                                      \
+      if (i + 1 >= argc) {                                           \
+        return fmbd_cli_usage_error("option %s needs a value", arg); \
+      }                                                              \
+      val = argv[++i];                                               \
+    }                                                                \
   } while (0)
     int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
     if (common == FMBD_CLI_DONE) {
@@ -443,8 +445,8 @@ int main(int argc, char **argv) {
   fmbd_fe_body *body = NULL;
   fmbd_h5 *out = NULL;
   char *outname = NULL;
-  static const char *const strip[] = {".geo", ".step", ".stp", ".brep", ".msh",
-                                      ".stl", ".off",  NULL};
+  static const char *const strip[] = {".geo", ".step", ".stp", ".brep",
+                                      ".msh", ".stl",  ".off", NULL};
   FMBD_GCALL(fmbd_cli_output_name(a.input, a.output, strip, ".fe.h5", &outname));
 
   // --- mesh ---
@@ -454,10 +456,13 @@ int main(int argc, char **argv) {
     fmbd_err_contextf(a.input, "--group %s", a.boxes[i].name);
     FMBD_GCALL(fmbd_mesh_add_box_group(&mesh, a.boxes[i].name, a.boxes[i].lo, a.boxes[i].hi));
   }
-  fmbd_log(FMBD_LOG_INFO, "%s: %lld nodes, %lld %s, %lld beam2, %d groups, meshing %.3f s wall, %.3f s cpu",
+  fmbd_log(FMBD_LOG_INFO,
+           "%s: %lld nodes, %lld %s, %lld beam2, %d groups, meshing %.3f s wall, %.3f s cpu",
            a.input, (long long)mesh.nnodes, (long long)mesh.ntet,
-           mesh.tet_nodes == 4 ? "tet4" : mesh.tet_nodes == 10 ? "tet10" : "tet", (long long)mesh.nbeam, mesh.ngroups,
-           fmbd_wall_s() - t0, fmbd_cpu_s() - c0);
+           mesh.tet_nodes == 4    ? "tet4"
+           : mesh.tet_nodes == 10 ? "tet10"
+                                  : "tet",
+           (long long)mesh.nbeam, mesh.ngroups, fmbd_wall_s() - t0, fmbd_cpu_s() - c0);
   FMBD_GCALL(check_groups(&a, &mesh));
   if (mesh.nbeam > 0 && !(a.fe.area > 0)) {
     fmbd_err_context(a.input, "");
@@ -478,7 +483,8 @@ int main(int argc, char **argv) {
     goto done;
   }
   fmbd_log(FMBD_LOG_INFO, "assembly %.3f s wall, %.3f s cpu: %lld dofs, nnz(K) %lld, nnz(M) %lld",
-           fmbd_wall_s() - t0, fmbd_cpu_s() - c0, (long long)body->ndof, (long long)fmbd_csr_nnz(body->K), (long long)fmbd_csr_nnz(body->M));
+           fmbd_wall_s() - t0, fmbd_cpu_s() - c0, (long long)body->ndof,
+           (long long)fmbd_csr_nnz(body->K), (long long)fmbd_csr_nnz(body->M));
 
   // --- write ---
   t0 = fmbd_wall_s();
@@ -498,8 +504,7 @@ int main(int argc, char **argv) {
   if (rc) {
     goto done;
   }
-  fmbd_log(FMBD_LOG_INFO, "writing %.3f s wall, %.3f s cpu", fmbd_wall_s() - t0,
-           fmbd_cpu_s() - c0);
+  fmbd_log(FMBD_LOG_INFO, "writing %.3f s wall, %.3f s cpu", fmbd_wall_s() - t0, fmbd_cpu_s() - c0);
   {
     char elems[96] = "";
     if (body->ntet > 0) {

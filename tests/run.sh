@@ -42,6 +42,7 @@ for t in "$BUILD"/tests/t*; do
   [ -f "$t" ] && [ -x "$t" ] || continue  # not tests/tools/ (tool objects)
   run "unit/$(basename "$t")" "${VG[@]}" "$t"
 done
+run "lint/clang-format" bash scripts/format-check.sh
 for t in tests/cli/*.sh; do
   [ -f "$t" ] || continue
   run "cli/$(basename "$t" .sh)" bash "$t"

@@ -65,7 +65,7 @@ expect_fail() {
 expect_fail 1 'hugeshape\.fe\.h5:/K: shape \(1099511627776, 1099511627776\) does not match indptr' out11.cb.h5 -- hugeshape.fe.h5 -o out11.cb.h5
 expect_fail 1 'zeromass\.fe\.h5:/M: the mass matrix is zero' out12.cb.h5 -- zeromass.fe.h5 -o out12.cb.h5
 expect_fail 1 'indptr\.fe\.h5:/K: indptr: not monotone: entry 6' out13.cb.h5 -- indptr.fe.h5 -o out13.cb.h5
-expect_fail 1 'nodata\.fe\.h5:/K: missing dataset /K/data' out14.cb.h5 -- nodata.fe.h5 -o out14.cb.h5
+expect_fail 1 'nodata\.fe\.h5:/K/data: missing dataset' out14.cb.h5 -- nodata.fe.h5 -o out14.cb.h5
 expect_fail 1 "emptyformat\.fe\.h5: the 'format' attribute is empty, expected fmbd-fe" out15.cb.h5 -- emptyformat.fe.h5 -o out15.cb.h5
 
 # --- good runs ----------------------------------------------------------------------------------

@@ -3,8 +3,9 @@
 # SPDX-License-Identifier: MIT
 #
 # A tet10 rod with two RBE2 interfaces, reduced by fe2cb and selected by cbcheck to 1e-3 on 8
-# flexible modes, then every /ffrf invariant against a direct numpy evaluation from the file's
-# own /mesh/node_mass, /expand and /modes/shapes (docs/THEORY.md section 9), the rigid-body
+# flexible modes, then the /ffrf invariants against identities with the fe file's consistent M
+# (S1 = 0 for free-free modes), a lumped-mass rod's against a direct numpy evaluation from its
+# /mesh/node_mass, /expand and /modes/shapes (docs/THEORY.md section 9), the rigid-body
 # moments against /body, the modes against the FE matrices (mass-normalised, Rayleigh
 # quotients = eigenvalues, eigenvalues within the tolerance of scipy's full eigensolution),
 # the interface modes against /expand rows, and the modal stress layout.
@@ -88,20 +89,66 @@ err = lam / chi - 1
 print("exact relative errors of the kept modes: max %.2e (tolerance %g)" % (err.max(), TOL))
 check(np.all(err <= TOL) and np.all(err > -1e-9), "kept eigenvalues off the full ones: %s" % err)
 
-# --- FFRF invariants (docs/THEORY.md section 9) against numpy on the file's own arrays -------------------
+# --- FFRF invariants (docs/THEORY.md section 9) ------------------------------------------------
+# This rod is meshed with consistent mass: the invariants use the mass the modes come from. They
+# are checked against the fe file's own M (assembled by mesh2fe, the RBE2 ties eliminated) by
+# identities that hold exactly, the rigid motions being in the span of the active dofs:
+#   S1_a,k = r_a' M X_k          r_a: unit rigid translation along a
+#   eps_cab XS_ab,k = w_c' M X_k  w_c: unit rigid rotation about axis c through the origin
+#   sum_a SS_aa,kl = X_k' M X_l   (= delta_kl: mass-normalised)
+# and S1 and the antisymmetric part of XS vanish for free-free modes, M-orthogonal to rigid
+# motion: no spurious rigid-flexible coupling. With the lumped nodal masses they did not
+# (|S1| / sqrt(m) = 1.6e-3 here). Round-off: sums of ~1e3 products of O(1) terms scaled by
+# sqrt(m) (the bound |S1_k| <= sqrt(m) |X_k|_M): 1e-10 is far above it, 1e-3 far below.
 U = (E @ X).reshape(nn, 6, nm)          # row 6p+d of /expand: component d of node p
-T = U[:, :3, :]                          # translations (nn, 3, nm)
-S1 = np.einsum("p,pak->ak", mass, T)
-XS = np.einsum("p,pa,pbk->abk", mass, nodes, T)
-SS = np.einsum("p,pak,pbl->abkl", mass, T, T)
-# sums over ~1000 nodes of products: 1e-12 relative is round-off; an index mix-up is O(1)
-for name, ref in (("S1", S1), ("XS", XS), ("SS", SS)):
-    d = np.max(np.abs(ff[name] - ref)) / np.max(np.abs(ref))
-    print("/ffrf/%s vs numpy: %.1e (shape %s)" % (name, d, ff[name].shape))
-    check(ff[name].shape == ref.shape and d < 1e-12, "/ffrf/%s differs by %.1e" % (name, d))
-# S1 is the mean-axis condition: ~0 for free-free modes (lumped vs consistent mass: not exact)
-s1 = np.max(np.abs(S1)) / (np.sqrt(mass.sum()) * 1.0)
-print("mean-axis residual |S1| / sqrt(m): %.1e" % s1)
+with h5py.File(os.path.join(TMP, "rod.rflex.h5"), "r") as f:
+    dofs = f["dofs"][()]
+R = np.zeros((len(dofs), 6))
+for i, (p_, d_) in enumerate(dofs):
+    if d_ < 3:
+        R[i, d_] = 1.0
+        x = nodes[p_]
+        for c_ in range(3):
+            e = np.zeros(3)
+            e[c_] = 1.0
+            R[i, 3 + c_] = np.cross(e, x)[d_]
+    else:
+        R[i, 3 + d_ - 3] = 1.0
+RMX = R.T @ (M @ X)
+msq = np.sqrt(float(body["mass"]))
+eps = np.zeros((3, 3, 3))
+eps[0, 1, 2] = eps[1, 2, 0] = eps[2, 0, 1] = 1.0
+eps[0, 2, 1] = eps[2, 1, 0] = eps[1, 0, 2] = -1.0
+xs_anti = np.einsum("cab,abk->ck", eps, ff["XS"])
+d_s1 = np.max(np.abs(ff["S1"] - RMX[:3])) / msq
+d_xs = np.max(np.abs(xs_anti - RMX[3:])) / msq
+d_ss = np.max(np.abs(np.einsum("aakl->kl", ff["SS"]) - mm))
+print("consistent invariants: S1 vs r'MX %.1e, eps XS vs w'MX %.1e, tr SS vs X'MX %.1e; "
+      "|S1| / sqrt(m) = %.1e, |eps XS| / sqrt(m) = %.1e" %
+      (d_s1, d_xs, d_ss, np.abs(ff["S1"]).max() / msq, np.abs(xs_anti).max() / msq))
+check(ff["S1"].shape == (3, nm) and ff["XS"].shape == (3, 3, nm) and ff["SS"].shape == (3, 3, nm, nm),
+      "invariant shapes")
+check(d_s1 < 1e-10 and d_xs < 1e-10 and d_ss < 1e-10, "consistent invariants off the identities")
+check(np.abs(ff["S1"]).max() / msq < 1e-10, "S1 of free-free modes of a consistent-mass body is not 0")
+check(np.abs(xs_anti).max() / msq < 1e-10, "rotational coupling of free-free modes is not 0")
+
+# a lumped-mass rod keeps the lumped nodal masses (the mass its modes come from): every
+# invariant against a direct numpy evaluation from its /mesh/node_mass (1e-12: round-off of
+# sums over ~1000 nodes; an index mix-up is O(1))
+run("mesh2fe", geo, "--size", "0.02", "--mass", "lumped", "--interface", "end0", "-o", "rodl.fe.h5", "-q")
+run("fe2cb", "rodl.fe.h5", "--modes", "10", "-o", "rodl.cb.h5", "-q")
+run("cbcheck", "rodl.cb.h5", "--tol", "1e-2", "--range", "4", "-o", "rodl.rflex.h5", "-q")
+with h5py.File(os.path.join(TMP, "rodl.rflex.h5"), "r") as f:
+    XL, EL = f["modes/shapes"][()], csr(f["expand"])
+    nodesL, massL = f["mesh/nodes"][()], f["mesh/node_mass"][()]
+    ffL = {k: f["ffrf"][k][()] for k in f["ffrf"]}
+TL = (EL @ XL).reshape(len(nodesL), 6, XL.shape[1])[:, :3, :]
+for name, ref in (("S1", np.einsum("p,pak->ak", massL, TL)),
+                  ("XS", np.einsum("p,pa,pbk->abk", massL, nodesL, TL)),
+                  ("SS", np.einsum("p,pak,pbl->abkl", massL, TL, TL))):
+    d = np.max(np.abs(ffL[name] - ref)) / np.max(np.abs(ref))
+    print("lumped rod: /ffrf/%s vs numpy: %.1e (shape %s)" % (name, d, ffL[name].shape))
+    check(ffL[name].shape == ref.shape and d < 1e-12, "lumped rod: /ffrf/%s differs by %.1e" % (name, d))
 check(rel(ff["Mff"], np.eye(nm)) < 1e-15 and rel(ff["Kff"], np.diag(lam)) < 1e-15, "Mff = I, Kff = diag")
 # rigid-body moments equal /body: m, m c, J = tr(Ic)/2 I - Ic + m c c' (Ic = tr(J) I - J)
 m, c, Ic = float(body["mass"]), np.asarray(body["center_of_mass"]), np.asarray(body["inertia"]).reshape(3, 3)

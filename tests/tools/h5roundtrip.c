@@ -86,8 +86,9 @@ int main(int argc, char **argv) {
     } else if (!strcmp(argv[i], "--fail")) {
       fail = 1;
     } else if (!strcmp(argv[i], "--help")) {
-      printf("usage: h5roundtrip --make [N] [-o OUT] | h5roundtrip INPUT PATH [-o OUT] [--fail]\n%s",
-             fmbd_cli_exit_help());
+      printf(
+          "usage: h5roundtrip --make [N] [-o OUT] | h5roundtrip INPUT PATH [-o OUT] [--fail]\n%s",
+          fmbd_cli_exit_help());
       return fmbd_cli_finish(0);
     } else if (argv[i][0] == '-' && argv[i][1]) {
       return fmbd_cli_usage_error("unknown option '%s'", argv[i]);

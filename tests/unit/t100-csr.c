@@ -14,8 +14,9 @@ int main(void) {
   EXPECT(fmbd_csr_nnz(A) == 13, "nnz %lld", (long long)fmbd_csr_nnz(A));
   double ke[4] = {1, -1, -1, 1};
   for (int e = 0; e < 4; e++) EXPECT(fmbd_csr_add_block(A, 2, ed + 2 * e, ke) == 0, "add");
-  EXPECT(fmbd_csr_get(A, 2, 2) == 2.0 && fmbd_csr_get(A, 0, 0) == 1.0 && fmbd_csr_get(A, 1, 2) == -1.0,
-         "values");
+  EXPECT(
+      fmbd_csr_get(A, 2, 2) == 2.0 && fmbd_csr_get(A, 0, 0) == 1.0 && fmbd_csr_get(A, 1, 2) == -1.0,
+      "values");
   EXPECT(fmbd_csr_check(A) == 0, "check");
   int64_t bad;
   EXPECT(fmbd_csr_is_symmetric(A, 0.0, &bad), "symmetric");
@@ -25,7 +26,8 @@ int main(void) {
   // P: 5 x 2 interpolation, PtAP against the dense product
   int64_t pe[2] = {0, 4};
   EXPECT(fmbd_csr_submatrix(A, 5, (int64_t[]){0, 1, 2, 3, 4}, 2, pe, &B) == 0, "submatrix");
-  EXPECT(B->nrows == 5 && B->ncols == 2 && fmbd_csr_get(B, 0, 0) == 1.0 && fmbd_csr_get(B, 4, 1) == 1.0,
+  EXPECT(B->nrows == 5 && B->ncols == 2 && fmbd_csr_get(B, 0, 0) == 1.0 &&
+             fmbd_csr_get(B, 4, 1) == 1.0,
          "submatrix values");
   EXPECT(fmbd_csr_create(5, 2, 6, &P) == 0, "create");
   int64_t pp[6] = {0, 1, 2, 4, 5, 6}, pi[6] = {0, 0, 0, 1, 1, 1};

@@ -46,7 +46,8 @@ int main(void) {
   // --- against coreutils sha256sum for every length around the padding boundaries ---
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
   char dir[1024], path[1100], cmd[1300];
-  snprintf(dir, sizeof dir, "%s/%s/test-tmp/t105-sha256", root ? root : ".", build ? build : "build");
+  snprintf(dir, sizeof dir, "%s/%s/test-tmp/t105-sha256", root ? root : ".",
+           build ? build : "build");
   snprintf(cmd, sizeof cmd, "mkdir -p '%s'", dir);
   EXPECT(system(cmd) == 0, "cannot make %s", dir);
   snprintf(path, sizeof path, "%s/bytes", dir);

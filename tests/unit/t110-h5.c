@@ -113,7 +113,8 @@ static void test_dense(void) {
   hid_t fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT);
   hid_t d2 = H5Dopen2(fid, "/g2/f64", H5P_DEFAULT), d1 = H5Dopen2(fid, "/g1/f64", H5P_DEFAULT);
   hid_t pl2 = H5Dget_create_plist(d2), pl1 = H5Dget_create_plist(d1);
-  EXPECT(H5Pget_layout(pl2) == H5D_CHUNKED && H5Pget_nfilters(pl2) == 2, "large: chunked, 2 filters");
+  EXPECT(H5Pget_layout(pl2) == H5D_CHUNKED && H5Pget_nfilters(pl2) == 2,
+         "large: chunked, 2 filters");
   EXPECT(H5Pget_layout(pl1) == H5D_CONTIGUOUS, "small: contiguous");
   H5Pclose(pl1), H5Pclose(pl2), H5Dclose(d1), H5Dclose(d2), H5Fclose(fid);
 
@@ -143,8 +144,8 @@ static void test_dense(void) {
   EXPECT(fmbd_h5_read_i64(f, "/bad/frac", 1, d, &iy) == FMBD_ERR_FORMAT && !iy, "fraction");
   EXPECT(fmbd_h5_read_f64(f, "/a", 0, d, &y) == FMBD_ERR_FORMAT, "group as dataset");
   EXPECT(fmbd_h5_exists(f, "/g3/f64") && !fmbd_h5_exists(f, "/g3/nope") &&
-             !fmbd_h5_exists(f, "/g3/f64/x") && !fmbd_h5_exists(f, "/zz/yy") && fmbd_h5_exists(f, "/") &&
-             fmbd_h5_exists(f, "/g3/") && fmbd_h5_exists(f, "g3/f64"),
+             !fmbd_h5_exists(f, "/g3/f64/x") && !fmbd_h5_exists(f, "/zz/yy") &&
+             fmbd_h5_exists(f, "/") && fmbd_h5_exists(f, "/g3/") && fmbd_h5_exists(f, "g3/f64"),
          "exists");
   // writing into a read handle is refused
   EXPECT(fmbd_h5_write_f64(f, "/w", 1, &one, &seven) != FMBD_OK, "write to read handle");
@@ -152,7 +153,8 @@ static void test_dense(void) {
   char **names = NULL;
   EXPECT(fmbd_h5_list(f, "/", &n, &names) == FMBD_OK && n == 8, "list / gives %d", n);
   const char *want[] = {"a", "bad", "empty", "g0", "g1", "g2", "g3", "g4"};
-  for (int i = 0; i < n && i < 8; i++) EXPECT(!strcmp(names[i], want[i]), "list[%d] %s", i, names[i]);
+  for (int i = 0; i < n && i < 8; i++)
+    EXPECT(!strcmp(names[i], want[i]), "list[%d] %s", i, names[i]);
   for (int i = 0; i < n; i++) fmbd_free(names[i]);
   fmbd_free(names);
   EXPECT(fmbd_h5_list(f, "/none", &n, &names) == FMBD_OK && n == 0 && !names, "list missing");
@@ -233,7 +235,8 @@ static void test_csr(void) {
              !memcmp(B->indices, ix, sizeof ix) && !memcmp(B->data, v, sizeof v),
          "csr round trip");
   fmbd_csr_destroy(&B);
-  EXPECT(fmbd_h5_read_csr(f, "/E", &B) == FMBD_OK && B->nrows == 0 && fmbd_csr_nnz(B) == 0, "empty");
+  EXPECT(fmbd_h5_read_csr(f, "/E", &B) == FMBD_OK && B->nrows == 0 && fmbd_csr_nnz(B) == 0,
+         "empty");
   fmbd_csr_destroy(&B);
   fmbd_err_clear();
   EXPECT(fmbd_h5_read_csr(f, "/bad", &B) == FMBD_ERR_FORMAT && !B, "bad csr");
@@ -279,7 +282,8 @@ static void test_attrs(void) {
   EXPECT(fmbd_h5_read_attr_f64(f, "/body", "center", 3, c2) == FMBD_OK && !memcmp(c, c2, sizeof c),
          "f64");
   EXPECT(fmbd_h5_read_attr_f64(f, "/body", "mass", 1, &m2) == FMBD_OK && m2 == m, "mass");
-  EXPECT(fmbd_h5_read_attr_i64(f, "/body", "k", 2, k2) == FMBD_OK && !memcmp(k, k2, sizeof k), "i64");
+  EXPECT(fmbd_h5_read_attr_i64(f, "/body", "k", 2, k2) == FMBD_OK && !memcmp(k, k2, sizeof k),
+         "i64");
   EXPECT(fmbd_h5_read_attr_i64(f, "/body", "one", 1, &one2) == FMBD_OK && one2 == 9, "i64 scalar");
   EXPECT(fmbd_h5_read_attr_f64(f, "/body", "one", 1, &m2) == FMBD_OK && m2 == 9.0, "int as f64");
   EXPECT(fmbd_h5_read_attr_str(f, "/body", "kind", &s) == FMBD_OK && !strcmp(s, "rbe3"), "str");
@@ -304,8 +308,10 @@ static void test_attrs(void) {
   char **in_names = NULL, **in_sha = NULL;
   EXPECT(fmbd_h5_read_inputs(f, &ni, &in_names, &in_sha) == FMBD_OK && ni == 2, "inputs %d", ni);
   if (ni == 2) {
-    EXPECT(!strcmp(in_names[0], in) && !strcmp(in_sha[0],
-           "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"), "input 0");
+    EXPECT(
+        !strcmp(in_names[0], in) &&
+            !strcmp(in_sha[0], "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"),
+        "input 0");
     EXPECT(!strcmp(in_names[1], "other.h5") && !strcmp(in_sha[1], "0123"), "input 1");
   }
   for (int i = 0; i < ni; i++) fmbd_free(in_names[i]), fmbd_free(in_sha[i]);
@@ -345,7 +351,8 @@ static void test_attrs(void) {
   EXPECT(fmbd_h5_open(plain, &f) == FMBD_OK, "open plain");
   fmbd_err_clear();
   EXPECT(fmbd_h5_check_format(f, "fmbd-fe", 1) == FMBD_ERR_FORMAT, "no format attribute");
-  EXPECT(strstr(fmbd_err_get()->msg, "not a toolchain file") != NULL, "msg %s", fmbd_err_get()->msg);
+  EXPECT(strstr(fmbd_err_get()->msg, "not a toolchain file") != NULL, "msg %s",
+         fmbd_err_get()->msg);
   EXPECT(fmbd_h5_read_attr_str(f, "/", "format_version", &s) == FMBD_OK && !strcmp(s, "1.x"),
          "fixed-length string '%s'", s);
   fmbd_free(s);
@@ -417,7 +424,8 @@ static void test_atomic(void) {
   EXPECT(fmbd_h5_open(bp, &f) == FMBD_OK, "open .part");
   int64_t d[2] = {-1, -1};
   double *t = NULL, *p = NULL;
-  EXPECT(fmbd_h5_read_f64(f, "/time", 1, d, &t) == FMBD_OK && d[0] == 50 && t[49] == 0.49, "series");
+  EXPECT(fmbd_h5_read_f64(f, "/time", 1, d, &t) == FMBD_OK && d[0] == 50 && t[49] == 0.49,
+         "series");
   d[0] = 50, d[1] = 3;
   EXPECT(fmbd_h5_read_f64(f, "/out/p/position", 2, d, &p) == FMBD_OK, "2-D series");
   EXPECT(p && p[3 * 48 + 1] == 96.0 && p[3 * 49 + 2] == -144.0, "series values");
@@ -562,7 +570,8 @@ static void test_countdown(void) {
     rc = write_read_cycle(name);
     fmbd_alloc_fail_after(-1);
     if (rc == FMBD_OK) break;
-    EXPECT(rc == FMBD_ERR_NOMEM, "countdown %lld: rc %d (%s)", (long long)k, rc, fmbd_err_get()->msg);
+    EXPECT(rc == FMBD_ERR_NOMEM, "countdown %lld: rc %d (%s)", (long long)k, rc,
+           fmbd_err_get()->msg);
     EXPECT(!part_exists(name), "countdown %lld: .part left behind", (long long)k);
     if (k > 1000) break;
   }
@@ -571,7 +580,8 @@ static void test_countdown(void) {
 
 int main(void) {
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
-  snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t110-h5", root ? root : ".", build ? build : "build");
+  snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t110-h5", root ? root : ".",
+           build ? build : "build");
   char cmd[2200];
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", g_dir, g_dir);
   if (system(cmd) != 0) return 1;

@@ -64,16 +64,16 @@ static int derive(void *arg) {
 static void test_output_name(void) {
   name_case tty[] = {
       {"rod.geo", NULL, ".fe.h5", "rod.fe.h5", NULL},
-      {"dir.v2/rod", NULL, ".fe.h5", "dir.v2/rod.fe.h5", NULL},    // no extension in base name
-      {"a/rod.fe.h5", NULL, ".cb.h5", "a/rod.cb.h5", NULL},        // longest strip wins
+      {"dir.v2/rod", NULL, ".fe.h5", "dir.v2/rod.fe.h5", NULL},  // no extension in base name
+      {"a/rod.fe.h5", NULL, ".cb.h5", "a/rod.cb.h5", NULL},      // longest strip wins
       {"rod.h5", NULL, ".cb.h5", "rod.cb.h5", NULL},
       {"rod.step", NULL, ".fe.h5", "rod.fe.h5", NULL},
-      {".hidden", NULL, ".fe.h5", ".hidden.fe.h5", NULL},          // a dot file has no extension
-      {"rod.geo", "out.h5", ".fe.h5", "out.h5", NULL},             // -o wins
+      {".hidden", NULL, ".fe.h5", ".hidden.fe.h5", NULL},  // a dot file has no extension
+      {"rod.geo", "out.h5", ".fe.h5", "out.h5", NULL},     // -o wins
       {"rod.geo", "-", ".fe.h5", "-", NULL},
-      {"-", NULL, ".fe.h5", NULL, NULL},                           // stdin to a terminal
-      {"rod.cb.h5", NULL, ".cb.h5", NULL, NULL},                   // would overwrite the input
-      {"rod.geo", "", ".fe.h5", NULL, NULL},                       // empty -o
+      {"-", NULL, ".fe.h5", NULL, NULL},          // stdin to a terminal
+      {"rod.cb.h5", NULL, ".cb.h5", NULL, NULL},  // would overwrite the input
+      {"rod.geo", "", ".fe.h5", NULL, NULL},      // empty -o
   };
   for (size_t i = 0; i < sizeof tty / sizeof *tty; i++) {
     name_case *c = &tty[i];
@@ -204,7 +204,8 @@ static void test_reports(void) {
   e = capture_stderr(finish_ok, NULL, &st);
   EXPECT(st == 0 && !*e, "finish(0): %d '%s'", st, e);
   e = capture_stderr(summary, NULL, &st);
-  EXPECT(!strncmp(e, "t120: rod.fe.h5: 12 dofs, ", 26) && strstr(e, " s wall, ") && strstr(e, " s cpu\n"),
+  EXPECT(!strncmp(e, "t120: rod.fe.h5: 12 dofs, ", 26) && strstr(e, " s wall, ") &&
+             strstr(e, " s cpu\n"),
          "summary '%s'", e);
   fmbd_cli_set_verbosity(1, 0);  // -q: no summary
   e = capture_stderr(summary, NULL, &st);
@@ -221,7 +222,8 @@ static void test_reports(void) {
   fmbd_err_contextf(fmbd_err_get()->file, "%s/y", fmbd_err_get()->where);
   EXPECT(!strcmp(fmbd_err_get()->msg, "outer: inner") && !strcmp(fmbd_err_get()->where, "/x/y") &&
              !strcmp(fmbd_err_get()->file, "a.h5"),
-         "wrapped: '%s' at '%s:%s'", fmbd_err_get()->msg, fmbd_err_get()->file, fmbd_err_get()->where);
+         "wrapped: '%s' at '%s:%s'", fmbd_err_get()->msg, fmbd_err_get()->file,
+         fmbd_err_get()->where);
   EXPECT(fmbd_err_exit_status(FMBD_ERR_USAGE) == 2 && fmbd_err_exit_status(FMBD_ERR_IO) == 1 &&
              fmbd_err_exit_status(FMBD_OK) == 0,
          "exit statuses");
@@ -230,7 +232,8 @@ static void test_reports(void) {
 int main(void) {
   unsetenv("FMBD_LOG");
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
-  snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t120-cli", root ? root : ".", build ? build : "build");
+  snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t120-cli", root ? root : ".",
+           build ? build : "build");
   char cmd[2200];
   snprintf(cmd, sizeof cmd, "mkdir -p '%s'", g_dir);
   if (system(cmd) != 0) return 1;
@@ -243,9 +246,11 @@ int main(void) {
   {
     int q = 0, v = 0;
     EXPECT(fmbd_cli_common_option("-q", "", &q, &v) == FMBD_CLI_TAKEN && q == 1, "-q");
-    EXPECT(fmbd_cli_common_option("--verbose", "", &q, &v) == FMBD_CLI_TAKEN && v == 1, "--verbose");
+    EXPECT(fmbd_cli_common_option("--verbose", "", &q, &v) == FMBD_CLI_TAKEN && v == 1,
+           "--verbose");
     EXPECT(fmbd_cli_common_option("-vv", "", &q, &v) == FMBD_CLI_TAKEN && v == 3, "-vv");
-    EXPECT(fmbd_cli_common_option("--modes", "", &q, &v) == FMBD_CLI_OTHER && q == 1 && v == 3, "other");
+    EXPECT(fmbd_cli_common_option("--modes", "", &q, &v) == FMBD_CLI_OTHER && q == 1 && v == 3,
+           "other");
     EXPECT(fmbd_cli_common_option("-vvv", "", &q, &v) == FMBD_CLI_OTHER, "-vvv is not ours");
   }
   TEST_EXIT();

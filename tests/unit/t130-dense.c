@@ -7,8 +7,8 @@
 #include "fmbd.h"
 #include "fmbd_dense.h"
 
-// 1-D linear FE Laplacian on (0,1), fixed ends, n interior nodes, h = 1/(n+1) (docs/TOOLCHAIN.md section 3c):
-// K = tridiag(-1, 2, -1)/h, M = tridiag(1, 4, 1) h/6. Exact discrete eigenvalues
+// 1-D linear FE Laplacian on (0,1), fixed ends, n interior nodes, h = 1/(n+1) (docs/TOOLCHAIN.md
+// section 3c): K = tridiag(-1, 2, -1)/h, M = tridiag(1, 4, 1) h/6. Exact discrete eigenvalues
 // lambda_k = 6/h^2 (1 - cos k pi h)/(2 + cos k pi h), k = 1..n.
 static void laplacian(int n, double *K, double *M) {
   double h = 1.0 / (n + 1);

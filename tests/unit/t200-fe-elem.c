@@ -11,10 +11,14 @@
 #include "fmbd_err.h"
 #include "fmbd_fe.h"
 
-static double fact(int n) { return n <= 1 ? 1.0 : n * fact(n - 1); }
+static double fact(int n) {
+  return n <= 1 ? 1.0 : n * fact(n - 1);
+}
 
 // exact integral of xi^a eta^b zeta^c over the unit tetrahedron: a! b! c! / (a+b+c+3)!
-static double mono_exact(int a, int b, int c) { return fact(a) * fact(b) * fact(c) / fact(a + b + c + 3); }
+static double mono_exact(int a, int b, int c) {
+  return fact(a) * fact(b) * fact(c) / fact(a + b + c + 3);
+}
 
 static void test_rules(void) {
   const int degs[3] = {1, 2, 5};
@@ -45,25 +49,29 @@ static void test_rules(void) {
       for (int b = 0; a + b <= d1; b++) {
         int c = d1 - a - b;
         double s = 0.0;
-        for (int q = 0; q < np; q++) s += w[q] * pow(pts[3 * q], a) * pow(pts[3 * q + 1], b) * pow(pts[3 * q + 2], c);
+        for (int q = 0; q < np; q++)
+          s += w[q] * pow(pts[3 * q], a) * pow(pts[3 * q + 1], b) * pow(pts[3 * q + 2], c);
         double err = fabs(s - mono_exact(a, b, c)) / mono_exact(a, b, c);
         if (err > worst_next) worst_next = err;
       }
     }
-    EXPECT(worst_next > 1e-6, "rule of degree %d is also exact at degree %d (%.3g)?", degs[r], d1, worst_next);
+    EXPECT(worst_next > 1e-6, "rule of degree %d is also exact at degree %d (%.3g)?", degs[r], d1,
+           worst_next);
   }
   int np;
   const double *pts, *w;
   EXPECT(fmbd_fe_tet_rule(3, &np, &pts, &w) == FMBD_ERR_VALUE, "degree 3 does not exist");
 }
 
-static const double node_xi[10][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {.5, 0, 0},
-                                      {.5, .5, 0}, {0, .5, 0}, {0, 0, .5}, {0, .5, .5}, {.5, 0, .5}};
+static const double node_xi[10][3] = {{0, 0, 0},   {1, 0, 0},   {0, 1, 0},  {0, 0, 1},
+                                      {.5, 0, 0},  {.5, .5, 0}, {0, .5, 0}, {0, 0, .5},
+                                      {0, .5, .5}, {.5, 0, .5}};
 
 static void test_shape(void) {
   for (int nn = 4; nn <= 10; nn += 6) {
     double N[10], dN[30], Np[10], Nm[10], dd[30];
-    // Kronecker property at the nodes (gmsh order: 4 on (0,1), 5 (1,2), 6 (2,0), 7 (3,0), 8 (3,2), 9 (3,1))
+    // Kronecker property at the nodes (gmsh order: 4 on (0,1), 5 (1,2), 6 (2,0), 7 (3,0), 8 (3,2),
+    // 9 (3,1))
     for (int b = 0; b < nn; b++) {
       fmbd_fe_tet_shape(nn, node_xi[b], N, dN);
       for (int a = 0; a < nn; a++) {
@@ -79,7 +87,8 @@ static void test_shape(void) {
       s += N[a];
       for (int k = 0; k < 3; k++) sd[k] += dN[a * 3 + k];
     }
-    EXPECT(fabs(s - 1) < 1e-15 && fabs(sd[0]) + fabs(sd[1]) + fabs(sd[2]) < 1e-14, "tet%d: partition of unity", nn);
+    EXPECT(fabs(s - 1) < 1e-15 && fabs(sd[0]) + fabs(sd[1]) + fabs(sd[2]) < 1e-14,
+           "tet%d: partition of unity", nn);
     for (int k = 0; k < 3; k++) {
       double xp[3] = {xi[0], xi[1], xi[2]}, xm[3] = {xi[0], xi[1], xi[2]};
       xp[k] += 1e-6;
@@ -88,8 +97,8 @@ static void test_shape(void) {
       fmbd_fe_tet_shape(nn, xm, Nm, dd);
       for (int a = 0; a < nn; a++) {
         double fd = (Np[a] - Nm[a]) / 2e-6;
-        EXPECT(fabs(fd - dN[a * 3 + k]) < 1e-8, "tet%d: dN_%d/dxi_%d = %g, difference quotient %g", nn, a, k,
-               dN[a * 3 + k], fd);
+        EXPECT(fabs(fd - dN[a * 3 + k]) < 1e-8, "tet%d: dN_%d/dxi_%d = %g, difference quotient %g",
+               nn, a, k, dN[a * 3 + k], fd);
       }
     }
   }
@@ -101,18 +110,20 @@ static void make_tet10(const double *x4, double *x10) {
   static const int ed[6][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 0}, {3, 2}, {3, 1}};
   memcpy(x10, x4, 12 * sizeof(double));
   for (int l = 0; l < 6; l++) {
-    for (int d = 0; d < 3; d++) x10[3 * (4 + l) + d] = 0.5 * (x4[3 * ed[l][0] + d] + x4[3 * ed[l][1] + d]);
+    for (int d = 0; d < 3; d++)
+      x10[3 * (4 + l) + d] = 0.5 * (x4[3 * ed[l][0] + d] + x4[3 * ed[l][1] + d]);
   }
 }
 
-static double det3(const double *x) { // 6 * volume of the straight tet
+static double det3(const double *x) {  // 6 * volume of the straight tet
   double a[3], b[3], c[3];
   for (int d = 0; d < 3; d++) {
     a[d] = x[3 + d] - x[d];
     b[d] = x[6 + d] - x[d];
     c[d] = x[9 + d] - x[d];
   }
-  return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+  return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+         a[2] * (b[0] * c[1] - b[1] * c[0]);
 }
 
 static void test_tet_element(void) {
@@ -125,11 +136,13 @@ static void test_tet_element(void) {
     int n3 = 3 * nn;
     double *K = fmbd_malloc(sizeof(double) * n3 * n3), *Kc = fmbd_malloc(sizeof(double) * n3 * n3);
     double Me[100], vol, w[30];
-    EXPECT(fmbd_fe_tet_matrices(nn, x, E, nu, rho, 0, K, Me, &vol) == FMBD_OK, "tet%d matrices", nn);
+    EXPECT(fmbd_fe_tet_matrices(nn, x, E, nu, rho, 0, K, Me, &vol) == FMBD_OK, "tet%d matrices",
+           nn);
     EXPECT(fabs(vol - V) < 1e-14 * V, "tet%d volume %.17g, det/6 %.17g", nn, vol, V);
     double m = 0.0;
     for (int i = 0; i < nn * nn; i++) m += Me[i];
-    EXPECT(fabs(m - rho * V) < 1e-13 * rho * V, "tet%d: sum of Me %.17g, rho V %.17g", nn, m, rho * V);
+    EXPECT(fabs(m - rho * V) < 1e-13 * rho * V, "tet%d: sum of Me %.17g, rho V %.17g", nn, m,
+           rho * V);
     double asym = 0.0, kmax = 0.0;
     for (int i = 0; i < n3; i++) {
       for (int j = 0; j < n3; j++) {
@@ -146,7 +159,7 @@ static void test_tet_element(void) {
         double t[3] = {0, 0, 0};
         if (mode < 3) {
           t[mode] = 1.0;
-        } else { // e_k x p
+        } else {  // e_k x p
           int k = mode - 3;
           double e[3] = {0, 0, 0};
           e[k] = 1.0;
@@ -162,7 +175,8 @@ static void test_tet_element(void) {
         f = fmax(f, fabs(s));
       }
       // |K r| relative to |K| |r| (|r| ~ 1.2): rounding level
-      EXPECT(f < 1e-13 * kmax * 2, "tet%d: rigid mode %d gives force %.3g (K max %.3g)", nn, mode, f, kmax);
+      EXPECT(f < 1e-13 * kmax * 2, "tet%d: rigid mode %d gives force %.3g (K max %.3g)", nn, mode,
+             f, kmax);
     }
     // rank 3nn - 6: exactly six eigenvalues below 1e-10 of the largest
     for (int i = 0; i < n3; i++) {
@@ -180,7 +194,8 @@ static void test_tet_element(void) {
     fmbd_fe_hrz_scalar(nn, Me, m, d);
     for (int a = 0; a < nn; a++) {
       double ex = nn == 4 ? m / 4 : (a < 4 ? m / 36 : 4 * m / 27);
-      EXPECT(fabs(d[a] - ex) < 1e-13 * m, "tet%d HRZ node %d: %.17g, expected %.17g", nn, a, d[a], ex);
+      EXPECT(fabs(d[a] - ex) < 1e-13 * m, "tet%d HRZ node %d: %.17g, expected %.17g", nn, a, d[a],
+             ex);
     }
   }
   // tet4 consistent mass in closed form: rho V/20 (1 + delta_ab)
@@ -189,7 +204,8 @@ static void test_tet_element(void) {
   for (int a = 0; a < 4; a++) {
     for (int b = 0; b < 4; b++) {
       double ex = rho * V / 20 * (1 + (a == b));
-      EXPECT(fabs(Me[a * 4 + b] - ex) < 1e-13 * rho * V, "tet4 M[%d][%d] = %g, expected %g", a, b, Me[a * 4 + b], ex);
+      EXPECT(fabs(Me[a * 4 + b] - ex) < 1e-13 * rho * V, "tet4 M[%d][%d] = %g, expected %g", a, b,
+             Me[a * 4 + b], ex);
     }
   }
   // tet10 consistent mass in closed form (straight): corner-corner rho V/420 (6, off-diag 1),
@@ -200,7 +216,7 @@ static void test_tet_element(void) {
   for (int a = 0; a < 10; a++) {
     double s = 0.0;
     for (int b = 0; b < 10; b++) s += M10[a * 10 + b];
-    double ex = a < 4 ? -rho * V / 20 : rho * V / 5; // int N_a dV: corners -V/20, mid-sides V/5
+    double ex = a < 4 ? -rho * V / 20 : rho * V / 5;  // int N_a dV: corners -V/20, mid-sides V/5
     EXPECT(fabs(s - ex) < 1e-13 * rho * V, "tet10 row %d sum %.17g, expected %.17g", a, s, ex);
   }
   // every entry against the closed form (units rho V / 420): corners 6 / 1; corner-mid -4 if the
@@ -218,12 +234,13 @@ static void test_tet_element(void) {
         ex = 32;
       } else {
         int l = a - 4, k = b - 4;
-        bool share = ed[l][0] == ed[k][0] || ed[l][0] == ed[k][1] || ed[l][1] == ed[k][0] || ed[l][1] == ed[k][1];
+        bool share = ed[l][0] == ed[k][0] || ed[l][0] == ed[k][1] || ed[l][1] == ed[k][0] ||
+                     ed[l][1] == ed[k][1];
         ex = share ? 16 : 8;
       }
       ex *= rho * V / 420;
-      EXPECT(fabs(M10[a * 10 + b] - ex) < 1e-13 * rho * V, "tet10 M[%d][%d] = %.17g, closed form %.17g", a, b,
-             M10[a * 10 + b], ex);
+      EXPECT(fabs(M10[a * 10 + b] - ex) < 1e-13 * rho * V,
+             "tet10 M[%d][%d] = %.17g, closed form %.17g", a, b, M10[a * 10 + b], ex);
     }
   }
 }
@@ -249,21 +266,33 @@ static void ke_bdb(int nn, const double *x, double E, double nu, int degree, dou
         for (int j = 0; j < 3; j++) J[k * 3 + j] += dN[a * 3 + k] * x[a * 3 + j];
       }
     }
-    double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) + J[2] * (J[3] * J[7] - J[4] * J[6]);
+    double det = J[0] * (J[4] * J[8] - J[5] * J[7]) - J[1] * (J[3] * J[8] - J[5] * J[6]) +
+                 J[2] * (J[3] * J[7] - J[4] * J[6]);
     // inverse by cofactors
-    Ji[0] = (J[4] * J[8] - J[5] * J[7]) / det; Ji[1] = (J[2] * J[7] - J[1] * J[8]) / det; Ji[2] = (J[1] * J[5] - J[2] * J[4]) / det;
-    Ji[3] = (J[5] * J[6] - J[3] * J[8]) / det; Ji[4] = (J[0] * J[8] - J[2] * J[6]) / det; Ji[5] = (J[2] * J[3] - J[0] * J[5]) / det;
-    Ji[6] = (J[3] * J[7] - J[4] * J[6]) / det; Ji[7] = (J[1] * J[6] - J[0] * J[7]) / det; Ji[8] = (J[0] * J[4] - J[1] * J[3]) / det;
+    Ji[0] = (J[4] * J[8] - J[5] * J[7]) / det;
+    Ji[1] = (J[2] * J[7] - J[1] * J[8]) / det;
+    Ji[2] = (J[1] * J[5] - J[2] * J[4]) / det;
+    Ji[3] = (J[5] * J[6] - J[3] * J[8]) / det;
+    Ji[4] = (J[0] * J[8] - J[2] * J[6]) / det;
+    Ji[5] = (J[2] * J[3] - J[0] * J[5]) / det;
+    Ji[6] = (J[3] * J[7] - J[4] * J[6]) / det;
+    Ji[7] = (J[1] * J[6] - J[0] * J[7]) / det;
+    Ji[8] = (J[0] * J[4] - J[1] * J[3]) / det;
     for (int a = 0; a < nn; a++) {
       double g[3];
-      for (int j = 0; j < 3; j++) g[j] = Ji[j * 3] * dN[a * 3] + Ji[j * 3 + 1] * dN[a * 3 + 1] + Ji[j * 3 + 2] * dN[a * 3 + 2];
+      for (int j = 0; j < 3; j++)
+        g[j] =
+            Ji[j * 3] * dN[a * 3] + Ji[j * 3 + 1] * dN[a * 3 + 1] + Ji[j * 3 + 2] * dN[a * 3 + 2];
       // strains xx yy zz, gamma yz xz xy (order only matters within D, which is isotropic)
       B[0 * n3 + 3 * a] = g[0];
       B[1 * n3 + 3 * a + 1] = g[1];
       B[2 * n3 + 3 * a + 2] = g[2];
-      B[3 * n3 + 3 * a + 1] = g[2]; B[3 * n3 + 3 * a + 2] = g[1];
-      B[4 * n3 + 3 * a] = g[2]; B[4 * n3 + 3 * a + 2] = g[0];
-      B[5 * n3 + 3 * a] = g[1]; B[5 * n3 + 3 * a + 1] = g[0];
+      B[3 * n3 + 3 * a + 1] = g[2];
+      B[3 * n3 + 3 * a + 2] = g[1];
+      B[4 * n3 + 3 * a] = g[2];
+      B[4 * n3 + 3 * a + 2] = g[0];
+      B[5 * n3 + 3 * a] = g[1];
+      B[5 * n3 + 3 * a + 1] = g[0];
     }
     for (int i = 0; i < 6; i++) {
       for (int c = 0; c < n3; c++) {
@@ -326,7 +355,8 @@ static void test_bad_elements(void) {
     x[6 + d] = t;
   }
   fmbd_err_clear();
-  EXPECT(fmbd_fe_tet_matrices(4, x, 1e9, 0.3, 1000, 17, K, Me, &vol) == FMBD_ERR_VALUE, "inverted tet4");
+  EXPECT(fmbd_fe_tet_matrices(4, x, 1e9, 0.3, 1000, 17, K, Me, &vol) == FMBD_ERR_VALUE,
+         "inverted tet4");
   EXPECT(strstr(fmbd_err_get()->msg, "element 17") && strstr(fmbd_err_get()->msg, "inverted") &&
              strstr(fmbd_err_get()->msg, "Jacobian determinant -"),
          "message: %s", fmbd_err_get()->msg);
@@ -340,7 +370,8 @@ static void test_bad_elements(void) {
   make_tet10(X4, x);
   for (int d = 0; d < 3; d++) x[12 + d] = X4[d] - 0.3 * (X4[3 + d] - X4[d]);
   fmbd_err_clear();
-  EXPECT(fmbd_fe_tet_matrices(10, x, 1e9, 0.3, 1000, 42, K, Me, &vol) == FMBD_ERR_VALUE, "folded tet10");
+  EXPECT(fmbd_fe_tet_matrices(10, x, 1e9, 0.3, 1000, 42, K, Me, &vol) == FMBD_ERR_VALUE,
+         "folded tet10");
   EXPECT(strstr(fmbd_err_get()->msg, "element 42") && strstr(fmbd_err_get()->msg, "tet10"),
          "message: %s", fmbd_err_get()->msg);
   // a mildly curved tet10 is fine and keeps its volume sum rule: sum Me = rho * volume
@@ -349,7 +380,8 @@ static void test_bad_elements(void) {
   EXPECT(fmbd_fe_tet_matrices(10, x, 1e9, 0.3, 1000, 0, K, Me, &vol) == FMBD_OK, "curved tet10");
   double m = 0.0;
   for (int i = 0; i < 100; i++) m += Me[i];
-  EXPECT(fabs(m - 1000 * vol) < 1e-12 * m, "curved tet10: sum Me %.17g, rho vol %.17g", m, 1000 * vol);
+  EXPECT(fabs(m - 1000 * vol) < 1e-12 * m, "curved tet10: sum Me %.17g, rho vol %.17g", m,
+         1000 * vol);
 }
 
 static void test_beam_element(void) {
@@ -365,9 +397,11 @@ static void test_beam_element(void) {
       EXPECT(fabs(s - (i == j)) < 1e-15, "R R' (%d, %d) = %g", i, j, s);
     }
   }
-  double ez_cross = R[0] * (R[4] * R[8] - R[5] * R[7]) - R[1] * (R[3] * R[8] - R[5] * R[6]) + R[2] * (R[3] * R[7] - R[4] * R[6]);
+  double ez_cross = R[0] * (R[4] * R[8] - R[5] * R[7]) - R[1] * (R[3] * R[8] - R[5] * R[6]) +
+                    R[2] * (R[3] * R[7] - R[4] * R[6]);
   EXPECT(fabs(ez_cross - 1) < 1e-14, "det R = %g", ez_cross);
-  EXPECT(fabs(R[3 + 0] * v[0] + R[3 + 1] * v[1] + R[3 + 2] * v[2]) < 1e-15, "local y orthogonal to v");
+  EXPECT(fabs(R[3 + 0] * v[0] + R[3 + 1] * v[1] + R[3 + 2] * v[2]) < 1e-15,
+         "local y orthogonal to v");
   EXPECT(fmbd_fe_beam_matrices(x0, x1, v, E, nu, rho, A, Iy, Iz, J, 0, K, M) == FMBD_OK, "beam");
   // rigid modes: K r = 0; r' M r = rho A L for translations, rho J L for a rotation about the axis
   // (about its centre: Euler-Bernoulli mass has no rotary inertia of the section)
@@ -402,7 +436,8 @@ static void test_beam_element(void) {
       for (int i = 0; i < 12; i++) {
         for (int j = 0; j < 12; j++) s += r[i] * M[i * 12 + j] * r[j];
       }
-      EXPECT(fabs(s - rho * A * L) < 1e-13 * rho * A * L, "beam translation mass %.17g vs %.17g", s, rho * A * L);
+      EXPECT(fabs(s - rho * A * L) < 1e-13 * rho * A * L, "beam translation mass %.17g vs %.17g", s,
+             rho * A * L);
     }
   }
   // torsion about the axis through the beam: r = theta along the axis at both nodes
@@ -414,7 +449,8 @@ static void test_beam_element(void) {
     for (int i = 0; i < 12; i++) {
       for (int j = 0; j < 12; j++) s += r[i] * M[i * 12 + j] * r[j];
     }
-    EXPECT(fabs(s - rho * J * L) < 1e-13 * rho * J * L, "torsional mass %.17g vs rho J L %.17g", s, rho * J * L);
+    EXPECT(fabs(s - rho * J * L) < 1e-13 * rho * J * L, "torsional mass %.17g vs rho J L %.17g", s,
+           rho * J * L);
   }
   // HRZ lumped: each node m/2 per translation, torsion rho J L/2, bending rotations m L^2/78
   EXPECT(fmbd_fe_beam_lumped(x0, x1, v, rho, A, J, 0, Ml) == FMBD_OK, "lumped");
@@ -431,9 +467,11 @@ static void test_beam_element(void) {
   // orientation vector parallel to the axis, zero length: errors naming the element
   const double par[3] = {x1[0] - x0[0], x1[1] - x0[1], x1[2] - x0[2]};
   fmbd_err_clear();
-  EXPECT(fmbd_fe_beam_matrices(x0, x1, par, E, nu, rho, A, Iy, Iz, J, 9, K, M) == FMBD_ERR_VALUE, "parallel v");
+  EXPECT(fmbd_fe_beam_matrices(x0, x1, par, E, nu, rho, A, Iy, Iz, J, 9, K, M) == FMBD_ERR_VALUE,
+         "parallel v");
   EXPECT(strstr(fmbd_err_get()->msg, "beam element 9") != NULL, "message: %s", fmbd_err_get()->msg);
-  EXPECT(fmbd_fe_beam_matrices(x0, x0, v, E, nu, rho, A, Iy, Iz, J, 3, K, M) == FMBD_ERR_VALUE, "zero length");
+  EXPECT(fmbd_fe_beam_matrices(x0, x0, v, E, nu, rho, A, Iy, Iz, J, 3, K, M) == FMBD_ERR_VALUE,
+         "zero length");
   EXPECT(strstr(fmbd_err_get()->msg, "beam element 3") != NULL, "message: %s", fmbd_err_get()->msg);
 }
 

@@ -17,7 +17,8 @@ static const double E = 70e9, NU = 0.33, RHO = 2700;
 // exact moments of the sheared box z' = z + eps (x y + x^2) over [0,a]x[0,b]x[0,c] (det = 1),
 // by a 3-point Gauss-Legendre tensor rule (exact to degree 5 per variable; the integrands here
 // have degree <= 4): m, first moments S1 and second moments S2[i][j] = int rho x'_i x'_j
-static void sheared_moments(double a, double b, double c, double eps, double *m, double S1[3], double S2[9]) {
+static void sheared_moments(double a, double b, double c, double eps, double *m, double S1[3],
+                            double S2[9]) {
   const double g[3] = {-sqrt(0.6), 0.0, sqrt(0.6)}, w[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
   *m = 0.0;
   memset(S1, 0, 3 * sizeof(double));
@@ -70,7 +71,8 @@ static double translation_mass(const fmbd_fe_body *b, int d) {
 // 1 + c/10; nodal stresses equal s_c D eps(G) everywhere; with `interior`, K u = 0 on the dofs of
 // nodes strictly inside the box
 #define NCASES 20
-static void patch_test(const fmbd_fe_body *b, const char *what, double a, double bb, double c, bool interior) {
+static void patch_test(const fmbd_fe_body *b, const char *what, double a, double bb, double c,
+                       bool interior) {
   const double G[9] = {1e-3, 2e-4, -3e-4, 5e-4, -7e-4, 1e-4, -2e-4, 6e-4, 4e-4};
   double *q = fmbd_malloc(NCASES * b->ndof * sizeof *q), *f = fmbd_malloc(b->ndof * sizeof *f);
   double *sig = fmbd_malloc(NCASES * b->nnodes * 6 * sizeof *sig);
@@ -78,21 +80,23 @@ static void patch_test(const fmbd_fe_body *b, const char *what, double a, double
     for (int64_t i = 0; i < b->ndof; i++) {
       int64_t p = b->dofs[2 * i], d = b->dofs[2 * i + 1];
       const double *x = b->xyz + 3 * p;
-      q[cs * b->ndof + i] = (1 + 0.1 * cs) * (G[d * 3] * x[0] + G[d * 3 + 1] * x[1] + G[d * 3 + 2] * x[2]) +
-                            1e-3 * (d + 1) * cs;
+      q[cs * b->ndof + i] =
+          (1 + 0.1 * cs) * (G[d * 3] * x[0] + G[d * 3 + 1] * x[1] + G[d * 3 + 2] * x[2]) +
+          1e-3 * (d + 1) * cs;
     }
   }
   EXPECT(fmbd_fe_nodal_stress(b, NCASES, q, sig) == FMBD_OK, "%s: nodal stress", what);
   const double lam = E * NU / ((1 + NU) * (1 - 2 * NU)), mu = E / (2 * (1 + NU));
   double tr = G[0] + G[4] + G[8];
   double ex[6] = {lam * tr + 2 * mu * G[0], lam * tr + 2 * mu * G[4], lam * tr + 2 * mu * G[8],
-                  mu * (G[1] + G[3]), mu * (G[5] + G[7]), mu * (G[2] + G[6])};
+                  mu * (G[1] + G[3]),       mu * (G[5] + G[7]),       mu * (G[2] + G[6])};
   double smax = 0.0, err = 0.0;
   for (int i = 0; i < 6; i++) smax = fmax(smax, fabs(ex[i]));
   for (int cs = 0; cs < NCASES; cs++) {
     for (int64_t p = 0; p < b->nnodes; p++) {
       for (int i = 0; i < 6; i++) {
-        err = fmax(err, fabs(sig[(cs * b->nnodes + p) * 6 + i] - (1 + 0.1 * cs) * ex[i]) / (1 + 0.1 * cs));
+        err = fmax(
+            err, fabs(sig[(cs * b->nnodes + p) * 6 + i] - (1 + 0.1 * cs) * ex[i]) / (1 + 0.1 * cs));
       }
     }
   }
@@ -104,13 +108,15 @@ static void patch_test(const fmbd_fe_body *b, const char *what, double a, double
     for (int64_t i = 0; i < b->ndof; i++) qmax = fmax(qmax, fabs(q[i]));
     for (int64_t i = 0; i < b->ndof; i++) {
       const double *x = b->xyz + 3 * b->dofs[2 * i];
-      bool inside = x[0] > 1e-9 && x[0] < a - 1e-9 && x[1] > 1e-9 && x[1] < bb - 1e-9 && x[2] > 1e-9 && x[2] < c - 1e-9;
+      bool inside = x[0] > 1e-9 && x[0] < a - 1e-9 && x[1] > 1e-9 && x[1] < bb - 1e-9 &&
+                    x[2] > 1e-9 && x[2] < c - 1e-9;
       if (inside) fmax_in = fmax(fmax_in, fabs(f[i]));
       fmax_all = fmax(fmax_all, fabs(f[i]));
     }
     // interior nodal forces of a constant stress vanish (exact quadrature on straight
     // elements); rounding ~ 1e-16 * 30 terms * |K| |q|
-    EXPECT(fmax_in <= 1e-13 * kmax * qmax, "%s: interior force %.3g (|K||q| = %.3g)", what, fmax_in, kmax * qmax);
+    EXPECT(fmax_in <= 1e-13 * kmax * qmax, "%s: interior force %.3g (|K||q| = %.3g)", what, fmax_in,
+           kmax * qmax);
     EXPECT(fmax_all > 1e-6 * kmax * qmax, "%s: boundary forces missing?", what);
   }
   fmbd_free(q);
@@ -118,7 +124,8 @@ static void patch_test(const fmbd_fe_body *b, const char *what, double a, double
   fmbd_free(sig);
 }
 
-static void check_body(const fmbd_fe_body *b, const char *what, double m, const double S1[3], const double S2[9]) {
+static void check_body(const fmbd_fe_body *b, const char *what, double m, const double S1[3],
+                       const double S2[9]) {
   // rigid-body properties from the consistent mass: exact for straight elements and for the
   // quadratic (sheared) geometry (integrands of degree <= 4 against the degree-5 rule)
   EXPECT(fabs(b->mass - m) < 1e-13 * m, "%s: mass %.17g, expected %.17g", what, b->mass, m);
@@ -126,8 +133,8 @@ static void check_body(const fmbd_fe_body *b, const char *what, double m, const 
   for (int i = 0; i < 3; i++) c[i] = S1[i] / m;
   for (int i = 0; i < 3; i++) L = fmax(L, fabs(c[i]));
   for (int i = 0; i < 3; i++) {
-    EXPECT(fabs(b->center_of_mass[i] - c[i]) < 1e-13 * L, "%s: centre of mass %d: %.17g vs %.17g", what, i,
-           b->center_of_mass[i], c[i]);
+    EXPECT(fabs(b->center_of_mass[i] - c[i]) < 1e-13 * L, "%s: centre of mass %d: %.17g vs %.17g",
+           what, i, b->center_of_mass[i], c[i]);
   }
   // I_c = tr(Jc) I - Jc with Jc = S2 - m c c'
   double Jc[9], tr = 0.0, imax = 0.0;
@@ -138,7 +145,8 @@ static void check_body(const fmbd_fe_body *b, const char *what, double m, const 
     imax = fmax(imax, fabs(I[i]));
   }
   for (int i = 0; i < 9; i++) {
-    EXPECT(fabs(b->inertia[i] - I[i]) < 1e-12 * imax, "%s: inertia[%d] %.17g vs %.17g", what, i, b->inertia[i], I[i]);
+    EXPECT(fabs(b->inertia[i] - I[i]) < 1e-12 * imax, "%s: inertia[%d] %.17g vs %.17g", what, i,
+           b->inertia[i], I[i]);
   }
   double nm = 0.0;
   for (int64_t p = 0; p < b->nnodes; p++) nm += b->node_mass[p];
@@ -153,22 +161,27 @@ static void structure_checks(const fmbd_fe_body *b, const char *what) {
   int64_t bad = -1;
   EXPECT(fmbd_csr_check(b->K) == FMBD_OK && fmbd_csr_check(b->M) == FMBD_OK, "%s: CSR valid", what);
   // symmetric to rounding: K_ab[i][j] and K_ba[j][i] are the same products in another order
-  EXPECT(fmbd_csr_is_symmetric(b->K, 1e-14, &bad), "%s: K not symmetric at row %lld", what, (long long)bad);
-  EXPECT(fmbd_csr_is_symmetric(b->M, 1e-14, &bad), "%s: M not symmetric at row %lld", what, (long long)bad);
+  EXPECT(fmbd_csr_is_symmetric(b->K, 1e-14, &bad), "%s: K not symmetric at row %lld", what,
+         (long long)bad);
+  EXPECT(fmbd_csr_is_symmetric(b->M, 1e-14, &bad), "%s: M not symmetric at row %lld", what,
+         (long long)bad);
   double *M = csr_dense(b->M);
   EXPECT(fmbd_dense_chol(b->ndof, M) == FMBD_OK, "%s: M not positive definite", what);
   fmbd_free(M);
   // solid-only nodes: 3 dofs each, node-major; expand = identity on translations, empty rotations
-  EXPECT(b->ndof == 3 * b->nnodes, "%s: %lld dofs for %lld nodes", what, (long long)b->ndof, (long long)b->nnodes);
+  EXPECT(b->ndof == 3 * b->nnodes, "%s: %lld dofs for %lld nodes", what, (long long)b->ndof,
+         (long long)b->nnodes);
   for (int64_t i = 0; i < b->ndof; i++) {
-    EXPECT(b->dofs[2 * i] == i / 3 && b->dofs[2 * i + 1] == i % 3, "%s: dof %lld", what, (long long)i);
+    EXPECT(b->dofs[2 * i] == i / 3 && b->dofs[2 * i + 1] == i % 3, "%s: dof %lld", what,
+           (long long)i);
     int64_t r = 6 * (i / 3) + i % 3;
-    EXPECT(b->expand->indptr[r + 1] - b->expand->indptr[r] == 1 && b->expand->indices[b->expand->indptr[r]] == i &&
+    EXPECT(b->expand->indptr[r + 1] - b->expand->indptr[r] == 1 &&
+               b->expand->indices[b->expand->indptr[r]] == i &&
                b->expand->data[b->expand->indptr[r]] == 1.0,
            "%s: expand row %lld", what, (long long)r);
     if (i % 3 == 0) {
-      EXPECT(b->expand->indptr[r + 6] == b->expand->indptr[r + 3], "%s: rotation rows of node %lld not empty", what,
-             (long long)(i / 3));
+      EXPECT(b->expand->indptr[r + 6] == b->expand->indptr[r + 3],
+             "%s: rotation rows of node %lld not empty", what, (long long)(i / 3));
     }
     EXPECT(fmbd_fe_dof(b, i / 3, (int)(i % 3)) == i, "fmbd_fe_dof");
   }
@@ -187,10 +200,13 @@ int main(void) {
   for (int order = 1; order <= 2; order++) {
     for (int lumped = 0; lumped <= 1; lumped++) {
       char what[64];
-      snprintf(what, sizeof what, "tet%d box, %s mass", order == 1 ? 4 : 10, lumped ? "lumped" : "consistent");
+      snprintf(what, sizeof what, "tet%d box, %s mass", order == 1 ? 4 : 10,
+               lumped ? "lumped" : "consistent");
       fmbd_mesh mesh;
-      if (order == 1) box_mesh(&mesh, a, bb, c, 3, 2, 3, 1);
-      else box_mesh(&mesh, a, bb, c, 2, 1, 2, 2);
+      if (order == 1)
+        box_mesh(&mesh, a, bb, c, 3, 2, 3, 1);
+      else
+        box_mesh(&mesh, a, bb, c, 2, 1, 2, 2);
       o.mass = lumped ? FMBD_FE_MASS_LUMPED : FMBD_FE_MASS_CONSISTENT;
       fmbd_fe_body *b = NULL;
       int rc = fmbd_fe_assemble(&mesh, &o, &b);
@@ -207,8 +223,8 @@ int main(void) {
         // the lumped diagonal is the HRZ node mass per translation
         for (int64_t i = 0; i < b->ndof; i++) {
           double d = fmbd_csr_get(b->M, i, i), nmass = b->node_mass[b->dofs[2 * i]];
-          EXPECT(fabs(d - nmass) < 1e-13 * m, "%s: M[%lld][%lld] = %g, node mass %g", what, (long long)i, (long long)i, d,
-                 nmass);
+          EXPECT(fabs(d - nmass) < 1e-13 * m, "%s: M[%lld][%lld] = %g, node mass %g", what,
+                 (long long)i, (long long)i, d, nmass);
         }
       }
       patch_test(b, what, a, bb, c, true);
@@ -231,7 +247,8 @@ int main(void) {
     EXPECT(rc == FMBD_OK, "curved: assemble: %s", fmbd_err_get()->msg);
     if (!rc) {
       sheared_moments(a, bb, c, eps, &m, S1, S2);
-      EXPECT(fabs(b->volume - a * bb * c) < 1e-14, "curved: volume %.17g (shear keeps %.17g)", b->volume, a * bb * c);
+      EXPECT(fabs(b->volume - a * bb * c) < 1e-14, "curved: volume %.17g (shear keeps %.17g)",
+             b->volume, a * bb * c);
       check_body(b, "curved tet10", m, S1, S2);
       int nr = count_rigid(b, NULL);
       EXPECT(nr == 6, "curved: %d rigid-body modes", nr);
@@ -256,10 +273,12 @@ int main(void) {
     EXPECT(rc == FMBD_OK, "lumped clamped: %s", fmbd_err_get()->msg);
     if (!rc) {
       int g = fmbd_mesh_find_group(&mesh, "xmin");
-      EXPECT(b->ndof == 3 * (mesh.nnodes - (mesh.group_ptr[g + 1] - mesh.group_ptr[g])), "lumped clamped: dofs");
+      EXPECT(b->ndof == 3 * (mesh.nnodes - (mesh.group_ptr[g + 1] - mesh.group_ptr[g])),
+             "lumped clamped: dofs");
       EXPECT(fmbd_csr_nnz(b->M) == b->ndof, "lumped clamped: M diagonal");
       double err = 0.0;
-      for (int64_t i = 0; i < b->ndof; i++) err = fmax(err, fabs(fmbd_csr_get(b->M, i, i) - b->node_mass[b->dofs[2 * i]]));
+      for (int64_t i = 0; i < b->ndof; i++)
+        err = fmax(err, fabs(fmbd_csr_get(b->M, i, i) - b->node_mass[b->dofs[2 * i]]));
       EXPECT(err < 1e-13 * b->mass, "lumped clamped: diagonal vs node mass off by %.3g", err);
       EXPECT(count_rigid(b, NULL) == 0, "lumped clamped: no rigid modes");
       fmbd_fe_body_destroy(&b);
@@ -306,7 +325,8 @@ int main(void) {
       double mexp = RHO * (a * bb * c + 0.4 * 1e-3);
       EXPECT(fabs(b->mass - mexp) < 1e-13 * mexp, "mixed: mass %.17g vs %.17g", b->mass, mexp);
       int64_t bad = -1;
-      EXPECT(fmbd_csr_is_symmetric(b->K, 1e-14, &bad), "mixed: K symmetric (row %lld)", (long long)bad);
+      EXPECT(fmbd_csr_is_symmetric(b->K, 1e-14, &bad), "mixed: K symmetric (row %lld)",
+             (long long)bad);
       int nr = count_rigid(b, NULL);
       EXPECT(nr == 9, "mixed: %d zero-energy modes, expected 6 rigid + 3 pin rotations", nr);
       fmbd_fe_body_destroy(&b);

@@ -80,7 +80,7 @@ static void run(bool cantilever, bool lumped) {
   o.Iy = IY;
   o.Iz = IZ;
   o.J = J;
-  o.orientation[0] = 1.0; // local z in the plane of the axis and global X
+  o.orientation[0] = 1.0;  // local z in the plane of the axis and global X
   o.mass = lumped ? FMBD_FE_MASS_LUMPED : FMBD_FE_MASS_CONSISTENT;
   const char *clamps[1] = {"end0"};
   if (cantilever) {
@@ -94,7 +94,8 @@ static void run(bool cantilever, bool lumped) {
     fmbd_mesh_destroy(&mesh);
     return;
   }
-  EXPECT(b->ndof == 6 * (NEL + 1) - (cantilever ? 6 : 0), "%s: %lld dofs", what, (long long)b->ndof);
+  EXPECT(b->ndof == 6 * (NEL + 1) - (cantilever ? 6 : 0), "%s: %lld dofs", what,
+         (long long)b->ndof);
   const double m = RHO * A * L;
   EXPECT(fabs(b->mass - m) < 1e-13 * m, "%s: mass %.17g vs rho A L %.17g", what, b->mass, m);
   EXPECT(fabs(b->volume - A * L) < 1e-13 * A * L, "%s: volume", what);
@@ -104,8 +105,8 @@ static void run(bool cantilever, bool lumped) {
     EXPECT(fabs(b->center_of_mass[i] - 0.5 * (p0[i] + p1[i])) < 1e-14, "%s: centre of mass", what);
     for (int j = 0; j < 3; j++) {
       double ex = m * L * L / 12 * ((i == j) - dir[i] * dir[j]) + RHO * J * L * dir[i] * dir[j];
-      EXPECT(fabs(b->inertia[i * 3 + j] - ex) < 1e-12 * m * L * L / 12, "%s: inertia[%d][%d] %.17g vs %.17g", what, i,
-             j, b->inertia[i * 3 + j], ex);
+      EXPECT(fabs(b->inertia[i * 3 + j] - ex) < 1e-12 * m * L * L / 12,
+             "%s: inertia[%d][%d] %.17g vs %.17g", what, i, j, b->inertia[i * 3 + j], ex);
     }
   }
   double nm = 0.0;
@@ -120,7 +121,7 @@ static void run(bool cantilever, bool lumped) {
   // Euler-Bernoulli: omega = (beta L)^2 sqrt(E I / (rho A L^4)); cantilever beta L = 1.8751040687,
   // free-free beta L = 4.7300407449 (Blevins, Formulas for natural frequency, table 8-1)
   const double bl = cantilever ? 1.8751040687119611 : 4.730040744862704;
-  const double kax = cantilever ? M_PI / (2 * L) : M_PI / L; // first axial/torsion wavenumber
+  const double kax = cantilever ? M_PI / (2 * L) : M_PI / L;  // first axial/torsion wavenumber
   struct {
     const char *name;
     int cls;
@@ -153,33 +154,35 @@ static void run(bool cantilever, bool lumped) {
         // (beta h)^4 / 1440 to leading order (measured: 3.4e-9 cantilever, 1.4e-7 free-free
         // at 40 elements, ratio 16 per halving); allowed (beta h)^4 / 1000
         double bh = bl * h / L, tol = pow(bh, 4) / 1000 + round;
-        EXPECT(err > -round && err < tol, "%s %s: %.10g rad/s vs %.10g: relative error %.3g, allowed (0, %.3g)", what,
+        EXPECT(err > -round && err < tol,
+               "%s %s: %.10g rad/s vs %.10g: relative error %.3g, allowed (0, %.3g)", what,
                cases[k].name, got, cases[k].exact, err, tol);
       } else {
         // HRZ lumped mass: O(h^2) error from below (measured -0.15 (beta h)^2 = -5e-3 at 10
         // elements); allowed (beta h)^2 / 4
         double bh = bl * h / L;
-        EXPECT(err < round && fabs(err) < bh * bh / 4, "%s %s: relative error %.3g, allowed %.3g", what, cases[k].name,
-               err, bh * bh / 4);
+        EXPECT(err < round && fabs(err) < bh * bh / 4, "%s %s: relative error %.3g, allowed %.3g",
+               what, cases[k].name, err, bh * bh / 4);
       }
     } else if (!lumped) {
       // linear elements with consistent mass: the discrete value is exact to rounding (1e-10);
       // the continuum one is approached from above as (kh)^2/24
       double errd = got / cases[k].discrete - 1, kh = kax * h;
-      EXPECT(fabs(errd) < 1e-10 + round, "%s %s: %.12g vs discrete %.12g (%.3g)", what, cases[k].name, got, cases[k].discrete,
-             errd);
-      EXPECT(err > 0 && err < 1.1 * kh * kh / 24, "%s %s: continuum error %.3g, (kh)^2/24 = %.3g", what,
-             cases[k].name, err, kh * kh / 24);
+      EXPECT(fabs(errd) < 1e-10 + round, "%s %s: %.12g vs discrete %.12g (%.3g)", what,
+             cases[k].name, got, cases[k].discrete, errd);
+      EXPECT(err > 0 && err < 1.1 * kh * kh / 24, "%s %s: continuum error %.3g, (kh)^2/24 = %.3g",
+             what, cases[k].name, err, kh * kh / 24);
     } else {
       // lumped linear bar: omega_h = (2c/h) sin(kh/2), from below
       double dl = 2 * (k == 2 ? ca : ct) / h * sin(kax * h / 2);
-      EXPECT(fabs(got / dl - 1) < 1e-10 + round, "%s %s: %.12g vs lumped discrete %.12g", what, cases[k].name, got, dl);
+      EXPECT(fabs(got / dl - 1) < 1e-10 + round, "%s %s: %.12g vs lumped discrete %.12g", what,
+             cases[k].name, got, dl);
     }
   }
   // the first flexible mode is the weaker bending plane (Iy < Iz)
   double w1 = w[cantilever ? 0 : 6];
-  EXPECT(fabs(w1 / cases[0].exact - 1) < 1e-2, "%s: lowest flexible mode %.6g, expected bending x-z %.6g", what, w1,
-         cases[0].exact);
+  EXPECT(fabs(w1 / cases[0].exact - 1) < 1e-2,
+         "%s: lowest flexible mode %.6g, expected bending x-z %.6g", what, w1, cases[0].exact);
   fmbd_free(w);
   fmbd_free(cls);
   fmbd_fe_body_destroy(&b);

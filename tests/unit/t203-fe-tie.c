@@ -27,9 +27,15 @@ static void add_group(fmbd_mesh *m, const char *name, int (*pred)(const double *
   m->group_ptr[g + 1] = n0 + k;
   m->ngroups = g + 1;
 }
-static int on_edge(const double *x) { return fabs(x[1]) < 1e-12 && fabs(x[2]) < 1e-12; }
-static int two_nodes(const double *x) { return fabs(x[1]) < 1e-12 && fabs(x[2]) < 1e-12 && x[0] < 0.4; }
-static int top_face(const double *x) { return fabs(x[2] - 0.5) < 1e-12; }
+static int on_edge(const double *x) {
+  return fabs(x[1]) < 1e-12 && fabs(x[2]) < 1e-12;
+}
+static int two_nodes(const double *x) {
+  return fabs(x[1]) < 1e-12 && fabs(x[2]) < 1e-12 && x[0] < 0.4;
+}
+static int top_face(const double *x) {
+  return fabs(x[2] - 0.5) < 1e-12;
+}
 
 static fmbd_fe_options base_options(void) {
   fmbd_fe_options o;
@@ -41,7 +47,8 @@ static fmbd_fe_options base_options(void) {
 }
 
 // u = u0 + th x (x - x0) at every active dof; rotations th
-static double *rigid_q(const fmbd_fe_body *b, const double u0[3], const double th[3], const double x0[3]) {
+static double *rigid_q(const fmbd_fe_body *b, const double u0[3], const double th[3],
+                       const double x0[3]) {
   double *q = fmbd_malloc(b->ndof * sizeof *q);
   for (int64_t i = 0; i < b->ndof; i++) {
     int64_t p = b->dofs[2 * i], d = b->dofs[2 * i + 1];
@@ -104,7 +111,8 @@ static void rigid_checks(const fmbd_fe_body *b, const char *what, const double x
     double *t = rigid_q(b, ex, zero, x0), mq = 0.0;
     fmbd_csr_matvec(b->M, t, f);
     for (int64_t i = 0; i < b->ndof; i++) mq += t[i] * f[i];
-    EXPECT(fabs(mq - b->mass) < 1e-13 * b->mass, "%s: translational mass %.17g vs %.17g", what, mq, b->mass);
+    EXPECT(fabs(mq - b->mass) < 1e-13 * b->mass, "%s: translational mass %.17g vs %.17g", what, mq,
+           b->mass);
     fmbd_free(t);
   }
   fmbd_free(q);
@@ -113,9 +121,10 @@ static void rigid_checks(const fmbd_fe_body *b, const char *what, const double x
 }
 
 // K_tied against the dense T' K_free T, T from the expansion rows of the full dofs
-static void dense_ptap_check(const fmbd_fe_body *tied, const fmbd_fe_body *free_b, const char *what) {
-  int64_t nf = free_b->ndof, na = tied->ndof; // free_b: every mesh node has 3 dofs
-  double *T = fmbd_calloc(nf * na, sizeof *T); // column-major nf x na
+static void dense_ptap_check(const fmbd_fe_body *tied, const fmbd_fe_body *free_b,
+                             const char *what) {
+  int64_t nf = free_b->ndof, na = tied->ndof;   // free_b: every mesh node has 3 dofs
+  double *T = fmbd_calloc(nf * na, sizeof *T);  // column-major nf x na
   for (int64_t i = 0; i < nf; i++) {
     int64_t p = free_b->dofs[2 * i], d = free_b->dofs[2 * i + 1], r = 6 * p + d;
     for (int64_t k = tied->expand->indptr[r]; k < tied->expand->indptr[r + 1]; k++) {
@@ -130,7 +139,8 @@ static void dense_ptap_check(const fmbd_fe_body *tied, const fmbd_fe_body *free_
     double err = 0.0, scale = max_abs(R, na * na);
     for (int64_t i = 0; i < na * na; i++) err = fmax(err, fabs(R[i] - D[i]));
     // the same sums in another order: rounding of ~1e-15 of the largest entry
-    EXPECT(err < 1e-13 * scale, "%s: %s differs from dense T'AT by %.3g of %.3g", what, which ? "M" : "K", err, scale);
+    EXPECT(err < 1e-13 * scale, "%s: %s differs from dense T'AT by %.3g of %.3g", what,
+           which ? "M" : "K", err, scale);
     fmbd_free(A);
     fmbd_free(AT);
     fmbd_free(R);
@@ -156,10 +166,13 @@ static void test_rbe2(fmbd_fe_mass_kind mass) {
     EXPECT(b->nnodes == mesh.nnodes + 1 && b->nmesh_nodes == mesh.nnodes, "node counts");
     EXPECT(b->ndof == 3 * (mesh.nnodes - ng) + 6, "rbe2: %lld dofs", (long long)b->ndof);
     const fmbd_fe_interface *fi = &b->interfaces[0];
-    EXPECT(fi->node == mesh.nnodes && fi->nnodes == ng && fi->kind == FMBD_FE_RBE2, "interface record");
-    EXPECT(fabs(fi->point[0]) < 1e-15 && fabs(fi->point[1] - 0.25) < 1e-15 && fabs(fi->point[2] - 0.25) < 1e-15,
+    EXPECT(fi->node == mesh.nnodes && fi->nnodes == ng && fi->kind == FMBD_FE_RBE2,
+           "interface record");
+    EXPECT(fabs(fi->point[0]) < 1e-15 && fabs(fi->point[1] - 0.25) < 1e-15 &&
+               fabs(fi->point[2] - 0.25) < 1e-15,
            "centroid (%g %g %g)", fi->point[0], fi->point[1], fi->point[2]);
-    for (int d = 0; d < 6; d++) EXPECT(fmbd_fe_dof(b, fi->node, d) >= 0, "interface dof %d active", d);
+    for (int d = 0; d < 6; d++)
+      EXPECT(fmbd_fe_dof(b, fi->node, d) >= 0, "interface dof %d active", d);
     EXPECT(b->node_mass[fi->node] == 0.0, "interface node mass");
     EXPECT(fabs(b->mass - free_b->mass) < 1e-14 * b->mass, "mass unchanged by the tie");
     dense_ptap_check(b, free_b, "rbe2");
@@ -194,12 +207,15 @@ static void test_rbe2(fmbd_fe_mass_kind mass) {
   o.ninterfaces = 0;
   EXPECT(fmbd_fe_assemble(&mesh, &o, &bg) == FMBD_OK, "group clamped: %s", fmbd_err_get()->msg);
   if (bi && bg) {
-    EXPECT(bi->ndof == bg->ndof, "clamped dofs %lld vs %lld", (long long)bi->ndof, (long long)bg->ndof);
-    EXPECT(bi->nclamped == 1 && bi->clamped[0].nnodes == 1 && bi->clamped[0].nodes[0] == bi->interfaces[0].node,
+    EXPECT(bi->ndof == bg->ndof, "clamped dofs %lld vs %lld", (long long)bi->ndof,
+           (long long)bg->ndof);
+    EXPECT(bi->nclamped == 1 && bi->clamped[0].nnodes == 1 &&
+               bi->clamped[0].nodes[0] == bi->interfaces[0].node,
            "clamped interface records its node");
     double *Ki = csr_dense(bi->K), *Kg = csr_dense(bg->K), err = 0.0;
     for (int64_t i = 0; i < bi->ndof * bi->ndof; i++) err = fmax(err, fabs(Ki[i] - Kg[i]));
-    EXPECT(err < 1e-14 * fmbd_csr_max_abs(bg->K), "clamped RBE2 vs clamped group: K differs by %.3g", err);
+    EXPECT(err < 1e-14 * fmbd_csr_max_abs(bg->K),
+           "clamped RBE2 vs clamped group: K differs by %.3g", err);
     fmbd_free(Ki);
     fmbd_free(Kg);
     EXPECT(count_rigid(bi) == 0, "clamped: no rigid modes");
@@ -214,8 +230,9 @@ static void test_rbe3(void) {
   fmbd_mesh mesh;
   box_mesh(&mesh, 1.0, 0.5, 0.5, 3, 2, 2, 2);
   fmbd_fe_options o = base_options();
-  fmbd_fe_interface_spec it[2] = {{.group = "xmax", .kind = FMBD_FE_RBE3, .has_point = true, .point = {1.1, 0.3, 0.2}},
-                                  {.group = "xmin", .kind = FMBD_FE_RBE2}};
+  fmbd_fe_interface_spec it[2] = {
+      {.group = "xmax", .kind = FMBD_FE_RBE3, .has_point = true, .point = {1.1, 0.3, 0.2}},
+      {.group = "xmin", .kind = FMBD_FE_RBE2}};
   o.ninterfaces = 2;
   o.interfaces = it;
   fmbd_fe_body *b = NULL, *free_b = NULL;
@@ -226,7 +243,8 @@ static void test_rbe3(void) {
     const fmbd_fe_interface *fi = &b->interfaces[0];
     int64_t ng2 = b->interfaces[1].nnodes;
     EXPECT(b->ndof == 3 * mesh.nnodes - 6 + 6 - 3 * ng2 + 6, "rbe3: %lld dofs", (long long)b->ndof);
-    for (int d = 0; d < 6; d++) EXPECT(fmbd_fe_dof(b, fi->node, d) >= 0, "rbe3 interface dof %d active", d);
+    for (int d = 0; d < 6; d++)
+      EXPECT(fmbd_fe_dof(b, fi->node, d) >= 0, "rbe3 interface dof %d active", d);
     dense_ptap_check(b, free_b, "rbe3 + rbe2");
     rigid_checks(b, "rbe3 + rbe2 (about the RBE2 master)", b->interfaces[1].point);
     EXPECT(count_rigid(b) == 6, "rbe3: rigid-body modes");
@@ -240,7 +258,8 @@ static void test_rbe3(void) {
       const double *x = b->xyz + 3 * fi->nodes[i], *ui = u + 6 * fi->nodes[i];
       double r[3] = {x[0] - fi->point[0], x[1] - fi->point[1], x[2] - fi->point[2]};
       // rows of A_i: u + th x r  ->  [I | -[r]x]
-      double A[3][6] = {{1, 0, 0, 0, r[2], -r[1]}, {0, 1, 0, -r[2], 0, r[0]}, {0, 0, 1, r[1], -r[0], 0}};
+      double A[3][6] = {
+          {1, 0, 0, 0, r[2], -r[1]}, {0, 1, 0, -r[2], 0, r[0]}, {0, 0, 1, r[1], -r[0], 0}};
       for (int p = 0; p < 6; p++) {
         for (int k = 0; k < 3; k++) rhs[p] += A[k][p] * ui[k];
         for (int s = 0; s < 6; s++) {
@@ -253,7 +272,8 @@ static void test_rbe3(void) {
     double err = 0.0, scale = max_abs(rhs, 6);
     for (int d = 0; d < 6; d++) err = fmax(err, fabs(u[6 * fi->node + d] - rhs[d]));
     // two different solves of a 6x6 system with condition ~1e2: 1e-12 relative
-    EXPECT(err < 1e-12 * scale, "rbe3: reference motion differs from the weighted average by %.3g (of %.3g)", err,
+    EXPECT(err < 1e-12 * scale,
+           "rbe3: reference motion differs from the weighted average by %.3g (of %.3g)", err,
            scale);
     fmbd_free(q);
     fmbd_free(u);
@@ -263,15 +283,15 @@ static void test_rbe3(void) {
   fmbd_mesh_destroy(&mesh);
 }
 
-static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_options *o, const char *what, const char *s1,
-                         const char *s2) {
+static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_options *o, const char *what,
+                         const char *s1, const char *s2) {
   fmbd_fe_body *b = NULL;
   fmbd_err_clear();
   int rc = fmbd_fe_assemble(mesh, o, &b);
   EXPECT(rc == FMBD_ERR_VALUE && b == NULL, "%s: rc %d", what, rc);
   const char *msg = fmbd_err_get()->msg;
-  EXPECT(strstr(msg, s1) && (!s2 || strstr(msg, s2)), "%s: message \"%s\" lacks \"%s\"/\"%s\"", what, msg, s1,
-         s2 ? s2 : "");
+  EXPECT(strstr(msg, s1) && (!s2 || strstr(msg, s2)), "%s: message \"%s\" lacks \"%s\"/\"%s\"",
+         what, msg, s1, s2 ? s2 : "");
   fmbd_fe_body_destroy(&b);
 }
 
@@ -282,7 +302,8 @@ static void test_errors(void) {
   add_group(&mesh, "pair", two_nodes);
   add_group(&mesh, "top", top_face);
   fmbd_fe_options o = base_options();
-  fmbd_fe_interface_spec it[2] = {{.group = "edge", .kind = FMBD_FE_RBE3}, {.group = "top", .kind = FMBD_FE_RBE2}};
+  fmbd_fe_interface_spec it[2] = {{.group = "edge", .kind = FMBD_FE_RBE3},
+                                  {.group = "top", .kind = FMBD_FE_RBE2}};
   o.ninterfaces = 1;
   o.interfaces = it;
   expect_error(&mesh, &o, "collinear RBE3", "interface edge", "non-collinear");
@@ -325,7 +346,8 @@ static void test_beam_tie(void) {
   o.clamps = cl;
   fmbd_fe_body *bg = NULL, *bi = NULL;
   EXPECT(fmbd_fe_assemble(&mesh, &o, &bg) == FMBD_OK, "beam clamped: %s", fmbd_err_get()->msg);
-  fmbd_fe_interface_spec it = {.group = "end0", .kind = FMBD_FE_RBE2, .has_point = true, .point = {-0.2, 0.1, 0.0}};
+  fmbd_fe_interface_spec it = {
+      .group = "end0", .kind = FMBD_FE_RBE2, .has_point = true, .point = {-0.2, 0.1, 0.0}};
   o.ninterfaces = 1;
   o.interfaces = &it;
   EXPECT(fmbd_fe_assemble(&mesh, &o, &bi) == FMBD_OK, "beam rbe2 clamped: %s", fmbd_err_get()->msg);
@@ -333,7 +355,8 @@ static void test_beam_tie(void) {
     EXPECT(bi->ndof == bg->ndof, "dofs %lld vs %lld", (long long)bi->ndof, (long long)bg->ndof);
     double *Ki = csr_dense(bi->K), *Kg = csr_dense(bg->K), err = 0.0;
     for (int64_t i = 0; i < bi->ndof * bi->ndof; i++) err = fmax(err, fabs(Ki[i] - Kg[i]));
-    EXPECT(err < 1e-14 * fmbd_csr_max_abs(bg->K), "beam: clamped RBE2 vs clamped end: K differs by %.3g", err);
+    EXPECT(err < 1e-14 * fmbd_csr_max_abs(bg->K),
+           "beam: clamped RBE2 vs clamped end: K differs by %.3g", err);
     fmbd_free(Ki);
     fmbd_free(Kg);
   }
@@ -346,7 +369,7 @@ static void test_beam_tie(void) {
     EXPECT(count_rigid(bi) == 6, "beam rbe2: rigid modes");
   }
   fmbd_fe_body_destroy(&bi);
-  o.mass = FMBD_FE_MASS_LUMPED; // lumped beam mass through the tie (general element path)
+  o.mass = FMBD_FE_MASS_LUMPED;  // lumped beam mass through the tie (general element path)
   EXPECT(fmbd_fe_assemble(&mesh, &o, &bi) == FMBD_OK, "beam rbe2 lumped: %s", fmbd_err_get()->msg);
   if (bi) {
     rigid_checks(bi, "beam rbe2 lumped", it.point);
@@ -359,7 +382,7 @@ static void test_beam_tie(void) {
 
 int main(void) {
   test_rbe2(FMBD_FE_MASS_CONSISTENT);
-  test_rbe2(FMBD_FE_MASS_LUMPED); // T' D T of the HRZ diagonal: no longer diagonal on the master
+  test_rbe2(FMBD_FE_MASS_LUMPED);  // T' D T of the HRZ diagonal: no longer diagonal on the master
   test_rbe3();
   test_errors();
   test_beam_tie();

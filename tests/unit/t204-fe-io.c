@@ -28,8 +28,9 @@ static bool same_csr(const fmbd_csr *a, const fmbd_csr *b) {
   if (!a || !b) return a == b;
   if (a->nrows != b->nrows || a->ncols != b->ncols) return false;
   int64_t nnz = fmbd_csr_nnz(a);
-  return !memcmp(a->indptr, b->indptr, (a->nrows + 1) * sizeof(int64_t)) && nnz == fmbd_csr_nnz(b) &&
-         !memcmp(a->indices, b->indices, nnz * sizeof(int64_t)) && !memcmp(a->data, b->data, nnz * sizeof(double));
+  return !memcmp(a->indptr, b->indptr, (a->nrows + 1) * sizeof(int64_t)) &&
+         nnz == fmbd_csr_nnz(b) && !memcmp(a->indices, b->indices, nnz * sizeof(int64_t)) &&
+         !memcmp(a->data, b->data, nnz * sizeof(double));
 }
 
 // everything but the matrices (and K/M when `matrices`) bit-identical
@@ -39,9 +40,10 @@ static void compare(const fmbd_fe_body *a, const fmbd_fe_body *b, bool matrices,
   EXPECT(a->ntet == b->ntet && a->tet_nodes == b->tet_nodes &&
              (a->ntet == 0 || !memcmp(a->tet, b->tet, a->ntet * a->tet_nodes * sizeof(int64_t))),
          "%s: tets", what);
-  EXPECT(a->nbeam == b->nbeam && (a->nbeam == 0 || (!memcmp(a->beam, b->beam, 2 * a->nbeam * sizeof(int64_t)) &&
-                                                    !memcmp(a->beam_orientation, b->beam_orientation,
-                                                            3 * a->nbeam * sizeof(double)))),
+  EXPECT(a->nbeam == b->nbeam &&
+             (a->nbeam == 0 ||
+              (!memcmp(a->beam, b->beam, 2 * a->nbeam * sizeof(int64_t)) &&
+               !memcmp(a->beam_orientation, b->beam_orientation, 3 * a->nbeam * sizeof(double)))),
          "%s: beams", what);
   EXPECT(a->ngroups == b->ngroups, "%s: %d groups vs %d", what, a->ngroups, b->ngroups);
   // groups are read back sorted by name; compare by name
@@ -54,12 +56,15 @@ static void compare(const fmbd_fe_body *a, const fmbd_fe_body *b, bool matrices,
     if (h < 0) continue;
     int64_t n = a->group_ptr[g + 1] - a->group_ptr[g];
     EXPECT(n == b->group_ptr[h + 1] - b->group_ptr[h] &&
-               !memcmp(a->group_node + a->group_ptr[g], b->group_node + b->group_ptr[h], n * sizeof(int64_t)),
+               !memcmp(a->group_node + a->group_ptr[g], b->group_node + b->group_ptr[h],
+                       n * sizeof(int64_t)),
            "%s: group %s nodes", what, a->group_name[g]);
   }
   EXPECT(!memcmp(a->node_mass, b->node_mass, a->nnodes * sizeof(double)), "%s: node_mass", what);
-  EXPECT(a->E == b->E && a->nu == b->nu && a->rho == b->rho && a->mass_kind == b->mass_kind, "%s: material", what);
-  EXPECT(a->has_section == b->has_section && a->area == b->area && a->Iy == b->Iy && a->Iz == b->Iz && a->J == b->J,
+  EXPECT(a->E == b->E && a->nu == b->nu && a->rho == b->rho && a->mass_kind == b->mass_kind,
+         "%s: material", what);
+  EXPECT(a->has_section == b->has_section && a->area == b->area && a->Iy == b->Iy &&
+             a->Iz == b->Iz && a->J == b->J,
          "%s: section", what);
   EXPECT(a->ndof == b->ndof && !memcmp(a->dofs, b->dofs, 2 * a->ndof * sizeof(int64_t)) &&
              !memcmp(a->node_dof, b->node_dof, (a->nnodes + 1) * sizeof(int64_t)),
@@ -76,17 +81,21 @@ static void compare(const fmbd_fe_body *a, const fmbd_fe_body *b, bool matrices,
     EXPECT(j >= 0, "%s: interface %s lost", what, a->interfaces[i].name);
     if (j < 0) continue;
     const fmbd_fe_interface *x = &a->interfaces[i], *y = &b->interfaces[j];
-    EXPECT(x->kind == y->kind && x->node == y->node && !memcmp(x->point, y->point, sizeof x->point) &&
-               x->nnodes == y->nnodes && !memcmp(x->nodes, y->nodes, x->nnodes * sizeof(int64_t)),
+    EXPECT(x->kind == y->kind && x->node == y->node &&
+               !memcmp(x->point, y->point, sizeof x->point) && x->nnodes == y->nnodes &&
+               !memcmp(x->nodes, y->nodes, x->nnodes * sizeof(int64_t)),
            "%s: interface %s", what, x->name);
   }
   EXPECT(a->nclamped == b->nclamped, "%s: clamps", what);
   for (int i = 0; i < a->nclamped && a->nclamped == b->nclamped; i++) {
-    EXPECT(!strcmp(a->clamped[i].name, b->clamped[i].name) && a->clamped[i].nnodes == b->clamped[i].nnodes &&
-               !memcmp(a->clamped[i].nodes, b->clamped[i].nodes, a->clamped[i].nnodes * sizeof(int64_t)),
+    EXPECT(!strcmp(a->clamped[i].name, b->clamped[i].name) &&
+               a->clamped[i].nnodes == b->clamped[i].nnodes &&
+               !memcmp(a->clamped[i].nodes, b->clamped[i].nodes,
+                       a->clamped[i].nnodes * sizeof(int64_t)),
            "%s: clamp %d", what, i);
   }
-  EXPECT(a->mass == b->mass && !memcmp(a->center_of_mass, b->center_of_mass, sizeof a->center_of_mass) &&
+  EXPECT(a->mass == b->mass &&
+             !memcmp(a->center_of_mass, b->center_of_mass, sizeof a->center_of_mass) &&
              !memcmp(a->inertia, b->inertia, sizeof a->inertia) && a->volume == b->volume,
          "%s: body", what);
 }
@@ -96,8 +105,9 @@ static fmbd_fe_body *solid_body(void) {
   box_mesh(&mesh, 1.0, 0.5, 0.5, 2, 1, 1, 2);
   fmbd_fe_options o;
   fmbd_fe_options_defaults(&o);
-  fmbd_fe_interface_spec it[2] = {{.group = "xmin", .kind = FMBD_FE_RBE2},
-                                  {.group = "xmax", .kind = FMBD_FE_RBE3, .has_point = true, .point = {1.2, 0.2, 0.3}}};
+  fmbd_fe_interface_spec it[2] = {
+      {.group = "xmin", .kind = FMBD_FE_RBE2},
+      {.group = "xmax", .kind = FMBD_FE_RBE3, .has_point = true, .point = {1.2, 0.2, 0.3}}};
   const char *cl[1] = {"xmin"};
   o.ninterfaces = 2;
   o.interfaces = it;
@@ -158,7 +168,10 @@ static void read_errors(const fmbd_fe_body *a) {
   if (!a) return;
   struct {
     const char *drop, *where;
-  } cases[] = {{"/dofs", "/dofs"}, {"/expand", "/expand"}, {"/mesh/node_mass", "/mesh/node_mass"}, {"/body", "/body"}};
+  } cases[] = {{"/dofs", "/dofs"},
+               {"/expand", "/expand"},
+               {"/mesh/node_mass", "/mesh/node_mass"},
+               {"/body", "/body"}};
   for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
     fmbd_h5 *f = NULL;
     const char *name = tmp("broken.fe.h5");
@@ -172,8 +185,8 @@ static void read_errors(const fmbd_fe_body *a) {
     int rc = fmbd_fe_read(f, &b);
     const fmbd_err *e = fmbd_err_get();
     EXPECT(rc != FMBD_OK && b == NULL, "missing %s accepted", cases[k].drop);
-    EXPECT(strstr(e->file, "broken.fe.h5") && strstr(e->where, cases[k].where), "missing %s: error at %s:%s (%s)",
-           cases[k].drop, e->file, e->where, e->msg);
+    EXPECT(strstr(e->file, "broken.fe.h5") && strstr(e->where, cases[k].where),
+           "missing %s: error at %s:%s (%s)", cases[k].drop, e->file, e->where, e->msg);
     fmbd_h5_close(&f);
   }
   // out-of-range node in an element, a /dofs not node-major
@@ -202,8 +215,8 @@ static void read_errors(const fmbd_fe_body *a) {
     fmbd_err_clear();
     EXPECT(fmbd_fe_read(f, &b) == FMBD_ERR_FORMAT, "bad tet index accepted");
     const fmbd_err *e = fmbd_err_get();
-    EXPECT(strstr(e->where, "/mesh/elements/tet10") && strstr(e->msg, "entry 13"), "bad index: %s: %s", e->where,
-           e->msg);
+    EXPECT(strstr(e->where, "/mesh/elements/tet10") && strstr(e->msg, "entry 13"),
+           "bad index: %s: %s", e->where, e->msg);
     fmbd_h5_close(&f);
   }
 }
@@ -215,7 +228,8 @@ static void countdown(void) {
   box_mesh(&mesh, 1.0, 0.5, 0.5, 2, 1, 1, 1);
   fmbd_fe_options o;
   fmbd_fe_options_defaults(&o);
-  fmbd_fe_interface_spec it[2] = {{.group = "xmin", .kind = FMBD_FE_RBE2}, {.group = "xmax", .kind = FMBD_FE_RBE3}};
+  fmbd_fe_interface_spec it[2] = {{.group = "xmin", .kind = FMBD_FE_RBE2},
+                                  {.group = "xmax", .kind = FMBD_FE_RBE3}};
   const char *cl[1] = {"xmin"};
   o.ninterfaces = 2;
   o.interfaces = it;
@@ -230,7 +244,8 @@ static void countdown(void) {
     if (rc == FMBD_OK) {
       ok = 1;
     } else {
-      EXPECT(rc == FMBD_ERR_NOMEM && b == NULL, "countdown %d: rc %d (%s)", n, rc, fmbd_err_get()->msg);
+      EXPECT(rc == FMBD_ERR_NOMEM && b == NULL, "countdown %d: rc %d (%s)", n, rc,
+             fmbd_err_get()->msg);
     }
     fmbd_fe_body_destroy(&b);
   }
@@ -240,7 +255,8 @@ static void countdown(void) {
 
 int main(void) {
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
-  snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t204-fe-io", root ? root : ".", build ? build : "build");
+  snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t204-fe-io", root ? root : ".",
+           build ? build : "build");
   char cmd[2200];
   snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", g_dir, g_dir);
   if (system(cmd) != 0) return 1;

@@ -12,15 +12,15 @@
 #include "fmbd_fe.h"
 #include "t2_mesh.h"
 
-static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_options *o, const char *what, const char *s1,
-                         const char *s2) {
+static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_options *o, const char *what,
+                         const char *s1, const char *s2) {
   fmbd_fe_body *b = NULL;
   fmbd_err_clear();
   int rc = fmbd_fe_assemble(mesh, o, &b);
   EXPECT(rc == FMBD_ERR_VALUE && b == NULL, "%s: rc %d", what, rc);
   const char *msg = fmbd_err_get()->msg;
-  EXPECT(strstr(msg, s1) && (!s2 || strstr(msg, s2)), "%s: message \"%s\" lacks \"%s\" / \"%s\"", what, msg, s1,
-         s2 ? s2 : "");
+  EXPECT(strstr(msg, s1) && (!s2 || strstr(msg, s2)), "%s: message \"%s\" lacks \"%s\" / \"%s\"",
+         what, msg, s1, s2 ? s2 : "");
   fmbd_fe_body_destroy(&b);
 }
 
@@ -33,9 +33,9 @@ int main(void) {
     double E, nu, rho;
     const char *s1, *s2;
   } mat[] = {
-      {0.0, 0.3, 1000, "E = 0", "positive"},      {-1e9, 0.3, 1000, "E = -1e+09", "positive"},
-      {NAN, 0.3, 1000, "E = nan", "positive"},    {1e9, 0.3, 0.0, "rho = 0", "positive"},
-      {1e9, 0.3, -5, "rho = -5", "positive"},     {1e9, 0.5, 1000, "nu = 0.5", "(-1, 0.5)"},
+      {0.0, 0.3, 1000, "E = 0", "positive"},     {-1e9, 0.3, 1000, "E = -1e+09", "positive"},
+      {NAN, 0.3, 1000, "E = nan", "positive"},   {1e9, 0.3, 0.0, "rho = 0", "positive"},
+      {1e9, 0.3, -5, "rho = -5", "positive"},    {1e9, 0.5, 1000, "nu = 0.5", "(-1, 0.5)"},
       {1e9, -1.0, 1000, "nu = -1", "(-1, 0.5)"}, {1e9, 0.7, 1000, "nu = 0.7", "(-1, 0.5)"},
   };
   for (size_t k = 0; k < sizeof mat / sizeof *mat; k++) {
@@ -75,14 +75,15 @@ int main(void) {
     mesh.xyz = x;
     memcpy(x + 3 * mesh.nnodes, x, 3 * sizeof *x);
     mesh.nnodes++;
-    fmbd_mesh m2 = mesh; // shallow: same arrays
+    fmbd_mesh m2 = mesh;  // shallow: same arrays
     fmbd_fe_body *bb = NULL;
     fmbd_err_clear();
     EXPECT(fmbd_fe_assemble(&m2, &o, &bb) == FMBD_ERR_VALUE, "unused node accepted");
     char want[64];
     snprintf(want, sizeof want, "node %lld", (long long)(mesh.nnodes - 1));
-    EXPECT(strstr(fmbd_err_get()->msg, want) && strstr(fmbd_err_get()->msg, "attached to no element"),
-           "unused node: %s", fmbd_err_get()->msg);
+    EXPECT(
+        strstr(fmbd_err_get()->msg, want) && strstr(fmbd_err_get()->msg, "attached to no element"),
+        "unused node: %s", fmbd_err_get()->msg);
     fmbd_fe_body_destroy(&bb);
     mesh.nnodes--;
   }
@@ -107,11 +108,14 @@ int main(void) {
   o.Iz = 1e-9;
   expect_error(&mesh, &o, "no J", "section properties", "J = 0");
   o.J = 1e-9;
-  o.orientation[2] = 1.0; // parallel to the beam
+  o.orientation[2] = 1.0;  // parallel to the beam
   expect_error(&mesh, &o, "parallel orientation", "beam element 0", "parallel");
-  o.orientation[2] = 0.0; // automatic: global X for a beam along Z
-  EXPECT(fmbd_fe_assemble(&mesh, &o, &b) == FMBD_OK, "automatic orientation: %s", fmbd_err_get()->msg);
-  if (b) EXPECT(b->beam_orientation[0] == 1.0 && b->beam_orientation[2] == 0.0, "orientation X for a Z beam");
+  o.orientation[2] = 0.0;  // automatic: global X for a beam along Z
+  EXPECT(fmbd_fe_assemble(&mesh, &o, &b) == FMBD_OK, "automatic orientation: %s",
+         fmbd_err_get()->msg);
+  if (b)
+    EXPECT(b->beam_orientation[0] == 1.0 && b->beam_orientation[2] == 0.0,
+           "orientation X for a Z beam");
   fmbd_fe_body_destroy(&b);
   fmbd_fe_interface_spec it = {.group = "end0", .kind = FMBD_FE_RBE3};
   o.ninterfaces = 1;

@@ -37,8 +37,8 @@ static inline int64_t edge_get(edge_map *h, int64_t a, int64_t b, int64_t *next)
   return h->val[k];
 }
 
-static inline void add_groups(fmbd_mesh *m, int ng, const char *const *names, int (*in)(const double *, int, void *),
-                       void *ctx) {
+static inline void add_groups(fmbd_mesh *m, int ng, const char *const *names,
+                              int (*in)(const double *, int, void *), void *ctx) {
   m->ngroups = ng;
   m->group_name = fmbd_calloc((size_t)ng, sizeof *m->group_name);
   m->group_ptr = fmbd_calloc((size_t)ng + 1, sizeof *m->group_ptr);
@@ -65,11 +65,12 @@ static inline int box_in(const double *x, int g, void *ctx) {
 }
 
 /// Box mesh of order 1 (tet4) or 2 (tet10, straight mid-side nodes).
-static inline void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, int ny, int nz, int order) {
+static inline void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, int ny, int nz,
+                            int order) {
   memset(m, 0, sizeof *m);
   int64_t nv = (int64_t)(nx + 1) * (ny + 1) * (nz + 1);
   int64_t ncell = (int64_t)nx * ny * nz, ntet = 6 * ncell;
-  int64_t nedge_max = 7 * nv + 16; // each vertex starts at most 7 Kuhn edges
+  int64_t nedge_max = 7 * nv + 16;  // each vertex starts at most 7 Kuhn edges
   int64_t nmax = nv + (order == 2 ? nedge_max : 0);
   m->xyz = fmbd_malloc((size_t)(3 * nmax) * sizeof *m->xyz);
   for (int k = 0; k <= nz; k++) {
@@ -98,7 +99,7 @@ static inline void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, 
             if (s > 0) idx[perm[t][s - 1]]++;
             node[s] = ((int64_t)idx[2] * (ny + 1) + idx[1]) * (nx + 1) + idx[0];
           }
-          if (t >= 3) { // odd permutation: negative orientation, swap two nodes
+          if (t >= 3) {  // odd permutation: negative orientation, swap two nodes
             int64_t tmp = node[1];
             node[1] = node[2];
             node[2] = tmp;
@@ -124,7 +125,8 @@ static inline void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, 
         int64_t p0 = t[ed[l][0]], p1 = t[ed[l][1]], before = nn;
         int64_t q = edge_get(&h, p0, p1, &nn);
         if (q == before) {
-          for (int d = 0; d < 3; d++) m->xyz[3 * q + d] = 0.5 * (m->xyz[3 * p0 + d] + m->xyz[3 * p1 + d]);
+          for (int d = 0; d < 3; d++)
+            m->xyz[3 * q + d] = 0.5 * (m->xyz[3 * p0 + d] + m->xyz[3 * p1 + d]);
         }
         t[4 + l] = q;
       }
@@ -139,7 +141,12 @@ static inline void box_mesh(fmbd_mesh *m, double a, double b, double c, int nx, 
   add_groups(m, 3, names, box_in, &bc);
 }
 
-static inline int beam_in(const double *x, int g, void *ctx) { (void)x; (void)g; (void)ctx; return 0; }
+static inline int beam_in(const double *x, int g, void *ctx) {
+  (void)x;
+  (void)g;
+  (void)ctx;
+  return 0;
+}
 
 /// Straight beam of n elements from p0 to p1; groups end0 = {0}, end1 = {n}.
 static inline void beam_mesh(fmbd_mesh *m, const double p0[3], const double p1[3], int n) {
@@ -167,7 +174,8 @@ static inline void beam_mesh(fmbd_mesh *m, const double p0[3], const double p1[3
 static inline double *csr_dense(const fmbd_csr *A) {
   double *D = fmbd_calloc((size_t)(A->nrows * A->ncols), sizeof *D);
   for (int64_t i = 0; i < A->nrows; i++) {
-    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) D[i + A->nrows * A->indices[p]] += A->data[p];
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++)
+      D[i + A->nrows * A->indices[p]] += A->data[p];
   }
   return D;
 }

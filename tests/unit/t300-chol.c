@@ -61,7 +61,8 @@ static int cmpd(const void *a, const void *b) {
 static void inertia_3d(void) {
   const int64_t m = 11;
   const double h = 1.0 / (double)(m + 1);
-  fmbd_csr *K = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h), *M = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
+  fmbd_csr *K = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h),
+           *M = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
   fmbd_csr *KM = kron(K, M), *MM = kron(M, M), *MK = kron(M, K);
   fmbd_csr *K3 = kron(K, MM), *t1 = kron(M, KM), *t2 = kron(MM, K), *M3 = kron(M, MM);
   add_into(K3, t1);
@@ -90,9 +91,11 @@ static void inertia_3d(void) {
     while (k < n && ex[k] - ex[k - 1] < 1e-9 * ex[k]) k++;  // a shift between distinct values
     double sgm = 0.5 * (ex[k - 1] + ex[k]);
     int r1 = fmbd_chol_factor(Fs, sgm), r2 = fmbd_chol_factor(Fp, sgm);
-    EXPECT(r1 == 0 && r2 == 0 && fmbd_chol_negative_pivots(Fs) == k && fmbd_chol_negative_pivots(Fp) == k,
+    EXPECT(r1 == 0 && r2 == 0 && fmbd_chol_negative_pivots(Fs) == k &&
+               fmbd_chol_negative_pivots(Fp) == k,
            "3-D count below %.6g: supernodal %lld, simplicial %lld, exact %lld", sgm,
-           (long long)fmbd_chol_negative_pivots(Fs), (long long)fmbd_chol_negative_pivots(Fp), (long long)k);
+           (long long)fmbd_chol_negative_pivots(Fs), (long long)fmbd_chol_negative_pivots(Fp),
+           (long long)k);
   }
   fmbd_chol_destroy(&Fs);
   fmbd_chol_destroy(&Fp);
@@ -147,7 +150,8 @@ int main(void) {
     double lk1 = 6.0 / (h * h) * (1 - cos((k + 1) * M_PI * h)) / (2 + cos((k + 1) * M_PI * h));
     int64_t cnt = -1;
     rc = fmbd_chol_count_below(K, M, 0.5 * (lk + lk1), &cnt);
-    EXPECT(rc == 0 && cnt == k, "count below the gap after mode %d: %lld (rc %d)", k, (long long)cnt, rc);
+    EXPECT(rc == 0 && cnt == k, "count below the gap after mode %d: %lld (rc %d)", k,
+           (long long)cnt, rc);
   }
   // reuse of one analysis for several shifts, negative count 0 below the first eigenvalue
   fmbd_chol *L = NULL;
@@ -180,7 +184,8 @@ int main(void) {
     const fmbd_csr *S = i < n ? K : Kf;
     int64_t r = i % n, off = i < n ? 0 : n;
     Kb->indptr[i] = k;
-    for (int64_t p = S->indptr[r]; p < S->indptr[r + 1]; p++) Kb->indices[k] = S->indices[p] + off, Kb->data[k++] = S->data[p];
+    for (int64_t p = S->indptr[r]; p < S->indptr[r + 1]; p++)
+      Kb->indices[k] = S->indices[p] + off, Kb->data[k++] = S->data[p];
   }
   Kb->indptr[2 * n] = k;
   rc = fmbd_chol_analyze(Kb, NULL, FMBD_CHOL_LLT, &L);

@@ -98,7 +98,8 @@ int main(void) {
     const int N = 1001;
     const int64_t n = N - 1;
     const double h = 1.0 / N;
-    fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h), *M = tridiag(n, 4 * h / 6, h / 6, 4 * h / 6);
+    fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h),
+             *M = tridiag(n, 4 * h / 6, h / 6, 4 * h / 6);
     fmbd_eig_opts o;
     fmbd_eig_defaults(&o);
     o.nev = 12;
@@ -112,9 +113,11 @@ int main(void) {
              (long long)k + 1, r.lambda[k], ex);
     }
     // M-orthonormal to round-off of the Lanczos basis
-    if (rc == 0) EXPECT(morth_err(M, n, r.nev, r.X) <= 1e-10, "X'MX - I = %.3g", morth_err(M, n, r.nev, r.X));
+    if (rc == 0)
+      EXPECT(morth_err(M, n, r.nev, r.X) <= 1e-10, "X'MX - I = %.3g", morth_err(M, n, r.nev, r.X));
     EXPECT(r.sturm_count == r.nev, "Sturm count %lld", (long long)r.sturm_count);
-    EXPECT(r.sturm_shift > r.lambda[r.nev - 1] && r.sturm_shift < lam1d(13, h), "Sturm shift %g", r.sturm_shift);
+    EXPECT(r.sturm_shift > r.lambda[r.nev - 1] && r.sturm_shift < lam1d(13, h), "Sturm shift %g",
+           r.sturm_shift);
     fmbd_eig_result_free(&r);
 
     // by bound: every eigenvalue up to lambda_max
@@ -122,7 +125,8 @@ int main(void) {
     o.nev = 5;  // deliberately too few: the solver must grow the count
     o.lambda_max = 0.5 * (lam1d(31, h) + lam1d(32, h));
     rc = fmbd_eig_solve(K, M, NULL, &o, &r);
-    EXPECT(rc == 0 && r.nev == 31, "bound mode: rc %d nev %lld (expected 31)", rc, (long long)r.nev);
+    EXPECT(rc == 0 && r.nev == 31, "bound mode: rc %d nev %lld (expected 31)", rc,
+           (long long)r.nev);
     EXPECT(fabs(r.next_lambda - lam1d(32, h)) <= 1e-8 * lam1d(32, h), "next %.12g", r.next_lambda);
     fmbd_eig_result_free(&r);
 
@@ -164,7 +168,8 @@ int main(void) {
     const int N = 800;
     const int64_t n = N + 1;
     const double h = 1.0 / N;
-    fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 1.0 / h), *M = tridiag(n, 4 * h / 6, h / 6, 2 * h / 6);
+    fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 1.0 / h),
+             *M = tridiag(n, 4 * h / 6, h / 6, 2 * h / 6);
     fmbd_eig_opts o;
     fmbd_eig_defaults(&o);
     o.nev = 10;
@@ -174,14 +179,14 @@ int main(void) {
     EXPECT(rc == 0 && r.nev == 10, "free bar: rc %d", rc);
     EXPECT(rc || r.sigma < 0, "negative shift expected: %g", r.sigma);
     // the shift is scaled to the first flexible eigenvalue (docs/THEORY.md section 8), not tiny
-    EXPECT(rc || (-r.sigma > 0.1 * lam1d(1, h) && -r.sigma < 2 * lam1d(1, h)), "shift %g vs lambda_1 %g",
-           r.sigma, lam1d(1, h));
+    EXPECT(rc || (-r.sigma > 0.1 * lam1d(1, h) && -r.sigma < 2 * lam1d(1, h)),
+           "shift %g vs lambda_1 %g", r.sigma, lam1d(1, h));
     // rigid mode: |lambda_0| tiny against lambda_1 (round-off of K + |sigma| M)
     EXPECT(rc || fabs(r.lambda[0]) <= 1e-9 * lam1d(1, h), "rigid %.3g", r.lambda[0]);
     for (int64_t k = 1; rc == 0 && k < r.nev; k++) {
       double ex = lam1d((int)k, h);
-      EXPECT(fabs(r.lambda[k] - ex) <= 1e-9 * ex, "free bar mode %lld: %.15g vs %.15g", (long long)k,
-             r.lambda[k], ex);
+      EXPECT(fabs(r.lambda[k] - ex) <= 1e-9 * ex, "free bar mode %lld: %.15g vs %.15g",
+             (long long)k, r.lambda[k], ex);
     }
     EXPECT(r.sturm_count == 10, "Sturm %lld", (long long)r.sturm_count);
     fmbd_eig_result_free(&r);
@@ -194,7 +199,8 @@ int main(void) {
     const int N = 26;
     const int64_t m = N - 1;
     const double h = 1.0 / N;
-    fmbd_csr *K1 = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h), *M1 = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
+    fmbd_csr *K1 = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h),
+             *M1 = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
     fmbd_csr *K = kron_sum(K1, M1, 1.0), *M = kron_sum(M1, M1, 0.0);
     int64_t n = m * m;  // 625 > dense_max: Lanczos
     double *ex = malloc((size_t)(m * m) * sizeof(double));

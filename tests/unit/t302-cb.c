@@ -50,7 +50,8 @@ static void chain(int64_t n, fmbd_csr **K, fmbd_csr **M) {
 static double *dense(const fmbd_csr *A) {
   double *D = calloc((size_t)(A->nrows * A->ncols), sizeof(double));
   for (int64_t i = 0; i < A->nrows; i++)
-    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) D[i + A->indices[p] * A->nrows] = A->data[p];
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++)
+      D[i + A->indices[p] * A->nrows] = A->data[p];
   return D;
 }
 
@@ -94,7 +95,8 @@ int main(void) {
   double ek = t0_err(cb, Kd, n, cb->Kr), em = t0_err(cb, Md, n, cb->Mr);
   EXPECT(ek < 1e-12 && em < 1e-12, "closed form: K %.2e M %.2e", ek, em);
   // one rigid mode of the free chain, flagged
-  EXPECT(cb->n_rigid == 1 && cb->rigid[0] == 1 && cb->rigid[1] == 0, "rigid: %lld", (long long)cb->n_rigid);
+  EXPECT(cb->n_rigid == 1 && cb->rigid[0] == 1 && cb->rigid[1] == 0, "rigid: %lld",
+         (long long)cb->n_rigid);
 
   // --- extend 5 -> 9 modes: the old ones reproduced, PhitA and the reduced problem updated ---
   double k_old[5];
@@ -132,8 +134,10 @@ int main(void) {
     EXPECT(rd->ns == cb->ns && rd->nb == cb->nb && rd->nd == cb->nd && rd->n_rigid == cb->n_rigid,
            "read sizes");
     double e = 0;
-    for (int64_t i = 0; i < cb->ns * cb->nb; i++) e = fmax(e, fabs(rd->Psi[i] - cb->Psi[i]) + fabs(rd->KsinvA[i] - cb->KsinvA[i]));
-    for (int64_t i = 0; i < cb->nr * cb->nr; i++) e = fmax(e, fabs(rd->Mr[i] - cb->Mr[i]) + fabs(rd->Xi[i] - cb->Xi[i]));
+    for (int64_t i = 0; i < cb->ns * cb->nb; i++)
+      e = fmax(e, fabs(rd->Psi[i] - cb->Psi[i]) + fabs(rd->KsinvA[i] - cb->KsinvA[i]));
+    for (int64_t i = 0; i < cb->nr * cb->nr; i++)
+      e = fmax(e, fabs(rd->Mr[i] - cb->Mr[i]) + fabs(rd->Xi[i] - cb->Xi[i]));
     for (int64_t i = 0; i < cb->ns * cb->nd; i++) e = fmax(e, fabs(rd->Phi[i] - cb->Phi[i]));
     EXPECT(e == 0.0, "round trip not bit-exact: %g", e);
     EXPECT(rd->kappa_next == cb->kappa_next, "kappa_next round trip");

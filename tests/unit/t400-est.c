@@ -109,18 +109,18 @@ int main(void) {
   }
   // reference residual blocks for nd dominant modes: sums over the residual modes
   double Xref[NB * NB], Gref[NB * NB];
-#define RESIDUAL(nd)                                                            \
-  do {                                                                          \
-    memset(Xref, 0, sizeof Xref);                                               \
-    memset(Gref, 0, sizeof Gref);                                               \
-    for (int k = (nd); k < NS; k++) {                                           \
-      for (int j = 0; j < NB; j++) {                                            \
-        for (int i = 0; i < NB; i++) {                                          \
-          Xref[i + NB * j] += P[k + NS * i] * P[k + NS * j] / kap[k];           \
+#define RESIDUAL(nd)                                                             \
+  do {                                                                           \
+    memset(Xref, 0, sizeof Xref);                                                \
+    memset(Gref, 0, sizeof Gref);                                                \
+    for (int k = (nd); k < NS; k++) {                                            \
+      for (int j = 0; j < NB; j++) {                                             \
+        for (int i = 0; i < NB; i++) {                                           \
+          Xref[i + NB * j] += P[k + NS * i] * P[k + NS * j] / kap[k];            \
           Gref[i + NB * j] += P[k + NS * i] * P[k + NS * j] / (kap[k] * kap[k]); \
-        }                                                                       \
-      }                                                                         \
-    }                                                                           \
+        }                                                                        \
+      }                                                                          \
+    }                                                                            \
   } while (0)
   // The random body is well conditioned (cond(Ks) ~ 1e2, residual ~ 1e-1 of the total), so
   // both evaluations agree with the residual-mode sums to ~1e-14; 1e-10 leaves room for the
@@ -134,7 +134,8 @@ int main(void) {
   EXPECT(noise >= 0 && noise < 1e-10 * maxabs(NB * NB, Xref), "noise %g", noise);
   fmbd_csr *cK = to_csr(NS, Ks), *cM = to_csr(NS, Ms);
   double Xp[NB * NB], Gp[NB * NB];
-  EXPECT(fmbd_est_base_projected(cK, cM, NS, NULL, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xp, Gp) == 0, "proj");
+  EXPECT(fmbd_est_base_projected(cK, cM, NS, NULL, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xp, Gp) == 0,
+         "proj");
   EXPECT(reldiff(NB * NB, Xp, Xref) < 1e-10, "projected Xb off by %g", reldiff(NB * NB, Xp, Xref));
   EXPECT(reldiff(NB * NB, Gp, Gref) < 1e-10, "projected Gb off by %g", reldiff(NB * NB, Gp, Gref));
   {  // the same from the full matrices and the interior rows (last NB rows are the boundary)
@@ -144,10 +145,12 @@ int main(void) {
       inter[i] = i;
     }
     double Xq[NB * NB], Gq[NB * NB];
-    EXPECT(fmbd_est_base_projected(fK, fM, NS, inter, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xq, Gq) == 0,
-           "proj full");
+    EXPECT(
+        fmbd_est_base_projected(fK, fM, NS, inter, NB, NPOOL, A, KsA, Phi, kap, PhitA, Xq, Gq) == 0,
+        "proj full");
     // same arithmetic up to summation order: 1e-12
-    EXPECT(reldiff(NB * NB, Xq, Xp) < 1e-12 && reldiff(NB * NB, Gq, Gp) < 1e-12, "interior rows of K, M");
+    EXPECT(reldiff(NB * NB, Xq, Xp) < 1e-12 && reldiff(NB * NB, Gq, Gp) < 1e-12,
+           "interior rows of K, M");
     fmbd_csr_destroy(&fK);
     fmbd_csr_destroy(&fM);
   }
@@ -233,10 +236,13 @@ int main(void) {
     EXPECT(!m.rigid[k], "mode %d flagged rigid", k);
     // 1e-9: quadratic forms of matrices equal to 1e-10 (above), no cancellation
     EXPECT(fabs(m.lower[k] - c * x) <= 1e-9 * fabs(c * x), "lower %d", k);
-    EXPECT(fabs(m.second[k] - (c * x + c * c * g)) <= 1e-9 * fabs(c * x + c * c * g), "second %d", k);
-    EXPECT(fabs(m.upper[k] - (c + c * c / kn) * x) <= 1e-9 * fabs((c + c * c / kn) * x), "upper %d", k);
-    EXPECT(fabs(m.upper_next[k] - (c + c * c / kap[nd]) * x) <= 1e-9 * fabs((c + c * c / kap[nd]) * x),
-           "upper_next %d", k);
+    EXPECT(fabs(m.second[k] - (c * x + c * c * g)) <= 1e-9 * fabs(c * x + c * c * g), "second %d",
+           k);
+    EXPECT(fabs(m.upper[k] - (c + c * c / kn) * x) <= 1e-9 * fabs((c + c * c / kn) * x), "upper %d",
+           k);
+    EXPECT(
+        fabs(m.upper_next[k] - (c + c * c / kap[nd]) * x) <= 1e-9 * fabs((c + c * c / kap[nd]) * x),
+        "upper_next %d", k);
   }
   // --- rigid modes and a repeated cluster (synthetic eigenpairs) ----------------------------
   {

@@ -35,7 +35,8 @@ static const char *tmp(const char *name) {
 
 int main(void) {
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
-  snprintf(dir, sizeof dir, "%s/%s/test-tmp/t401-modal", root ? root : ".", build ? build : "build");
+  snprintf(dir, sizeof dir, "%s/%s/test-tmp/t401-modal", root ? root : ".",
+           build ? build : "build");
   char cmd[700];
   snprintf(cmd, sizeof cmd, "mkdir -p '%s'", dir);
   if (system(cmd) != 0) {
@@ -83,12 +84,14 @@ int main(void) {
   }
   // --- CB reduction, then the modes of the reduced body --------------------------------------
   int64_t nb = 0, *bnd = NULL;
-  EXPECT(fmbd_cb_boundary(b, 0, NULL, &nb, &bnd) == 0 && nb == 12, "boundary: %lld dofs", (long long)nb);
+  EXPECT(fmbd_cb_boundary(b, 0, NULL, &nb, &bnd) == 0 && nb == 12, "boundary: %lld dofs",
+         (long long)nb);
   fmbd_cb_opts co;
   fmbd_cb_defaults(&co);
   co.nmodes = 8;
   fmbd_cb *cb = NULL;
-  EXPECT(fmbd_cb_reduce(b->K, b->M, b->dofs, nb, bnd, &co, &cb) == 0, "reduce: %s", fmbd_err_get()->msg);
+  EXPECT(fmbd_cb_reduce(b->K, b->M, b->dofs, nb, bnd, &co, &cb) == 0, "reduce: %s",
+         fmbd_err_get()->msg);
   int64_t nr = cb->nr, nm = 5, nrig = cb->n_rigid;
   EXPECT(nrig == 6, "%lld rigid-body modes, expected 6", (long long)nrig);
   double chif[5], *Xif = calloc((size_t)(nr * nm), sizeof(double));
@@ -96,8 +99,8 @@ int main(void) {
     chif[k] = cb->chibar[nrig + k];
     memcpy(Xif + nr * k, cb->Xi + nr * (nrig + k), sizeof(double) * (size_t)nr);
   }
-  fmbd_modal_input mi = {b, cb->ns, cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi, cb->ns,
-                         cb->Psi, nm, chif, Xif, nr, true};
+  fmbd_modal_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
+                         cb->ns, cb->Psi, nm,     chif,         Xif,          nr,     true};
   fmbd_rflex *rf = NULL;
   EXPECT(fmbd_modal_build(&mi, &rf) == 0, "build: %s", fmbd_err_get()->msg);
   // shapes' M shapes = I: T0' M T0 = M_ (closed form) and Xi' M_ Xi = I; round-off of the
@@ -110,8 +113,10 @@ int main(void) {
   fmbd_dense_gemm('T', 'N', nm, nm, n, 1.0, rf->shapes, n, MX, n, 0.0, Kq, nm);
   for (int i = 0; i < nm; i++) {
     for (int j = 0; j < nm; j++) {
-      EXPECT(fabs(G[i + nm * j] - (i == j)) < 1e-9, "shapes' M shapes (%d,%d) = %g", i, j, G[i + nm * j]);
-      EXPECT(fabs(Kq[i + nm * j] - (i == j) * chif[i]) < 1e-9 * chif[nm - 1], "shapes' K shapes (%d,%d)", i, j);
+      EXPECT(fabs(G[i + nm * j] - (i == j)) < 1e-9, "shapes' M shapes (%d,%d) = %g", i, j,
+             G[i + nm * j]);
+      EXPECT(fabs(Kq[i + nm * j] - (i == j) * chif[i]) < 1e-9 * chif[nm - 1],
+             "shapes' K shapes (%d,%d)", i, j);
     }
   }
   // first moment and mass from /body
@@ -119,7 +124,8 @@ int main(void) {
          "mass / first moment");
   // --- write, read back: bit-exact ---------------------------------------------------------------
   fmbd_h5 *f = NULL;
-  EXPECT(fmbd_h5_create(tmp("beam.rflex.h5"), FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, &f) == 0, "create");
+  EXPECT(fmbd_h5_create(tmp("beam.rflex.h5"), FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, &f) == 0,
+         "create");
   EXPECT(fmbd_fe_write(f, b) == 0, "description");
   EXPECT(fmbd_rflex_write(f, rf) == 0, "write: %s", fmbd_err_get()->msg);
   EXPECT(fmbd_h5_commit(&f, 0, 0) == 0, "commit");
@@ -128,8 +134,10 @@ int main(void) {
   EXPECT(fmbd_rflex_read(f, &rd) == 0, "read: %s", fmbd_err_get()->msg);
   fmbd_h5_close(&f);
   if (rd) {
-    EXPECT(rd->nm == nm && rd->ndof == n && rd->nnodes == rf->nnodes && rd->ninterfaces == 2, "sizes");
-#define SAME(field, count) EXPECT(!memcmp(rd->field, rf->field, sizeof(double) * (size_t)(count)), #field " differs")
+    EXPECT(rd->nm == nm && rd->ndof == n && rd->nnodes == rf->nnodes && rd->ninterfaces == 2,
+           "sizes");
+#define SAME(field, count) \
+  EXPECT(!memcmp(rd->field, rf->field, sizeof(double) * (size_t)(count)), #field " differs")
     SAME(eigenvalue, nm);
     SAME(frequency_hz, nm);
     SAME(shapes, n * nm);
@@ -141,15 +149,18 @@ int main(void) {
     SAME(SS, 9 * nm * nm);
     SAME(Mff, nm * nm);
     SAME(Kff, nm * nm);
-    EXPECT(!memcmp(rd->second_moment, rf->second_moment, sizeof rf->second_moment), "second moment");
+    EXPECT(!memcmp(rd->second_moment, rf->second_moment, sizeof rf->second_moment),
+           "second moment");
     EXPECT(rd->mass == rf->mass, "mass");
     for (int i = 0; i < 2; i++) {
       int j = fmbd_rflex_find_interface(rd, rf->interfaces[i].name);
       EXPECT(j >= 0, "interface %s not found", rf->interfaces[i].name);
       if (j >= 0) {
-        EXPECT(!memcmp(rd->interfaces[j].translation, rf->interfaces[i].translation, sizeof(double) * 3 * nm),
+        EXPECT(!memcmp(rd->interfaces[j].translation, rf->interfaces[i].translation,
+                       sizeof(double) * 3 * nm),
                "translation of %s", rf->interfaces[i].name);
-        EXPECT(rd->interfaces[j].node == rf->interfaces[i].node, "node of %s", rf->interfaces[i].name);
+        EXPECT(rd->interfaces[j].node == rf->interfaces[i].node, "node of %s",
+               rf->interfaces[i].name);
         // the accessor gives the same rows of /expand times the shapes
         double x0[3], T[15], R[15];
         EXPECT(fmbd_rflex_node_modes(rd, rd->interfaces[j].node, x0, T, R) == 0, "node_modes");
@@ -163,7 +174,8 @@ int main(void) {
       }
     }
     EXPECT(fmbd_rflex_find_interface(rd, "nope") == -1, "unknown interface");
-    EXPECT(fmbd_rflex_node_modes(rd, rd->nnodes, NULL, NULL, NULL) == FMBD_ERR_VALUE, "node out of range");
+    EXPECT(fmbd_rflex_node_modes(rd, rd->nnodes, NULL, NULL, NULL) == FMBD_ERR_VALUE,
+           "node out of range");
     double sg[30];
     EXPECT(fmbd_rflex_node_stress(rd, 3, sg) == 0, "stress present");
   }
@@ -176,8 +188,9 @@ int main(void) {
   fmbd_h5_close(&f);
   // von Mises: uniaxial sigma -> sigma; pure shear tau -> sqrt(3) tau
   double s1[6] = {100, 0, 0, 0, 0, 0}, s2[6] = {0, 0, 0, 10, 0, 0}, s3[6] = {5, 5, 5, 0, 0, 0};
-  EXPECT(fabs(fmbd_von_mises(s1) - 100) < 1e-12 && fabs(fmbd_von_mises(s2) - sqrt(3) * 10) < 1e-12 &&
-             fabs(fmbd_von_mises(s3)) < 1e-12, "von Mises");
+  EXPECT(fabs(fmbd_von_mises(s1) - 100) < 1e-12 &&
+             fabs(fmbd_von_mises(s2) - sqrt(3) * 10) < 1e-12 && fabs(fmbd_von_mises(s3)) < 1e-12,
+         "von Mises");
   // --- SVG ---------------------------------------------------------------------------------------
   double x[4] = {1, 2, 3, 4}, y[4] = {1e-5, 0, 3e-3, NAN}, yneg[2] = {-1, 0};
   fmbd_svg_plot p;
@@ -187,7 +200,8 @@ int main(void) {
   fmbd_svg_series s[1] = {{"series", 4, x, y, NULL, FMBD_SVG_CIRCLE, FMBD_SVG_SOLID}};
   EXPECT(fmbd_svg_write(tmp("p.svg"), &p, 1, s) == 0, "svg");
   struct stat st;
-  EXPECT(stat(tmp("p.svg"), &st) == 0 && st.st_size > 500 && stat(tmp("p.svg.part"), &st) != 0, "svg file");
+  EXPECT(stat(tmp("p.svg"), &st) == 0 && st.st_size > 500 && stat(tmp("p.svg.part"), &st) != 0,
+         "svg file");
   FILE *fp = fopen(tmp("p.svg"), "r");
   char text[20000] = {0};
   if (fp) {
@@ -195,11 +209,13 @@ int main(void) {
     text[got] = 0;
     fclose(fp);
   }
-  EXPECT(strstr(text, "a &lt;title&gt; &amp; more") && strstr(text, "</svg>") && strstr(text, ">1e-5<"),
+  EXPECT(strstr(text, "a &lt;title&gt; &amp; more") && strstr(text, "</svg>") &&
+             strstr(text, ">1e-5<"),
          "svg content (escaped title, closed, decade label 1e-5)");
   fmbd_svg_series sn[1] = {{"neg", 2, x, yneg, NULL, FMBD_SVG_NONE, FMBD_SVG_SOLID}};
-  EXPECT(fmbd_svg_write(tmp("neg.svg"), &p, 1, sn) == FMBD_ERR_VALUE && stat(tmp("neg.svg"), &st) != 0,
-         "a log axis with no positive value must fail and leave no file");
+  EXPECT(
+      fmbd_svg_write(tmp("neg.svg"), &p, 1, sn) == FMBD_ERR_VALUE && stat(tmp("neg.svg"), &st) != 0,
+      "a log axis with no positive value must fail and leave no file");
   EXPECT(fmbd_svg_write("/nonexistent-dir/p.svg", &p, 1, s) == FMBD_ERR_IO, "unwritable path");
   fmbd_rflex_destroy(&rd);
   fmbd_rflex_destroy(&rf);

@@ -12,7 +12,8 @@ static fmbd_scene *parse(const char *text) {
   fmbd_scene *s = NULL;
   fmbd_err_clear();
   int rc = fmbd_scene_parse("dir/t.yaml", text, (int64_t)strlen(text), &s);
-  EXPECT(rc == 0, "parse failed: %s:%s: %s", fmbd_err_get()->file, fmbd_err_get()->where, fmbd_err_get()->msg);
+  EXPECT(rc == 0, "parse failed: %s:%s: %s", fmbd_err_get()->file, fmbd_err_get()->where,
+         fmbd_err_get()->msg);
   return s;
 }
 
@@ -25,7 +26,8 @@ static void bad(const char *text, const char *where, const char *needle) {
   EXPECT(rc == FMBD_ERR_SCENE, "expected a scene error (%s) at %s, got rc %d", needle, where, rc);
   EXPECT(s == NULL, "no scene on failure");
   EXPECT(!strcmp(e->file, "t.yaml"), "file '%s'", e->file);
-  EXPECT(!strcmp(e->where, where), "'%s': where '%s', expected '%s' (%s)", needle, e->where, where, e->msg);
+  EXPECT(!strcmp(e->where, where), "'%s': where '%s', expected '%s' (%s)", needle, e->where, where,
+         e->msg);
   EXPECT(strstr(e->msg, needle) != NULL, "message '%s' lacks '%s'", e->msg, needle);
   fmbd_scene_destroy(&s);
 }
@@ -47,7 +49,8 @@ static const char *good =
     "    type: flexible\n"
     "    file: rod.rflex.h5\n"
     "    modes: 6\n"
-    "    make: {cb: rod.cb.h5, cbcheck: --tol 1e-3, fe: rod.fe.h5, fe2cb: --modes 20, geometry: rod.geo}\n"
+    "    make: {cb: rod.cb.h5, cbcheck: --tol 1e-3, fe: rod.fe.h5, fe2cb: --modes 20, geometry: "
+    "rod.geo}\n"
     "joints:\n"
     "  - {name: j0, type: spherical, body1: ground, body2: a, point: [0, 0, 0]}\n"
     "  - {name: j1, type: revolute, body1: a, body2: b, point: [0.4, 0, 0], axis: [0, 0, 2]}\n"
@@ -86,30 +89,38 @@ int main(void) {
     EXPECT(s->bodies[2].kind == FMBD_SCENE_FLEXIBLE && s->bodies[2].modes == 6, "flexible");
     EXPECT(!strcmp(s->bodies[2].file, "dir/rod.rflex.h5"), "file resolved: %s", s->bodies[2].file);
     EXPECT(fabs(s->joints[1].axis[2] - 1) < 1e-15, "axis normalised");
-    EXPECT(s->joints[2].at[1].kind == FMBD_AT_INTERFACE && !s->joints[2].has_point, "interface attach");
+    EXPECT(s->joints[2].at[1].kind == FMBD_AT_INTERFACE && !s->joints[2].has_point,
+           "interface attach");
     EXPECT(s->solver.rho_inf == 0.9 && !s->solver.fixed && s->solver.max_step == 1e-3, "solver");
     // table: linear between points, constant outside; ramp: linear to 3 at 0.1
     double d1;
-    EXPECT(fabs(fn_eval(&s->drivers[0].fn, 0.5, &d1, NULL) - 1) < 1e-15 && fabs(d1 - 2) < 1e-15, "table");
+    EXPECT(fabs(fn_eval(&s->drivers[0].fn, 0.5, &d1, NULL) - 1) < 1e-15 && fabs(d1 - 2) < 1e-15,
+           "table");
     EXPECT(fn_eval(&s->drivers[0].fn, 5, NULL, NULL) == 2, "table after");
     EXPECT(fabs(fn_eval(&s->loads[0].fn, 0.05, NULL, NULL) - 1.5) < 1e-15, "ramp");
-    EXPECT(s->noutputs == 1 && s->outputs[0].quantities == (FMBD_OUT_POSITION | FMBD_OUT_VON_MISES), "quantities");
+    EXPECT(s->noutputs == 1 && s->outputs[0].quantities == (FMBD_OUT_POSITION | FMBD_OUT_VON_MISES),
+           "quantities");
     EXPECT(s->energy && s->nreactions == 1 && s->output_every == 0.01, "outputs");
     char *rules = NULL;
     EXPECT(fmbd_scene_make_rules(s, "t.run.h5", &rules) == 0, "rules");
     if (rules) {
       EXPECT(strstr(rules, "t.run.h5: dir/t.yaml \\\n  dir/rod.rflex.h5\n"), "run rule: %s", rules);
-      EXPECT(strstr(rules, "dir/rod.rflex.h5: dir/rod.cb.h5 dir/rod.fe.h5\n\tcbcheck dir/rod.cb.h5 --fe dir/rod.fe.h5 --tol 1e-3 -o $@"),
+      EXPECT(strstr(rules,
+                    "dir/rod.rflex.h5: dir/rod.cb.h5 dir/rod.fe.h5\n\tcbcheck dir/rod.cb.h5 --fe "
+                    "dir/rod.fe.h5 --tol 1e-3 -o $@"),
              "cbcheck rule: %s", rules);
-      EXPECT(strstr(rules, "dir/rod.fe.h5: dir/rod.geo\n\tmesh2fe dir/rod.geo -o $@"), "mesh2fe rule: %s", rules);
+      EXPECT(strstr(rules, "dir/rod.fe.h5: dir/rod.geo\n\tmesh2fe dir/rod.geo -o $@"),
+             "mesh2fe rule: %s", rules);
     }
     fmbd_free(rules);
     fmbd_scene_destroy(&s);
     EXPECT(s == NULL, "destroy sets NULL");
   }
   // sine function and its derivatives at t = 0: offset, A w, 0
-  s = parse("solver: {t_end: 1, step: 1e-3}\nbodies: [{name: p, mass: 1, inertia: [1,1,1]}]\n"
-            "drivers: [{body: p, coordinate: y, function: {type: sine, amplitude: 2, frequency_hz: 0.5, offset: 1}}]\n");
+  s = parse(
+      "solver: {t_end: 1, step: 1e-3}\nbodies: [{name: p, mass: 1, inertia: [1,1,1]}]\n"
+      "drivers: [{body: p, coordinate: y, function: {type: sine, amplitude: 2, frequency_hz: 0.5, "
+      "offset: 1}}]\n");
   if (s) {
     double d1, d2;
     double v = fn_eval(&s->drivers[0].fn, 0, &d1, &d2);
@@ -121,7 +132,8 @@ int main(void) {
   s = parse("solver: {t_end: 1}\nbodies: [{name: p, mass: 1, inertia: [1,1,1]}]\n");
   if (s) {
     char *rules = NULL;
-    EXPECT(fmbd_scene_make_rules(s, "x.run.h5", &rules) == 0 && rules && !strcmp(rules, "x.run.h5: dir/t.yaml\n"),
+    EXPECT(fmbd_scene_make_rules(s, "x.run.h5", &rules) == 0 && rules &&
+               !strcmp(rules, "x.run.h5: dir/t.yaml\n"),
            "rigid-only rules '%s'", rules ? rules : "");
     fmbd_free(rules);
     fmbd_scene_destroy(&s);
@@ -131,27 +143,47 @@ int main(void) {
   const char *head = "solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 1]}\n";
   char buf[1024];
   bad("solver: {t_end: 1}\nbodies: []\nfoo: 1\n", "3:1", "unknown key 'foo' in the scene");
-  snprintf(buf, sizeof buf, "%sjoints:\n  - name: j1\n    type: spherical\n    body1: ground\n    body2: p\n    point: [0,0,0]\n    foo: 3\n", head);
+  snprintf(buf, sizeof buf,
+           "%sjoints:\n  - name: j1\n    type: spherical\n    body1: ground\n    body2: p\n    "
+           "point: [0,0,0]\n    foo: 3\n",
+           head);
   bad(buf, "10:5", "unknown key 'foo' in joint 'j1'");
-  snprintf(buf, sizeof buf, "%sjoints:\n  - {name: j1, type: spherical, body1: ground, body2: q, point: [0,0,0]}\n", head);
+  snprintf(buf, sizeof buf,
+           "%sjoints:\n  - {name: j1, type: spherical, body1: ground, body2: q, point: [0,0,0]}\n",
+           head);
   bad(buf, "5:55", "no body named 'q'");
-  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 0, inertia: [1, 1, 1]}\n", "3:21", "mass matrix singular");
-  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 3]}\n", "3:33", "triangle inequality");
-  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 1]}\n  - {name: p, mass: 1, inertia: [1, 1, 1]}\n",
+  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 0, inertia: [1, 1, 1]}\n", "3:21",
+      "mass matrix singular");
+  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 3]}\n", "3:33",
+      "triangle inequality");
+  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 1]}\n  - {name: p, "
+      "mass: 1, inertia: [1, 1, 1]}\n",
       "4:12", "a second body named 'p'");
   bad("solver: {t_end: one}\nbodies: []\n", "1:17", "'one' is not a finite number");
   bad("solver: {t_end: 1}\nbodies:\n  - {name: p, type: flexible}\n", "3:5", "missing key 'file'");
-  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, type: flexible, file: a.rflex.h5, mass: 2}\n", "3:55", "for rigid bodies");
-  snprintf(buf, sizeof buf, "%sjoints:\n  - {name: j, type: revolute, body1: ground, body2: p, point: [0,0,0]}\n", head);
+  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, type: flexible, file: a.rflex.h5, mass: 2}\n",
+      "3:55", "for rigid bodies");
+  snprintf(buf, sizeof buf,
+           "%sjoints:\n  - {name: j, type: revolute, body1: ground, body2: p, point: [0,0,0]}\n",
+           head);
   bad(buf, "5:5", "needs key 'axis'");
-  snprintf(buf, sizeof buf, "%sjoints:\n  - {name: j, type: spherical, body1: ground, body2: p, at2: {interface: a}}\n", head);
+  snprintf(
+      buf, sizeof buf,
+      "%sjoints:\n  - {name: j, type: spherical, body1: ground, body2: p, at2: {interface: a}}\n",
+      head);
   bad(buf, "5:62", "body 'p' is rigid");
-  snprintf(buf, sizeof buf, "%sdrivers:\n  - {body: p, coordinate: x, function: {type: ramp, t0: 1, t1: 1}}\n", head);
+  snprintf(buf, sizeof buf,
+           "%sdrivers:\n  - {body: p, coordinate: x, function: {type: ramp, t0: 1, t1: 1}}\n",
+           head);
   bad(buf, "5:64", "t1 must be later than t0");
   bad("solver: {t_end: 1}\nbodies: [\n", "3:1", "not valid YAML");
-  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 1], orientation: {matrix: [1,0,0, 0,1,0, 0,0,2]}}\n",
+  bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 1], orientation: "
+      "{matrix: [1,0,0, 0,1,0, 0,0,2]}}\n",
       "3:66", "not a rotation");
-  snprintf(buf, sizeof buf, "%soutputs:\n  points:\n    - {name: A, body: p, point: [0,0,0], quantities: [von_mises]}\n", head);
+  snprintf(
+      buf, sizeof buf,
+      "%soutputs:\n  points:\n    - {name: A, body: p, point: [0,0,0], quantities: [von_mises]}\n",
+      head);
   bad(buf, "6:55", "needs a flexible body");
 
   // allocation failures: every one is reported, nothing leaks (checked under SANITIZE=1)

@@ -14,7 +14,8 @@ static const char *scene_text =
     "solver: {t_end: 0.1, step: 1e-3}\n"
     "bodies:\n"
     "  - {name: bob, mass: 2, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\n"
-    "  - {name: slider, geometry: {shape: box, size: [0.1, 0.1, 0.1], mass: 1}, position: [0, -2, 0]}\n"
+    "  - {name: slider, geometry: {shape: box, size: [0.1, 0.1, 0.1], mass: 1}, position: [0, -2, "
+    "0]}\n"
     "joints:\n"
     "  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}\n"
     "  - {name: rail, type: prismatic, body1: ground, body2: slider, point: [0, -2, 0], axis: x}\n"
@@ -33,7 +34,8 @@ int main(void) {
   EXPECT(rc == 0, "parse: %s", fmbd_err_get()->msg);
   if (s) {
     rc = fmbd_scene_build(s, &m);
-    EXPECT(rc == 0, "build: %s:%s: %s", fmbd_err_get()->file, fmbd_err_get()->where, fmbd_err_get()->msg);
+    EXPECT(rc == 0, "build: %s:%s: %s", fmbd_err_get()->file, fmbd_err_get()->where,
+           fmbd_err_get()->msg);
   }
   if (m) {
     EXPECT(fmbd_mbs_nbodies(m->mbs) == 2 && m->body_id[0] == 0 && m->body_id[1] == 1, "bodies");
@@ -52,10 +54,12 @@ int main(void) {
     // the slider follows its driver: slide = 0.1 sin(2 pi 2 t) at t = 0.1 (Newton tolerance)
     fmbd_mbs_point_position(m->mbs, m->out_point[1], x);
     double want = 0.1 * sin(2 * M_PI * 2 * 0.1);
-    EXPECT(fabs(x[0] - want) < 1e-7 && fabs(x[1] + 2) < 1e-9, "slider at %.9f, want %.9f", x[0], want);
+    EXPECT(fabs(x[0] - want) < 1e-7 && fabs(x[1] + 2) < 1e-9, "slider at %.9f, want %.9f", x[0],
+           want);
     // the bob fell: its tip moved down
     fmbd_mbs_point_position(m->mbs, m->out_point[0], x);
-    EXPECT(x[1] < -1e-3 && fabs(hypot(x[0], x[1]) - 1.5) < 1e-7, "tip after the fall (%g, %g)", x[0], x[1]);
+    EXPECT(x[1] < -1e-3 && fabs(hypot(x[0], x[1]) - 1.5) < 1e-7, "tip after the fall (%g, %g)",
+           x[0], x[1]);
   }
   // the scene's functions reach the mbs as written: their values and derivatives against the
   // closed forms (ramp with C1 cubic blend, sine with the phase in degrees, piecewise linear
@@ -63,8 +67,10 @@ int main(void) {
   const char *fns =
       "solver: {t_end: 1}\nbodies: [{name: p, mass: 1, inertia: [1, 1, 1]}]\n"
       "drivers:\n"
-      "  - {body: p, coordinate: x, function: {type: ramp, t0: 0.1, t1: 0.5, v0: 1, v1: 3, smooth: true}}\n"
-      "  - {body: p, coordinate: y, function: {type: sine, amplitude: 2, frequency_hz: 3, phase_deg: 30, offset: 1}}\n"
+      "  - {body: p, coordinate: x, function: {type: ramp, t0: 0.1, t1: 0.5, v0: 1, v1: 3, smooth: "
+      "true}}\n"
+      "  - {body: p, coordinate: y, function: {type: sine, amplitude: 2, frequency_hz: 3, "
+      "phase_deg: 30, offset: 1}}\n"
       "  - {body: p, coordinate: z, function: {type: table, t: [0, 0.2, 0.7], v: [0, 1, -1]}}\n";
   fmbd_scene *f = NULL;
   rc = fmbd_scene_parse("f.yaml", fns, (int64_t)strlen(fns), &f);
@@ -98,8 +104,10 @@ int main(void) {
       for (int d = 0; d < 3; d++) {
         fmbd_mbs_fn mf = fmbd_scene_fn_to_mbs(&f->drivers[d].fn);
         double d1, d2, v = fmbd_mbs_fn_eval(&mf, t, &d1, &d2);
-        EXPECT(fabs(v - ex[d][0]) < 1e-12 && fabs(d1 - ex[d][1]) < 1e-12 && fabs(d2 - ex[d][2]) < 1e-12,
-               "driver %d at t = %g: %g %g %g vs %g %g %g", d, t, v, d1, d2, ex[d][0], ex[d][1], ex[d][2]);
+        EXPECT(fabs(v - ex[d][0]) < 1e-12 && fabs(d1 - ex[d][1]) < 1e-12 &&
+                   fabs(d2 - ex[d][2]) < 1e-12,
+               "driver %d at t = %g: %g %g %g vs %g %g %g", d, t, v, d1, d2, ex[d][0], ex[d][1],
+               ex[d][2]);
       }
     }
     fmbd_scene_model_destroy(&fm);
@@ -108,12 +116,14 @@ int main(void) {
   // Hooke: uniaxial stress s: eps_xx = s/E, eps_yy = eps_zz = -nu s/E, equivalent 2(1+nu)s/(3E)
   double sg[6] = {2e8, 0, 0, 0, 0, 0}, ep[6], E = 2e11, nu = 0.3;
   double ev = fmbd_scene_strain(E, nu, sg, ep);
-  EXPECT(fabs(ep[0] - 1e-3) < 1e-15 && fabs(ep[1] + 3e-4) < 1e-15 && fabs(ep[2] + 3e-4) < 1e-15, "uniaxial strain");
+  EXPECT(fabs(ep[0] - 1e-3) < 1e-15 && fabs(ep[1] + 3e-4) < 1e-15 && fabs(ep[2] + 3e-4) < 1e-15,
+         "uniaxial strain");
   EXPECT(fabs(ev - 2 * 1.3 * 2e8 / (3 * E)) < 1e-15, "equivalent strain %g", ev);
   // pure shear tau: eps_xy = (1+nu) tau / E (tensor), equivalent 2 (1+nu) sqrt(3) tau / (3E)
   double sh[6] = {0, 0, 0, 1e8, 0, 0};
   ev = fmbd_scene_strain(E, nu, sh, ep);
-  EXPECT(fabs(ep[3] - 1.3e8 / E) < 1e-15 && fabs(ev - 2 * 1.3 * sqrt(3) * 1e8 / (3 * E)) < 1e-15, "shear strain");
+  EXPECT(fabs(ep[3] - 1.3e8 / E) < 1e-15 && fabs(ev - 2 * 1.3 * sqrt(3) * 1e8 / (3 * E)) < 1e-15,
+         "shear strain");
   fmbd_scene_model_destroy(&m);
   fmbd_scene_destroy(&s);
   TEST_EXIT();
