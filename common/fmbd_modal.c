@@ -271,6 +271,8 @@ int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
     // solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
     //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
+    fmbd_free(Wa);  // held the interior shapes above
+    Wa = NULL;
     FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int64_t k = 0; k < nm; k++) {
