@@ -50,6 +50,10 @@ static const char *usage_text =
     "  --estimator W    the estimate that drives the selection: upper (kappa_n, the\n"
     "                   paper's, default), upper-next (kappa_(Nd+1)), second, lower\n"
     "  --max-modes N    largest Nd the selection may reach (default: interior dofs - 1)\n"
+    "  --hold NAME      the scene holds interface NAME (a fixed, revolute, universal,\n"
+    "                   prismatic or cylindrical joint): estimate and select for the body\n"
+    "                   held there, and keep the interface's constraint modes (repeatable;\n"
+    "                   fmbd-run -M passes it)\n"
     "  --nd N           without --tol: the estimates of the body with N fixed-interface\n"
     "                   modes instead of the cb file's (more are computed from the fe file)\n"
     "  --exact          exact errors from a full eigensolution of the body (costly)\n"
@@ -83,6 +87,8 @@ static const char *usage_text =
 
 typedef struct args {
   const char *input, *fe, *csv, *plot, *output;
+  const char *hold[64];  // --hold: interfaces the scene holds
+  int nhold;
   double tol;
   bool has_tol, exact, stress, plain;
   long range, init, max_modes, nd;
@@ -120,6 +126,12 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
     } else if (!strcmp(arg, "--fe")) {
       NEED_VALUE();
       a->fe = val;
+    } else if (!strcmp(arg, "--hold")) {
+      NEED_VALUE();
+      if (a->nhold >= 64) {
+        return fmbd_cli_usage_error("--hold: at most 64 interfaces");
+      }
+      a->hold[a->nhold++] = val;
     } else if (!strcmp(arg, "--csv")) {
       NEED_VALUE();
       a->csv = val;
@@ -203,6 +215,10 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
         "(double precision, the eigensolvers' accuracy)",
         a->input, a->tol, TOL_FLOOR);
   }
+  if (a->nhold > 0 && a->exact) {
+    return fmbd_cli_usage_error(
+        "--exact compares with the free body's eigenvalues: not with --hold");
+  }
   if (a->output && a->csv && !strcmp(a->output, "-") && !strcmp(a->csv, "-")) {
     return fmbd_cli_usage_error("-o - and --csv - cannot both use standard output");
   }
@@ -219,7 +235,10 @@ typedef struct run {
   char fe_sha[65];
   fmbd_fe_body *fe;  // the fe body with K, M (NULL until needed/available)
   bool fe_tried;
-  fmbd_est *est;
+  fmbd_est *est;       // the body as reduced (every boundary dof free)
+  fmbd_est *est_held;  // --hold: the held problem (boundary = the free dofs), else NULL
+  int64_t nheld, nfree;
+  int64_t *held_idx, *free_idx;  // positions in /cb/boundary_dofs
   int64_t nd_max;
   double t_extend_s, t_exact_s, t_est_s, t_load_s;  // wall
   double c_exact_s, c_est_s, c_load_s;              // cpu
@@ -327,6 +346,49 @@ done:
   return rc;
 }
 
+// --hold: the positions in /cb/boundary_dofs of the held interfaces' dofs, and the others
+static int held_partition(run *r) {
+  int rc = FMBD_OK;
+  const fmbd_cb *cb = r->cb;
+  const fmbd_fe_body *d = r->desc;
+  bool *held = NULL;
+  FMBD_GALLOC(held = fmbd_calloc((size_t)(cb->nb + 1), sizeof(bool)));
+  FMBD_GALLOC(r->held_idx = fmbd_malloc(sizeof(int64_t) * (size_t)(cb->nb + 1)));
+  FMBD_GALLOC(r->free_idx = fmbd_malloc(sizeof(int64_t) * (size_t)(cb->nb + 1)));
+  for (int q = 0; q < r->a->nhold; q++) {
+    int found = -1;
+    for (int i = 0; i < d->ninterfaces; i++) {
+      if (!strcmp(d->interfaces[i].name, r->a->hold[q])) found = i;
+    }
+    if (found < 0) {
+      char names[512] = "";
+      for (int i = 0; i < d->ninterfaces; i++) {
+        size_t l = strlen(names);
+        snprintf(names + l, sizeof names - l, "%s%s", i ? ", " : "", d->interfaces[i].name);
+      }
+      fmbd_err_context(fmbd_h5_name(r->cbf), "/interfaces");
+      FMBD_GFAIL(FMBD_ERR_VALUE, "--hold %s: no such interface (the body has: %s)", r->a->hold[q],
+                 names[0] ? names : "none");
+    }
+    int64_t node = d->interfaces[found].node, n = 0;
+    for (int64_t j = 0; j < cb->nb; j++) {
+      if (d->dofs[2 * cb->boundary[j]] == node) held[j] = true, n++;
+    }
+    FMBD_GCHECK(n > 0, FMBD_ERR_VALUE, "--hold %s: its node is not among the boundary dofs",
+                r->a->hold[q]);
+  }
+  r->nheld = r->nfree = 0;
+  for (int64_t j = 0; j < cb->nb; j++) {
+    if (held[j])
+      r->held_idx[r->nheld++] = j;
+    else
+      r->free_idx[r->nfree++] = j;
+  }
+done:
+  fmbd_free(held);
+  return rc;
+}
+
 // Residual blocks at nd = pool (projected with Ks, Ms when the fe file is there) -> estimator
 static int set_pool(run *r) {
   int rc = FMBD_OK;
@@ -346,6 +408,9 @@ static int set_pool(run *r) {
   }
   FMBD_GCALL(fmbd_est_set_pool(r->est, cb->nd, cb->kappa, cb->PhitA, Xb, Gb));
   fmbd_est_set_kappa_next(r->est, cb->kappa_next);
+  if (r->est_held) {
+    FMBD_GCALL(fmbd_est_set_pool_subset(r->est_held, r->est, r->nfree, r->free_idx));
+  }
 done:
   fmbd_free(Xb);
   fmbd_free(Gb);
@@ -633,15 +698,16 @@ static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t n
       pick[npick++] = j;
     }
   }
-  int64_t nd_save = fmbd_est_nd(r->est);
+  fmbd_est *E = r->est_held ? r->est_held : r->est;
+  int64_t nd_save = fmbd_est_nd(E);
   FMBD_GALLOC(xs = fmbd_calloc((size_t)nx, sizeof(double)));
   FMBD_GALLOC(ys = fmbd_calloc((size_t)(nx * npick), sizeof(double)));
   FMBD_GALLOC(ye = fmbd_calloc((size_t)(nx * npick), sizeof(double)));
   for (int64_t i = 0; i < nx; i++) {
     int64_t nd = nd_lo + i;
     xs[i] = (double)nd;
-    FMBD_GCALL(fmbd_est_set_nd(r->est, nd));
-    FMBD_GCALL(fmbd_est_run(r->est, &m, NULL));
+    FMBD_GCALL(fmbd_est_set_nd(E, nd));
+    FMBD_GCALL(fmbd_est_run(E, &m, NULL));
     fmbd_progress("convergence sweep: Nd = %lld", (long long)nd);
     for (int64_t q = 0; q < npick; q++) {
       ys[i + nx * q] = ye[i + nx * q] = NAN;
@@ -658,7 +724,7 @@ static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t n
     }
   }
   fmbd_progress(NULL);
-  FMBD_GCALL(fmbd_est_set_nd(r->est, nd_save));
+  FMBD_GCALL(fmbd_est_set_nd(E, nd_save));
   fmbd_svg_series s[2 * NPICK + 1];
   int ns = 0;
   static const char *const col[NPICK] = {"#1f77b4", "#d62728", "#2ca02c",
@@ -708,6 +774,7 @@ int main(int argc, char **argv) {
   run r = {.a = &a};
   fmbd_est_modes m = {0};
   fmbd_est_select_result sel = {0};
+  int64_t nkept_out = 0;
   table t = {0};
   double *chi = NULL, *Xi = NULL;
   int64_t nchi = 0;
@@ -811,6 +878,11 @@ int main(int argc, char **argv) {
     FMBD_GCALL(rc);
   }
   FMBD_GCALL(set_pool(&r));
+  if (a.nhold > 0) {
+    FMBD_GCALL(held_partition(&r));
+    FMBD_GCALL(fmbd_est_create_subset(r.est, r.nfree, r.free_idx, &r.est_held));
+  }
+  fmbd_est *E = r.est_held ? r.est_held : r.est;  // the problem estimated and selected
   if (rep) {
     fprintf(rep,
             "cbcheck: %s: method %s, %lld dofs, %lld boundary dofs, %lld fixed-interface modes, "
@@ -827,7 +899,7 @@ int main(int argc, char **argv) {
   if (a.has_tol) {
     fmbd_est_select_opts so = {a.tol, nm, a.init, r.nd_max, a.which};
     double ts = fmbd_wall_s(), cs = fmbd_cpu_s();
-    FMBD_GCALL(fmbd_est_select(r.est, &so, extend, &r, &sel));
+    FMBD_GCALL(fmbd_est_select(E, &so, extend, &r, &sel));
     t_sel = fmbd_wall_s() - ts;
     c_sel = fmbd_cpu_s() - cs;
     if (rep) {
@@ -851,15 +923,18 @@ int main(int argc, char **argv) {
                  (long long)r.nd_max);
     }
     if (a.nd > fmbd_est_npool(r.est)) {
-      FMBD_GCALL(extend(&r, r.est, a.nd));
+      FMBD_GCALL(extend(&r, E, a.nd));
     }
-    FMBD_GCALL(fmbd_est_set_nd(r.est, a.nd));
+    FMBD_GCALL(fmbd_est_set_nd(E, a.nd));
   } else {
-    FMBD_GCALL(fmbd_est_set_nd(r.est, cb->nd));
+    FMBD_GCALL(fmbd_est_set_nd(E, cb->nd));
   }
-  int64_t nd = fmbd_est_nd(r.est), nr = nd + cb->nb;
+  int64_t nd = fmbd_est_nd(E), nr = nd + fmbd_est_nb(E);
+  if (r.est_held) {
+    FMBD_GCALL(fmbd_est_set_nd(r.est, nd));  // the full problem at the same Nd (held modes)
+  }
   FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nr + 1)));
-  FMBD_GCALL(fmbd_est_run(r.est, &m, Xi));
+  FMBD_GCALL(fmbd_est_run(E, &m, Xi));
   r.t_est_s = fmbd_wall_s() - t0 - t_sel;  // the selection is timed apart
   r.c_est_s = fmbd_cpu_s() - c0 - c_sel;
   if (!a.has_tol && nd == r.nd_file) {  // the re-solved reduced problem must be the file's
@@ -877,7 +952,7 @@ int main(int argc, char **argv) {
   for (int64_t k = 0; k < m.nmodes; k++) {
     nrig += m.rigid[k];
   }
-  if (nrig != cb->n_rigid) {
+  if (nrig != cb->n_rigid && !r.est_held) {
     fmbd_log(FMBD_LOG_WARN, "%s: %lld rigid-body modes found at Nd = %lld, /cb n_rigid = %lld",
              cbname, (long long)nrig, (long long)nd, (long long)cb->n_rigid);
   }
@@ -889,7 +964,7 @@ int main(int argc, char **argv) {
   FMBD_GCALL(table_fill(&t, &m, nlist, chi, nchi));
   if (rep) {
     fprintf(rep, "Nd = %lld fixed-interface modes%s\n", (long long)nd,
-            fmbd_est_knext_known(r.est) ? "" : " (kappa_(Nd+1) unknown: upper_next uses kappa_Nd)");
+            fmbd_est_knext_known(E) ? "" : " (kappa_(Nd+1) unknown: upper_next uses kappa_Nd)");
     print_table(rep, &t, a.exact);
   }
   // an unreached tolerance: the report above shows the best Nd; no file is written
@@ -931,12 +1006,26 @@ int main(int argc, char **argv) {
         j++;
       }
     }
-    fmbd_modal_input mi = {r.desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd, cb->Phi,
-                           cb->ns, cb->Psi, nm,     chif,         Xif,          nr, a.stress};
+    int64_t nkept = nm, ldx = nr;
+    if (r.est_held) {
+      // the held problem's modes with the held dofs' constraint modes, Ritz on the full body
+      // (docs/THEORY.md section 12)
+      double *ch = NULL, *xh = NULL;
+      rc = fmbd_est_held_modes(r.est, r.nheld, r.held_idx, nm, Xif, nr, &nkept, &ch, &xh);
+      fmbd_free(chif);
+      fmbd_free(Xif);
+      chif = ch;
+      Xif = xh;
+      ldx = nd + cb->nb;
+      FMBD_GCALL(rc);
+    }
+    fmbd_modal_input mi = {r.desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd,  cb->Phi,
+                           cb->ns, cb->Psi, nkept,  chif,         Xif,          ldx, a.stress};
     rc = fmbd_modal_build(&mi, &rf);
     fmbd_free(chif);
     fmbd_free(Xif);
     FMBD_GCALL(rc);
+    nkept_out = nkept;
     FMBD_GCALL(fmbd_h5_create(outname, FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, &out));
     FMBD_GCALL(fmbd_h5_add_input(out, a.input, fmbd_h5_sha256(r.cbf)));
     if (r.fe_name) {
@@ -957,6 +1046,14 @@ int main(int argc, char **argv) {
     if (a.has_tol) {
       FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "tolerance", 1, &a.tol));
     }
+    {  // the interfaces held in the problem the modes were selected for ("" = none: free)
+      char held[1024] = "";
+      for (int q = 0; q < a.nhold; q++) {
+        size_t l = strlen(held);
+        snprintf(held + l, sizeof held - l, "%s%s", q ? "," : "", a.hold[q]);
+      }
+      FMBD_GCALL(fmbd_h5_write_attr_str(out, "/modes", "held_interfaces", held));
+    }
     FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
   }
   if (rep) {
@@ -974,10 +1071,10 @@ int main(int argc, char **argv) {
   }
   if (a.has_tol) {
     fmbd_cli_summary(
-        "%s: Nd = %lld meets %g on flexible modes 1..%lld (%lld iterations, %lld extensions), %lld "
-        "modes kept",
-        outname, (long long)nd, a.tol, (long long)nm, (long long)sel.niter, (long long)sel.nextend,
-        (long long)nm);
+        "%s: Nd = %lld meets %g on flexible modes 1..%lld%s (%lld iterations, %lld extensions), "
+        "%lld modes kept",
+        outname, (long long)nd, a.tol, (long long)nm, r.est_held ? " of the held body" : "",
+        (long long)sel.niter, (long long)sel.nextend, (long long)nkept_out);
   } else if (outname) {
     fmbd_cli_summary("%s: %lld flexible modes of Nd = %lld", outname, (long long)nm, (long long)nd);
   } else {
@@ -997,6 +1094,9 @@ done:
   fmbd_free(Xi);
   fmbd_free(outname);
   fmbd_est_destroy(&r.est);
+  fmbd_est_destroy(&r.est_held);
+  fmbd_free(r.held_idx);
+  fmbd_free(r.free_idx);
   fmbd_fe_body_destroy(&r.fe);
   fmbd_fe_body_destroy(&r.desc);
   fmbd_free(r.fe_name);

@@ -571,3 +571,171 @@ done:
   fmbd_est_modes_free(&m);
   return rc;
 }
+
+// --- bodies held at some boundary dofs (docs/THEORY.md section 12) -----------------------------
+// The held problem is the CB body with the held boundary dofs removed: its estimator is the same
+// one over the free boundary dofs F, with the F rows and columns of Mbb, Kbb, Xb, Gb and the F
+// columns of PhitA (Frs, hence Xb and Gb, do not depend on the boundary set).
+static void take_sub(int64_t n, const double *X, int64_t nf, const int64_t *f, double *Y) {
+  for (int64_t j = 0; j < nf; j++) {
+    for (int64_t i = 0; i < nf; i++) Y[i + nf * j] = X[f[i] + n * f[j]];
+  }
+}
+
+int fmbd_est_set_pool_subset(fmbd_est *sub, const fmbd_est *full, int64_t nfree,
+                             const int64_t *free_idx) {
+  int rc = FMBD_OK;
+  double *pa = NULL, *xb = NULL, *gb = NULL;
+  FMBD_CHECK(sub->nb == nfree && full->nd == full->npool, FMBD_ERR_INTERNAL,
+             "subset estimator: sizes or state do not match");
+  int64_t np = full->npool, nb = full->nb;
+  FMBD_GALLOC(pa = fmbd_malloc(sizeof(double) * (size_t)(np * nfree + 1)));
+  FMBD_GALLOC(xb = fmbd_malloc(sizeof(double) * (size_t)(nfree * nfree + 1)));
+  FMBD_GALLOC(gb = fmbd_malloc(sizeof(double) * (size_t)(nfree * nfree + 1)));
+  for (int64_t j = 0; j < nfree; j++) {
+    FMBD_GCHECK(free_idx[j] >= 0 && free_idx[j] < nb, FMBD_ERR_VALUE, "free boundary index %lld",
+                (long long)free_idx[j]);
+    if (np > 0) memcpy(pa + np * j, full->PhitA + np * free_idx[j], sizeof(double) * (size_t)np);
+  }
+  take_sub(nb, full->Xb, nfree, free_idx, xb);
+  take_sub(nb, full->Gb, nfree, free_idx, gb);
+  FMBD_GCALL(fmbd_est_set_pool(sub, np, full->kappa, pa, xb, gb));
+  fmbd_est_set_kappa_next(sub, full->kappa_next);
+done:
+  fmbd_free(pa);
+  fmbd_free(xb);
+  fmbd_free(gb);
+  return rc;
+}
+
+int fmbd_est_create_subset(const fmbd_est *full, int64_t nfree, const int64_t *free_idx,
+                           fmbd_est **out) {
+  int rc = FMBD_OK;
+  double *mbb = NULL, *kbb = NULL;
+  *out = NULL;
+  FMBD_GALLOC(mbb = fmbd_malloc(sizeof(double) * (size_t)(nfree * nfree + 1)));
+  FMBD_GALLOC(kbb = fmbd_malloc(sizeof(double) * (size_t)(nfree * nfree + 1)));
+  take_sub(full->nb, full->Mbb, nfree, free_idx, mbb);
+  take_sub(full->nb, full->Kbb, nfree, free_idx, kbb);
+  FMBD_GCALL(fmbd_est_create(nfree, mbb, kbb, &full->opt, out));
+  rc = fmbd_est_set_pool_subset(*out, full, nfree, free_idx);
+  if (rc) fmbd_est_destroy(out);
+done:
+  fmbd_free(mbb);
+  fmbd_free(kbb);
+  return rc;
+}
+
+int fmbd_est_held_modes(const fmbd_est *full, int64_t nheld, const int64_t *held, int64_t nm,
+                        const double *XiF, int64_t ldxi, int64_t *nout, double **chibar,
+                        double **Xi) {
+  int rc = FMBD_OK;
+  int64_t nd = full->nd, nb = full->nb, np = full->npool, n = nd + nb, k = nm + nheld;
+  double *Mr = NULL, *Kr = NULL, *V = NULL, *W = NULL, *Mv = NULL, *Kv = NULL, *w = NULL;
+  bool *is_held = NULL;
+  *nout = 0;
+  *chibar = *Xi = NULL;
+  FMBD_CHECK(nheld >= 0 && nheld <= nb && nm >= 0, FMBD_ERR_VALUE, "held modes: bad sizes");
+  FMBD_GALLOC(is_held = fmbd_calloc((size_t)(nb + 1), sizeof(bool)));
+  for (int64_t i = 0; i < nheld; i++) {
+    FMBD_GCHECK(held[i] >= 0 && held[i] < nb && !is_held[held[i]], FMBD_ERR_VALUE,
+                "held boundary index %lld", (long long)held[i]);
+    is_held[held[i]] = true;
+  }
+  // the full reduced matrices at nd (closed form, docs/THEORY.md section 1)
+  FMBD_GALLOC(Mr = fmbd_calloc((size_t)(n * n + 1), sizeof(double)));
+  FMBD_GALLOC(Kr = fmbd_calloc((size_t)(n * n + 1), sizeof(double)));
+  for (int64_t i = 0; i < nd; i++) {
+    Mr[i + n * i] = 1.0;
+    Kr[i + n * i] = full->kappa[i];
+  }
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t i = 0; i < nd; i++)
+      Mr[i + n * (nd + j)] = Mr[(nd + j) + n * i] = full->PhitA[i + np * j];
+    for (int64_t i = 0; i < nb; i++) {
+      Mr[(nd + i) + n * (nd + j)] = full->Mbb[i + nb * j];
+      Kr[(nd + i) + n * (nd + j)] = full->Kbb[i + nb * j];
+    }
+  }
+  // V = [held-problem eigenvectors, zero on the held rows | unit vectors of the held dofs]
+  FMBD_GALLOC(V = fmbd_calloc((size_t)(n * k + 1), sizeof(double)));
+  for (int64_t c = 0; c < nm; c++) {
+    for (int64_t i = 0; i < nd; i++) V[i + n * c] = XiF[i + ldxi * c];
+    for (int64_t j = 0, f = 0; j < nb; j++) {
+      if (!is_held[j]) V[nd + j + n * c] = XiF[nd + (f++) + ldxi * c];
+    }
+  }
+  // the held dofs' constraint modes with the free boundary dofs F free: unit displacement of
+  // held dof i, F statically condensed (K_ is block diagonal: the modal part stays 0):
+  // v_F = -Kbb_FF^-1 Kbb_Fi. With a whole interface held Kbb_FF is positive definite; for one
+  // held interface these are the rigid-body motions (removed below)
+  int64_t nfr = nb - nheld;
+  for (int64_t i = 0; i < nheld; i++) V[nd + held[i] + n * (nm + i)] = 1.0;
+  if (nfr > 0 && nheld > 0) {
+    int64_t *fr = NULL;
+    double *Kff = NULL, *B = NULL;
+    fr = fmbd_malloc(sizeof(int64_t) * (size_t)nfr);
+    Kff = fmbd_malloc(sizeof(double) * (size_t)(nfr * nfr));
+    B = fmbd_malloc(sizeof(double) * (size_t)(nfr * nheld));
+    if (!fr || !Kff || !B) {
+      fmbd_free(fr), fmbd_free(Kff), fmbd_free(B);
+      FMBD_GFAIL(FMBD_ERR_NOMEM, "out of memory");
+    }
+    for (int64_t j = 0, f = 0; j < nb; j++) {
+      if (!is_held[j]) fr[f++] = j;
+    }
+    take_sub(nb, full->Kbb, nfr, fr, Kff);
+    for (int64_t c = 0; c < nheld; c++) {
+      for (int64_t i = 0; i < nfr; i++) B[i + nfr * c] = -full->Kbb[fr[i] + nb * held[c]];
+    }
+    rc = fmbd_dense_chol(nfr, Kff);
+    if (!rc) rc = fmbd_dense_chol_solve(nfr, Kff, nheld, B, nfr);
+    if (!rc) {
+      for (int64_t c = 0; c < nheld; c++) {
+        for (int64_t i = 0; i < nfr; i++) V[nd + fr[i] + n * (nm + c)] = B[i + nfr * c];
+      }
+    }
+    fmbd_free(fr), fmbd_free(Kff), fmbd_free(B);
+    if (rc) {
+      FMBD_GFAIL(FMBD_ERR_SINGULAR,
+                 "the held interfaces do not hold the body: its stiffness at "
+                 "the free boundary dofs is singular");
+    }
+  }
+  // Rayleigh-Ritz: (V' K_ V) y = chibar (V' M_ V) y
+  FMBD_GALLOC(W = fmbd_calloc((size_t)(n * k + 1), sizeof(double)));
+  FMBD_GALLOC(Mv = fmbd_calloc((size_t)(k * k + 1), sizeof(double)));
+  FMBD_GALLOC(Kv = fmbd_calloc((size_t)(k * k + 1), sizeof(double)));
+  FMBD_GALLOC(w = fmbd_calloc((size_t)(k + 1), sizeof(double)));
+  if (k > 0 && n > 0) {
+    fmbd_dense_gemm('N', 'N', n, k, n, 1.0, Mr, n, V, n, 0.0, W, n);
+    fmbd_dense_gemm('T', 'N', k, k, n, 1.0, V, n, W, n, 0.0, Mv, k);
+    fmbd_dense_gemm('N', 'N', n, k, n, 1.0, Kr, n, V, n, 0.0, W, n);
+    fmbd_dense_gemm('T', 'N', k, k, n, 1.0, V, n, W, n, 0.0, Kv, k);
+    symmetrize(k, Mv);
+    symmetrize(k, Kv);
+    FMBD_GCALL(fmbd_dense_sygv(k, Kv, Mv, w));  // Kv <- y, M_v-orthonormal
+  }
+  // drop the rigid-body modes (the frame carries them), keep the rest ascending
+  double scale = nd > 0 ? full->kappa[0] : (k > 0 ? fabs(w[k - 1]) : 0.0);
+  int64_t nf = 0;
+  for (int64_t c = 0; c < k; c++) nf += !(fabs(w[c]) <= full->opt.rigid_rtol * scale);
+  FMBD_GALLOC(*chibar = fmbd_malloc(sizeof(double) * (size_t)(nf + 1)));
+  FMBD_GALLOC(*Xi = fmbd_calloc((size_t)(n * nf + 1), sizeof(double)));
+  for (int64_t c = 0, o = 0; c < k; c++) {
+    if (fabs(w[c]) <= full->opt.rigid_rtol * scale) continue;
+    (*chibar)[o] = w[c];
+    fmbd_dense_gemm('N', 'N', n, 1, k, 1.0, V, n, Kv + k * c, k, 0.0, *Xi + n * o, n);
+    o++;
+  }
+  *nout = nf;
+done:
+  if (rc) {
+    fmbd_free(*chibar);
+    fmbd_free(*Xi);
+    *chibar = *Xi = NULL;
+  }
+  fmbd_free(is_held), fmbd_free(Mr), fmbd_free(Kr), fmbd_free(V), fmbd_free(W);
+  fmbd_free(Mv), fmbd_free(Kv), fmbd_free(w);
+  return rc;
+}

@@ -215,4 +215,27 @@ int fmbd_est_select(fmbd_est *e, const fmbd_est_select_opts *o, fmbd_est_extend_
 int fmbd_est_modes_alloc(int64_t n, fmbd_est_modes *m);
 void fmbd_est_modes_free(fmbd_est_modes *m);
 
+// --- bodies held at some boundary dofs (docs/THEORY.md section 12) ----------------------------
+/// @brief A new estimator of the held problem: the body with the boundary dofs outside free_idx
+/// held (the scene's joints hold them). Its boundary is the free subset F (free_idx: nfree
+/// indices into 0..nb-1, ascending); it gets full's options, the F blocks of Mbb, Kbb and the
+/// pool (fmbd_est_set_pool_subset). full must be at nd = npool (just after fmbd_est_set_pool).
+/// @param[out] out caller destroys with fmbd_est_destroy
+int fmbd_est_create_subset(const fmbd_est *full, int64_t nfree, const int64_t *free_idx,
+                           fmbd_est **out);
+/// @brief Set sub's pool from full's (kappa, the F columns of PhitA, the F blocks of Xb and Gb,
+/// kappa_next); full at nd = npool. Call after every fmbd_est_set_pool of full (extensions).
+int fmbd_est_set_pool_subset(fmbd_est *sub, const fmbd_est *full, int64_t nfree,
+                             const int64_t *free_idx);
+/// @brief The modes of a body held at boundary dofs `held` (nheld indices into 0..nb-1):
+/// Rayleigh-Ritz of the full reduced problem (nd + nb, full's current nd) on the span of the
+/// held problem's first nm eigenvectors XiF ((nd + nfree) rows, leading dimension ldxi, zero on
+/// the held rows once lifted) and the unit vectors of the held dofs (their constraint modes,
+/// the static response to the joint reactions), M_-orthonormal, ascending, rigid-body modes
+/// (|chibar| <= rigid_rtol kappa_1) removed.
+/// @param[out] nout modes returned; chibar (nout), Xi ((nd + nb) x nout): caller frees both
+int fmbd_est_held_modes(const fmbd_est *full, int64_t nheld, const int64_t *held, int64_t nm,
+                        const double *XiF, int64_t ldxi, int64_t *nout, double **chibar,
+                        double **Xi);
+
 #endif
