@@ -1382,6 +1382,36 @@ static bool ends_with(const char *s, const char *suf) {
   return a >= b && !strcmp(s + a - b, suf);
 }
 
+void fmbd_scene_held_interfaces(const fmbd_scene *s, const char *file, int body, char *buf,
+                                size_t n) {
+  if (n) buf[0] = '\0';
+  for (int j = 0; j < s->njoints; j++) {
+    const fmbd_scene_joint *jt = &s->joints[j];
+    if (jt->kind == FMBD_JOINT_SPHERICAL) continue;  // holds translations only
+    for (int k = 0; k < 2; k++) {
+      int bi = jt->body[k];
+      if (bi < 0 || jt->at[k].kind != FMBD_AT_INTERFACE || !jt->at[k].interface) continue;
+      const fmbd_scene_body *bd = &s->bodies[bi];
+      bool match = body >= 0 ? bi == body : (file && bd->file && !strcmp(bd->file, file));
+      if (!match) continue;
+      if (fmbd_scene_list_has(buf, jt->at[k].interface)) continue;
+      size_t l = strlen(buf);
+      snprintf(buf + l, n > l ? n - l : 0, "%s%s", l ? "," : "", jt->at[k].interface);
+    }
+  }
+}
+
+bool fmbd_scene_list_has(const char *list, const char *name) {
+  size_t m = strlen(name);
+  for (const char *p = list; p && *p;) {
+    const char *e = strchr(p, ',');
+    size_t l = e ? (size_t)(e - p) : strlen(p);
+    if (l == m && !strncmp(p, name, m)) return true;
+    p = e ? e + 1 : p + l;
+  }
+  return false;
+}
+
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) {
   sbuf b = {0};
   *text = NULL;
@@ -1404,10 +1434,22 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
     const fmbd_scene_chain *ch = &bd->chain;
     bool is_cb = ends_with(bd->file, ".cb.h5");
     if (!is_cb && ch->cb) {
-      sb_add(&b, "\n%s: %s%s%s\n\tcbcheck %s%s%s%s%s -o $@\n", bd->file, ch->cb, ch->fe ? " " : "",
-             ch->fe ? ch->fe : "", ch->cb, ch->fe ? " --fe " : "", ch->fe ? ch->fe : "",
-             ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
-             ch->cbcheck_args ? ch->cbcheck_args : "");
+      // the interfaces the scene's joints hold: the body is reduced for them (cbcheck --hold),
+      // unless the scene's own cbcheck options say how
+      char held[1024], holds[1400] = "";
+      fmbd_scene_held_interfaces(s, bd->file, -1, held, sizeof held);
+      if (!(ch->cbcheck_args && strstr(ch->cbcheck_args, "--hold"))) {
+        for (const char *p = held; *p;) {
+          const char *e = strchr(p, ',');
+          size_t l = e ? (size_t)(e - p) : strlen(p), o = strlen(holds);
+          snprintf(holds + o, sizeof holds - o, " --hold %.*s", (int)l, p);
+          p = e ? e + 1 : p + l;
+        }
+      }
+      sb_add(&b, "\n%s: %s%s%s\n\tcbcheck %s%s%s%s%s%s -o $@\n", bd->file, ch->cb,
+             ch->fe ? " " : "", ch->fe ? ch->fe : "", ch->cb, ch->fe ? " --fe " : "",
+             ch->fe ? ch->fe : "", ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
+             ch->cbcheck_args ? ch->cbcheck_args : "", holds);
     }
     const char *cb = is_cb ? bd->file : ch->cb;
     if (cb && ch->fe) {

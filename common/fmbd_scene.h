@@ -15,6 +15,7 @@
 #define FMBD_SCENE_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "fmbd_mbs.h"
@@ -215,9 +216,19 @@ int fmbd_scene_find_body(const fmbd_scene *s, const char *name);
 /// @brief Set the error context to the scene file and loc (for errors found later).
 void fmbd_scene_context(const fmbd_scene *s, fmbd_scene_loc loc);
 
+/// @brief The interfaces of a flexible body that the scene's joints hold beyond translations
+/// (fixed, revolute, universal, prismatic, cylindrical joints attached at an interface), as a
+/// comma-separated list into buf (n bytes): of body index `body`, or (body < 0) of every body
+/// whose file is `file`. These are what cbcheck --hold must know (docs/THEORY.md section 12).
+void fmbd_scene_held_interfaces(const fmbd_scene *s, const char *file, int body, char *buf,
+                                size_t n);
+/// @brief Whether the comma-separated list holds name.
+bool fmbd_scene_list_has(const char *list, const char *name);
+
 /// @brief Write make rules of the files the scene needs (as `cc -M`): `target: scene
 /// files...`, and for each flexible body whose chain is named, the rules that make it from
-/// upstream (with recipes calling cbcheck, fe2cb, mesh2fe). Paths as the program sees them
+/// upstream (with recipes calling cbcheck, fe2cb, mesh2fe; cbcheck gets --hold for the
+/// interfaces the scene's joints hold, fmbd_scene_held_interfaces). Paths as the program sees them
 /// (relative to the current folder). Rigid-only scenes depend on the scene file alone.
 /// @param[out] text caller frees with fmbd_free
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text);

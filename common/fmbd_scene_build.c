@@ -282,6 +282,44 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
   }
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
+  if (!strcmp(format, "fmbd-rflex")) {
+    // a body used in a way its file was not made for: the modes of an interface reduced free
+    // cannot deform as a joint that holds it asks (docs/THEORY.md section 12), and modes made
+    // for a held interface are too stiff where it is free
+    char want[1024], *made = NULL;
+    fmbd_scene_held_interfaces(s, NULL, bi, want, sizeof want);
+    if (fmbd_h5_has_attr(f, "/modes", "held_interfaces")) {
+      FMBD_GCALL(fmbd_h5_read_attr_str(f, "/modes", "held_interfaces", &made));
+    }
+    for (const char *p = want; *p;) {
+      const char *e = strchr(p, ',');
+      size_t l = e ? (size_t)(e - p) : strlen(p);
+      char name[256];
+      snprintf(name, sizeof name, "%.*s", (int)l, p);
+      if (!fmbd_scene_list_has(made ? made : "", name)) {
+        fmbd_log(FMBD_LOG_WARN,
+                 "%s:%d: body '%s': a joint holds interface '%s', but %s was "
+                 "reduced with it free: its modes cannot bend there as the joint asks (reduce "
+                 "it with cbcheck --hold %s; fmbd-run -M makes that rule)",
+                 s->file, b->file_loc.line, b->name, name, b->file, name);
+      }
+      p = e ? e + 1 : p + l;
+    }
+    for (const char *p = made ? made : ""; *p;) {
+      const char *e = strchr(p, ',');
+      size_t l = e ? (size_t)(e - p) : strlen(p);
+      char name[256];
+      snprintf(name, sizeof name, "%.*s", (int)l, p);
+      if (!fmbd_scene_list_has(want, name)) {
+        fmbd_log(FMBD_LOG_WARN,
+                 "%s:%d: body '%s': %s was reduced with interface '%s' held, but "
+                 "no joint of this scene holds it there: the body is too stiff at it",
+                 s->file, b->file_loc.line, b->name, b->file, name);
+      }
+      p = e ? e + 1 : p + l;
+    }
+    fmbd_free(made);
+  }
   fmbd_rflex *r = m->flex[bi];
   if (b->modes > r->nm) {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name,
