@@ -5,6 +5,8 @@
 #include <cblas.h>
 #include <lapacke.h>
 #include <limits.h>
+#include <math.h>
+#include <string.h>
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
@@ -152,4 +154,25 @@ int fmbd_dense_svd_values(int64_t m, int64_t n, double *A, double *s) {
     FMBD_FAIL(FMBD_ERR_CONVERGE, "dgesdd: bidiagonal SVD failed to converge (info = %d)",
               (int)info);
   return FMBD_OK;
+}
+
+bool fmbd_dense_inertia_ok(const double T[9], const char **why) {
+  double tr = T[0] + T[4] + T[8], A[9], w[3];
+  *why = "";
+  for (int i = 0; i < 9; i++) {
+    if (!isfinite(T[i])) return *why = "not finite", false;
+  }
+  if (!(tr > 0)) return *why = "trace not positive", false;
+  for (int a = 0; a < 3; a++) {
+    for (int b = a + 1; b < 3; b++) {
+      if (fabs(T[3 * a + b] - T[3 * b + a]) > 1e-9 * tr) return *why = "not symmetric", false;
+    }
+  }
+  memcpy(A, T, sizeof A);
+  if (fmbd_dense_syev(3, A, w) != FMBD_OK) return *why = "no eigenvalues", false;
+  if (w[0] < -1e-9 * tr) return *why = "a negative principal moment", false;
+  if (w[2] > w[0] + w[1] + 1e-9 * tr) {
+    return *why = "a principal moment above the sum of the other two", false;
+  }
+  return true;
 }

@@ -11,6 +11,7 @@
 #ifndef FMBD_DENSE_H
 #define FMBD_DENSE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 /// @brief Generalized symmetric-definite eigenproblem A x = w B x (LAPACK dsygvd, upper
@@ -49,6 +50,12 @@ int fmbd_dense_lu_solve(int64_t n, double *A, int64_t nrhs, double *B, int64_t l
 void fmbd_dense_gemm(char ta, char tb, int64_t m, int64_t n, int64_t k, double alpha,
                      const double *A, int64_t lda, const double *B, int64_t ldb, double beta,
                      double *C, int64_t ldc);
+/// @brief Whether a 3x3 inertia tensor (row- or column-major: it must be symmetric) is
+/// physical: symmetric to 1e-9 of its trace, its principal moments >= -1e-9 trace and each
+/// at most the sum of the other two (triangle inequality, + 1e-9 trace). *why (static text)
+/// names the defect when false.
+bool fmbd_dense_inertia_ok(const double T[9], const char **why);
+
 /// @brief Singular values of an m x n matrix (dgesdd, no vectors).
 /// @param[in,out] A m x n (leading dimension m); destroyed
 /// @param[out]    s min(m, n) singular values, descending

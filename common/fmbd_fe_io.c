@@ -1,10 +1,12 @@
 // common/fmbd_fe_io.c: the fmbd-fe file objects (docs/DESIGN.md; docs/FORMAT.md):
 // writing, reading with validation, and copying the description into downstream files
 // SPDX-License-Identifier: MIT
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "fmbd_alloc.h"
+#include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_fe.h"
 #include "fmbd_fe_impl.h"
@@ -185,6 +187,9 @@ int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
   FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/material", "E", 1, &b->E));
   FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/material", "nu", 1, &b->nu));
   FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/material", "rho", 1, &b->rho));
+  if (!(b->E > 0 && isfinite(b->E))) RFAIL("/material", "E = %g must be positive", b->E);
+  if (!(b->nu > -1 && b->nu < 0.5)) RFAIL("/material", "nu = %g must lie in (-1, 0.5)", b->nu);
+  if (!(b->rho > 0 && isfinite(b->rho))) RFAIL("/material", "rho = %g must be positive", b->rho);
   FMBD_GCALL(fmbd_h5_read_attr_str(f, "/material", "mass", &str));
   if (strcmp(str, "consistent") == 0) {
     b->mass_kind = FMBD_FE_MASS_CONSISTENT;
@@ -289,6 +294,12 @@ int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
   FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "mass", 1, &b->mass));
   FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "center_of_mass", 3, b->center_of_mass));
   FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "inertia", 9, b->inertia));
+  if (!(b->mass > 0 && isfinite(b->mass))) RFAIL("/body", "mass = %g must be positive", b->mass);
+  {
+    const char *why = NULL;
+    if (!fmbd_dense_inertia_ok(b->inertia, &why))
+      RFAIL("/body", "inertia is not physical: %s", why);
+  }
   if (fmbd_h5_has_attr(f, "/body", "volume")) {
     FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "volume", 1, &b->volume));
   }

@@ -523,6 +523,52 @@ int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out) {
   rows = nm;
   cols = nm;
   FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/ffrf/Kff", &rows, &cols, &r->Kff));
+  // --- physical data, checked where it is read (a defect here surfaces much later as "Newton
+  // did not converge" or a silently wrong motion) ---
+  {
+    const char *fn = fmbd_h5_name(f), *why = NULL;
+    fmbd_err_context(fn, "/ffrf/mass");
+    FMBD_GCHECK(r->mass > 0 && isfinite(r->mass), FMBD_ERR_VALUE, "mass %g must be positive",
+                r->mass);
+    double Ic[9], c[3], tr = r->second_moment[0] + r->second_moment[4] + r->second_moment[8];
+    for (int a = 0; a < 3; a++) c[a] = r->first_moment[a] / r->mass;
+    for (int a = 0; a < 3; a++) {  // inertia about the centre of mass: tr(Jc) 1 - Jc
+      for (int bb = 0; bb < 3; bb++) {
+        double jc = r->second_moment[a + 3 * bb] - r->mass * c[a] * c[bb];
+        double trc = tr - r->mass * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        Ic[a + 3 * bb] = (a == bb ? trc : 0.0) - jc;
+      }
+    }
+    fmbd_err_context(fn, "/ffrf/second_moment");
+    FMBD_GCHECK(fmbd_dense_inertia_ok(Ic, &why), FMBD_ERR_VALUE,
+                "the inertia it gives about the centre of mass is not physical: %s", why);
+    double kmax = 0.0;
+    for (int64_t k = 0; k < nm; k++) kmax = fmax(kmax, fabs(r->Kff[k + nm * k]));
+    for (int64_t l = 0; l < nm; l++) {
+      for (int64_t k = 0; k < nm; k++) {
+        fmbd_err_context(fn, "/ffrf/Mff");
+        FMBD_GCHECK(
+            isfinite(r->Mff[k + nm * l]) && fabs(r->Mff[k + nm * l] - r->Mff[l + nm * k]) <= 1e-9,
+            FMBD_ERR_VALUE, "not symmetric at (%lld, %lld)", (long long)k, (long long)l);
+        fmbd_err_context(fn, "/ffrf/Kff");
+        FMBD_GCHECK(isfinite(r->Kff[k + nm * l]) &&
+                        fabs(r->Kff[k + nm * l] - r->Kff[l + nm * k]) <= 1e-9 * kmax,
+                    FMBD_ERR_VALUE, "not symmetric at (%lld, %lld)", (long long)k, (long long)l);
+      }
+      fmbd_err_context(fn, "/ffrf/Mff");
+      FMBD_GCHECK(r->Mff[l + nm * l] > 0, FMBD_ERR_VALUE, "diagonal entry %lld is %g: not positive",
+                  (long long)l, r->Mff[l + nm * l]);
+      fmbd_err_context(fn, "/ffrf/Kff");
+      FMBD_GCHECK(r->Kff[l + nm * l] >= 0, FMBD_ERR_VALUE, "diagonal entry %lld is %g: negative",
+                  (long long)l, r->Kff[l + nm * l]);
+      // the modes are mass-normalised: Kff's diagonal is their eigenvalues
+      FMBD_GCHECK(fabs(r->Mff[l + nm * l] - 1.0) > 1e-9 ||
+                      fabs(r->Kff[l + nm * l] - r->eigenvalue[l]) <= 1e-9 * kmax,
+                  FMBD_ERR_VALUE, "diagonal entry %lld is %.10g but /modes/eigenvalue says %.10g",
+                  (long long)l, r->Kff[l + nm * l], r->eigenvalue[l]);
+    }
+    fmbd_err_context("", "");
+  }
   *out = r;
   r = NULL;
 done:

@@ -45,6 +45,9 @@ def bad_indptr(f):
 variant("indptr.fe.h5", bad_indptr)
 variant("nodata.fe.h5", lambda f: f["K"].__delitem__("data"))
 variant("emptyformat.fe.h5", lambda f: f.attrs.__setitem__("format", ""))
+variant("ezero.fe.h5", lambda f: f["material"].attrs.__setitem__("E", 0.0))
+variant("bodymass.fe.h5", lambda f: f["body"].attrs.__setitem__("mass", -1.0))
+variant("inertia.fe.h5", lambda f: f["body"].attrs.__setitem__("inertia", -np.eye(3).ravel()))
 PY
 printf 'not an hdf5 file\n' > text.fe.h5
 
@@ -67,6 +70,9 @@ expect_fail 1 'zeromass\.fe\.h5:/M: the mass matrix is zero' out12.cb.h5 -- zero
 expect_fail 1 'indptr\.fe\.h5:/K: indptr: not monotone: entry 6' out13.cb.h5 -- indptr.fe.h5 -o out13.cb.h5
 expect_fail 1 'nodata\.fe\.h5:/K/data: missing dataset' out14.cb.h5 -- nodata.fe.h5 -o out14.cb.h5
 expect_fail 1 "emptyformat\.fe\.h5: the 'format' attribute is empty, expected fmbd-fe" out15.cb.h5 -- emptyformat.fe.h5 -o out15.cb.h5
+expect_fail 1 'ezero\.fe\.h5:/material: E = 0 must be positive' out16.cb.h5 -- ezero.fe.h5 -o out16.cb.h5
+expect_fail 1 'bodymass\.fe\.h5:/body: mass = -1 must be positive' out17.cb.h5 -- bodymass.fe.h5 -o out17.cb.h5
+expect_fail 1 'inertia\.fe\.h5:/body: inertia is not physical' out18.cb.h5 -- inertia.fe.h5 -o out18.cb.h5
 
 # --- good runs ----------------------------------------------------------------------------------
 fe2cb good.fe.h5 -o good.cb.h5 --modes 6 -q 2> err.txt || bad "good run failed: $(cat err.txt)"

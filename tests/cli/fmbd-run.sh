@@ -196,6 +196,44 @@ if mesh2fe "$ROOT/examples/geometry/rodbeam.geo" --circle 0.015 --interface end0
   expect no-interface 1 "noif.yaml:5:72: joint 'j': body 'rod' .* has no interface 'middle' \(it has: end0, end1\)" -- fmbd-run noif.yaml -o out.run.h5
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5, modes: 500}\n' >toomany.yaml
   expect too-many-modes 1 "toomany.yaml:3:39: body 'rod' asks for 500 modes" -- fmbd-run toomany.yaml -o out.run.h5
+  # physical data checked where it is read (it surfaced as "Newton did not converge", or not at all)
+  "$PY" - <<'PYEOF' || { echo "physical-data fixtures failed"; fail=1; }
+import shutil, h5py, numpy as np
+def bad(name, edit):
+    shutil.copy("rod.rflex.h5", name + ".rflex.h5")
+    with h5py.File(name + ".rflex.h5", "r+") as f:
+        edit(f)
+    with open(name + ".yaml", "w") as y:
+        y.write("solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: %s.rflex.h5}\n" % name)
+bad("mass0", lambda f: f["ffrf/mass"].__setitem__((), 0.0))
+bad("massneg", lambda f: f["ffrf/mass"].__setitem__((), -1.0))
+def neg_inertia(f):
+    J = f["ffrf/second_moment"][()]
+    J[0, 0] = 10 * (J[1, 1] + J[2, 2])   # a principal moment above the sum of the others
+    f["ffrf/second_moment"][...] = J
+bad("inertia", neg_inertia)
+def asym_k(f):
+    K = f["ffrf/Kff"][()]
+    K[0, 1] = 0.5 * K[0, 0]
+    f["ffrf/Kff"][...] = K
+bad("asymk", asym_k)
+def neg_k(f):
+    K = f["ffrf/Kff"][()]
+    K[1, 1] = -K[1, 1]
+    f["ffrf/Kff"][...] = K
+bad("negk", neg_k)
+def eig_k(f):
+    e = f["modes/eigenvalue"][()]
+    e[2] *= 1.5
+    f["modes/eigenvalue"][...] = e
+bad("eigk", eig_k)
+PYEOF
+  expect phys-mass0 1 "mass0.rflex.h5:/ffrf/mass: mass 0 must be positive" -- fmbd-run mass0.yaml -o out.run.h5
+  expect phys-massneg 1 "massneg.rflex.h5:/ffrf/mass: mass -1 must be positive" -- fmbd-run massneg.yaml -o out.run.h5
+  expect phys-inertia 1 "inertia.rflex.h5:/ffrf/second_moment: .*not physical" -- fmbd-run inertia.yaml -o out.run.h5
+  expect phys-asymk 1 "asymk.rflex.h5:/ffrf/Kff: not symmetric" -- fmbd-run asymk.yaml -o out.run.h5
+  expect phys-negk 1 "negk.rflex.h5:/ffrf/Kff: diagonal entry 1 .* negative" -- fmbd-run negk.yaml -o out.run.h5
+  expect phys-eigk 1 "eigk.rflex.h5:/ffrf/Kff: diagonal entry 2 .* /modes/eigenvalue says" -- fmbd-run eigk.yaml -o out.run.h5
 else
   echo "flexible-body cases: the toolchain could not make rod.rflex.h5:"; cat mesh.err cb.err check.err 2>/dev/null
   fail=1
