@@ -276,8 +276,9 @@ void fmbd_scene_model_destroy(fmbd_scene_model **m);
 /// reduced problem (/reduced/eigenvectors without /reduced/rigid), expanded to the FE dofs
 /// (qF = [Phi Psi; 0 I] Xi, mass-normalised), built by fmbd_modal_build (the one producer of
 /// reduced bodies, as cbcheck's), its inertia invariants with the mass the modes come from
-/// (docs/THEORY.md section 9). No modal stress (computed on demand by cbcheck).
+/// (docs/THEORY.md section 9); with stress, the modal stresses of its modes (the fe
+/// description in the cb file carries the elements and the material).
 /// @param[out] out caller destroys with fmbd_rflex_destroy
-int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out);
+int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out);
 
 #endif

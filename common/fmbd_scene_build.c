@@ -85,7 +85,7 @@ static int truncate_modes(fmbd_rflex *r, int64_t n) {
 // --- a modal body from a cb file ------------------------------------------------------------
 // The flexible modes of the reduced eigenproblem (those /reduced/rigid does not flag), turned
 // into a body by the one producer, fmbd_modal_build, exactly as cbcheck does for a selection.
-int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out) {
+int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
   int rc = FMBD_OK;
   fmbd_cb *cb = NULL;
   fmbd_fe_body *desc = NULL;
@@ -103,7 +103,7 @@ int fmbd_scene_rflex_from_cb(fmbd_h5 *f, fmbd_rflex **out) {
     j++;
   }
   fmbd_modal_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
-                         cb->ns, cb->Psi, nm,     chibar,       Xi,           nr,     false};
+                         cb->ns, cb->Psi, nm,     chibar,       Xi,           nr,     stress};
   FMBD_GCALL(fmbd_modal_build(&mi, out));
 done:
   fmbd_free(Xi);
@@ -266,7 +266,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     rc = fmbd_rflex_read(f, &m->flex[bi]);
   } else if (format && !strcmp(format, "fmbd-cb")) {
     rc = fmbd_h5_check_format(f, "fmbd-cb", 1);
-    if (!rc) rc = fmbd_scene_rflex_from_cb(f, &m->flex[bi]);
+    if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
   } else {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
           "body '%s': %s is %s%s%s; a flexible body needs a fmbd-rflex file (cbcheck) or a fmbd-cb "

@@ -102,63 +102,63 @@ int main(void) {
   const int n0s[] = {0, 3, 5};
   int tested = 0, restarts = 0, final_passes = 0;
   for (which = 0; which < 4; which++) {
-  for (int a = 0; a < 3; a++) {
-    for (int b = 0; b < 3; b++) {
-      double tol = tols[a];
-      int nm = nms[b], n0 = n0s[(a + b) % 3];
-      fmbd_est *e = NULL;
-      EXPECT(fmbd_est_create(NB, Mbb, Kbb, &eo, &e) == 0, "create");
-      EXPECT(set_pool(e, NS) == 0, "pool");
-      // brute force: the first nd >= n0 at which modes 1..nm all meet tol
-      int want = -1, first;
-      for (int nd = n0; nd < NS && want < 0; nd++) {
-        if (largest_at(e, nd, nm, tol, 1, &first) <= tol) want = nd;
+    for (int a = 0; a < 3; a++) {
+      for (int b = 0; b < 3; b++) {
+        double tol = tols[a];
+        int nm = nms[b], n0 = n0s[(a + b) % 3];
+        fmbd_est *e = NULL;
+        EXPECT(fmbd_est_create(NB, Mbb, Kbb, &eo, &e) == 0, "create");
+        EXPECT(set_pool(e, NS) == 0, "pool");
+        // brute force: the first nd >= n0 at which modes 1..nm all meet tol
+        int want = -1, first;
+        for (int nd = n0; nd < NS && want < 0; nd++) {
+          if (largest_at(e, nd, nm, tol, 1, &first) <= tol) want = nd;
+        }
+        fmbd_est_select_opts so = {tol, nm, n0, NS - 1, which};
+        fmbd_est_select_result r = {0};
+        EXPECT(fmbd_est_select(e, &so, NULL, NULL, &r) == 0, "select");
+        EXPECT(r.reached && r.nd == want, "tol %g nm %d n0 %d: selected Nd %lld, brute force %d",
+               tol, nm, n0, (long long)r.nd, want);
+        if (r.reached && r.nd > n0) {
+          EXPECT(largest_at(e, (int)r.nd - 1, nm, tol, 1, &first) > tol,
+                 "tol %g nm %d: Nd - 1 = %lld meets the tolerance too: not minimal", tol, nm,
+                 (long long)r.nd - 1);
+        }
+        // the log: Nd = n0, n0 + 1, ...; first failing = the restart rule, then the final pass
+        EXPECT(r.niter == r.nd - n0 + 1, "tol %g nm %d: %lld iterations for Nd %d..%lld", tol, nm,
+               (long long)r.niter, n0, (long long)r.nd);
+        int from = 1;
+        for (int64_t i = 0; i < r.niter; i++) {
+          int nd = n0 + (int)i, ff, ffall;
+          largest_at(e, nd, nm, tol, from, &ff);
+          largest_at(e, nd, nm, tol, 1, &ffall);
+          int expect_ff = ff ? ff : ffall;
+          EXPECT(r.log[i].nd == nd && r.log[i].first_failing == expect_ff,
+                 "tol %g nm %d: iteration %lld: Nd %lld first failing %lld, expected Nd %d mode %d",
+                 tol, nm, (long long)i, (long long)r.log[i].nd, (long long)r.log[i].first_failing,
+                 nd, expect_ff);
+          restarts += ff > from;
+          final_passes += !ff && ffall;
+          if (expect_ff) from = expect_ff;
+          tested++;
+        }
+        fmbd_free(r.log);
+        // the same from a pool of n0 + 1 modes grown by the callback
+        fmbd_est *e2 = NULL;
+        EXPECT(fmbd_est_create(NB, Mbb, Kbb, &eo, &e2) == 0, "create 2");
+        EXPECT(set_pool(e2, n0 + 1) == 0, "small pool");
+        nextend_calls = 0;
+        fmbd_est_select_result r2 = {0};
+        EXPECT(fmbd_est_select(e2, &so, extend, NULL, &r2) == 0, "select with extension");
+        EXPECT(r2.reached && r2.nd == want && r2.nextend == nextend_calls &&
+                   (want <= n0 + 1 || nextend_calls > 0),
+               "with extensions: Nd %lld (want %d), %lld extensions, %d calls", (long long)r2.nd,
+               want, (long long)r2.nextend, nextend_calls);
+        fmbd_free(r2.log);
+        fmbd_est_destroy(&e2);
+        fmbd_est_destroy(&e);
       }
-      fmbd_est_select_opts so = {tol, nm, n0, NS - 1, which};
-      fmbd_est_select_result r = {0};
-      EXPECT(fmbd_est_select(e, &so, NULL, NULL, &r) == 0, "select");
-      EXPECT(r.reached && r.nd == want, "tol %g nm %d n0 %d: selected Nd %lld, brute force %d",
-             tol, nm, n0, (long long)r.nd, want);
-      if (r.reached && r.nd > n0) {
-        EXPECT(largest_at(e, (int)r.nd - 1, nm, tol, 1, &first) > tol,
-               "tol %g nm %d: Nd - 1 = %lld meets the tolerance too: not minimal", tol, nm,
-               (long long)r.nd - 1);
-      }
-      // the log: Nd = n0, n0 + 1, ...; first failing = the restart rule, then the final pass
-      EXPECT(r.niter == r.nd - n0 + 1, "tol %g nm %d: %lld iterations for Nd %d..%lld", tol, nm,
-             (long long)r.niter, n0, (long long)r.nd);
-      int from = 1;
-      for (int64_t i = 0; i < r.niter; i++) {
-        int nd = n0 + (int)i, ff, ffall;
-        largest_at(e, nd, nm, tol, from, &ff);
-        largest_at(e, nd, nm, tol, 1, &ffall);
-        int expect_ff = ff ? ff : ffall;
-        EXPECT(r.log[i].nd == nd && r.log[i].first_failing == expect_ff,
-               "tol %g nm %d: iteration %lld: Nd %lld first failing %lld, expected Nd %d mode %d",
-               tol, nm, (long long)i, (long long)r.log[i].nd, (long long)r.log[i].first_failing,
-               nd, expect_ff);
-        restarts += ff > from;
-        final_passes += !ff && ffall;
-        if (expect_ff) from = expect_ff;
-        tested++;
-      }
-      fmbd_free(r.log);
-      // the same from a pool of n0 + 1 modes grown by the callback
-      fmbd_est *e2 = NULL;
-      EXPECT(fmbd_est_create(NB, Mbb, Kbb, &eo, &e2) == 0, "create 2");
-      EXPECT(set_pool(e2, n0 + 1) == 0, "small pool");
-      nextend_calls = 0;
-      fmbd_est_select_result r2 = {0};
-      EXPECT(fmbd_est_select(e2, &so, extend, NULL, &r2) == 0, "select with extension");
-      EXPECT(r2.reached && r2.nd == want && r2.nextend == nextend_calls &&
-                 (want <= n0 + 1 || nextend_calls > 0),
-             "with extensions: Nd %lld (want %d), %lld extensions, %d calls", (long long)r2.nd,
-             want, (long long)r2.nextend, nextend_calls);
-      fmbd_free(r2.log);
-      fmbd_est_destroy(&e2);
-      fmbd_est_destroy(&e);
     }
-  }
   }
   EXPECT(tested > 20 && restarts > 0, "only %d iterations checked, %d restarts", tested, restarts);
   printf("t402: %d iterations checked, %d restarts, %d final passes\n", tested, restarts,
