@@ -313,7 +313,8 @@ static int load_fe(run *r, bool required, const char *why) {
                r->a->fe ? ", or --fe" : "", why);
   }
   fmbd_err_context(cand, "");
-  FMBD_GCALL(fmbd_h5_check_format(f, "fmbd-fe", 1));  // the kind first: a cb file is not "changed"
+  FMBD_GCALL(fmbd_h5_check_format(
+      f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR));  // the kind first: a cb file is not "changed"
   const char *sha = fmbd_h5_sha256(f);
   if (r->cb->fe_sha256[0] && strcmp(sha, r->cb->fe_sha256) != 0) {
     if (!required) {

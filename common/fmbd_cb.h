@@ -31,10 +31,6 @@
 #include "fmbd_fe.h"
 #include "fmbd_h5.h"
 
-#define FMBD_CB_FORMAT "fmbd-cb"
-#define FMBD_CB_FORMAT_VERSION "1.0"
-#define FMBD_CB_FORMAT_MAJOR 1
-
 /// Options of fmbd_cb_reduce; fill with fmbd_cb_defaults.
 typedef struct fmbd_cb_opts {
   bool nm;            ///< method "nm" instead of "cb". Default false

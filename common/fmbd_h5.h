@@ -24,6 +24,21 @@
 
 #include "fmbd_csr.h"
 
+/// The file kinds (root attribute `format`), the `format_version` written, and the major
+/// version readers accept (docs/FORMAT.md): one place for every program and module.
+#define FMBD_FE_FORMAT "fmbd-fe"
+#define FMBD_FE_FORMAT_VERSION "1.0"
+#define FMBD_FE_FORMAT_MAJOR 1
+#define FMBD_CB_FORMAT "fmbd-cb"
+#define FMBD_CB_FORMAT_VERSION "1.0"
+#define FMBD_CB_FORMAT_MAJOR 1
+#define FMBD_RFLEX_FORMAT "fmbd-rflex"
+#define FMBD_RFLEX_VERSION "1.0"
+#define FMBD_RFLEX_MAJOR 1
+#define FMBD_RUN_FORMAT "fmbd-run"
+#define FMBD_RUN_FORMAT_VERSION "1.0"
+#define FMBD_RUN_FORMAT_MAJOR 1
+
 typedef struct fmbd_h5 fmbd_h5;
 
 /// @brief Turn HDF5's automatic error stack printing on (--debug) or off (default).

@@ -32,11 +32,6 @@
 #include "fmbd_fe.h"
 #include "fmbd_h5.h"
 
-/// Format name and version written in the root attributes of a .rflex.h5.
-#define FMBD_RFLEX_FORMAT "fmbd-rflex"
-#define FMBD_RFLEX_VERSION "1.0"
-#define FMBD_RFLEX_MAJOR 1
-
 /// One interface (joint) node of the body and its modal motion.
 typedef struct fmbd_rflex_interface {
   char *name;           ///< group name under /interfaces (owned)

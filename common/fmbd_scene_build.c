@@ -262,10 +262,10 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   }
   if (fmbd_h5_has_attr(f, "/", "format"))
     FMBD_GCALL(fmbd_h5_read_attr_str(f, "/", "format", &format));
-  if (format && !strcmp(format, "fmbd-rflex")) {
+  if (format && !strcmp(format, FMBD_RFLEX_FORMAT)) {
     rc = fmbd_rflex_read(f, &m->flex[bi]);
-  } else if (format && !strcmp(format, "fmbd-cb")) {
-    rc = fmbd_h5_check_format(f, "fmbd-cb", 1);
+  } else if (format && !strcmp(format, FMBD_CB_FORMAT)) {
+    rc = fmbd_h5_check_format(f, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR);
     if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
   } else {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
@@ -282,7 +282,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
   }
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
-  if (!strcmp(format, "fmbd-rflex")) {
+  if (!strcmp(format, FMBD_RFLEX_FORMAT)) {
     // a body used in a way its file was not made for: the modes of an interface reduced free
     // cannot deform as a joint that holds it asks (docs/THEORY.md section 12), and modes made
     // for a held interface are too stiff where it is free
@@ -472,7 +472,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE,
               "%s asks for stress or strain, but %s has no /modes/stress (%s)", what,
               s->bodies[op->body].file,
-              !strcmp(m->file_kind[op->body], "fmbd-cb")
+              !strcmp(m->file_kind[op->body], FMBD_CB_FORMAT)
                   ? "a cb file never has it; use the .rflex.h5 of cbcheck"
                   : "cbcheck writes it when the fe file is at hand");
       }

@@ -200,7 +200,7 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_cli_output_name(a.input, a.output, strip, ".cb.h5", &oname));
   FMBD_GCALL(fmbd_h5_open(a.input, &in));
   fmbd_err_context(a.input, "/");
-  FMBD_GCALL(fmbd_h5_check_format(in, "fmbd-fe", 1));
+  FMBD_GCALL(fmbd_h5_check_format(in, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR));
   FMBD_GCALL(fmbd_fe_read(in, &body));
   fmbd_err_context(a.input, "");
   FMBD_GCALL(fmbd_cb_check_body(body, a.cb.sym_rtol));

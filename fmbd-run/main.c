@@ -251,7 +251,7 @@ static void interp(const double *tt, const double *v, int64_t n, int w, double t
 static int check_reference(fmbd_h5 *g, const char *ref_name, double **rt, int64_t *nr) {
   int rc = FMBD_OK;
   double *t = NULL;
-  FMBD_GCALL(fmbd_h5_check_format(g, "fmbd-run", 1));
+  FMBD_GCALL(fmbd_h5_check_format(g, FMBD_RUN_FORMAT, FMBD_RUN_FORMAT_MAJOR));
   int64_t complete = 0;
   fmbd_err_context(ref_name, "/stats");
   FMBD_GCALL(fmbd_h5_read_attr_i64(g, "/stats", "complete", 1, &complete));
@@ -593,7 +593,7 @@ int main(int argc, char **argv) {
   r.s = s;
   r.m = m;
   r.keep_hist = plot || ref;
-  FMBD_GCALL(fmbd_h5_create(out_name, "fmbd-run", "1.0", &r.f));
+  FMBD_GCALL(fmbd_h5_create(out_name, FMBD_RUN_FORMAT, FMBD_RUN_FORMAT_VERSION, &r.f));
   if (strcmp(scene_file, "-")) FMBD_GCALL(fmbd_h5_add_input(r.f, scene_file, NULL));
   for (int i = 0; i < m->ninputs; i++)
     FMBD_GCALL(fmbd_h5_add_input(r.f, m->input_name[i], m->input_sha[i]));

@@ -490,7 +490,7 @@ int main(int argc, char **argv) {
   t0 = fmbd_wall_s();
   c0 = fmbd_cpu_s();
   fmbd_progress("writing %s", strcmp(outname, "-") ? outname : "(stdout)");
-  rc = fmbd_h5_create(outname, "fmbd-fe", "1.0", &out);
+  rc = fmbd_h5_create(outname, FMBD_FE_FORMAT, FMBD_FE_FORMAT_VERSION, &out);
   if (!rc) {
     rc = fmbd_h5_add_input(out, a.input, NULL);
   }
