@@ -6,7 +6,7 @@ PKGS=(gcc g++ make pkg-config
       libgmsh-dev gmsh libhdf5-dev hdf5-tools libopenblas-dev liblapacke-dev libarpack2-dev
       libsuitesparse-dev libcgal-dev libyaml-dev
       python3-h5py python3-numpy python3-scipy python3-matplotlib calculix-ccx valgrind
-      clang-format)
+      clang-format bsdutils util-linux man-db groff-base)
 missing=()
 for p in "${PKGS[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then

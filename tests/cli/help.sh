@@ -19,6 +19,8 @@ for p in mesh2fe fe2cb cbcheck gmsolve fmbd-run; do
     echo "$p: no man page docs/man/$p.1"; fail=1
   elif command -v man >/dev/null 2>&1; then
     MANWIDTH=80 man -l "$page" 2>&1 >/dev/null | grep -i -E 'warning|error' && { echo "$p: man page warnings"; fail=1; }
+  else
+    echo "$p: man (man-db, installed by make check) missing: the man page lint cannot run"; fail=1
   fi
 done
 exit $fail

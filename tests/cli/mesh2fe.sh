@@ -145,11 +145,13 @@ else
   bad "gmsh -1 -order 2 rodbeam.geo failed: $(tail -3 gmsh.log)"
 fi
 # default output name beside the input's name in the current folder, when stdout is a terminal:
-# only testable with a terminal (script(1)); skipped without it
+# only testable with a terminal (script(1), which make check installs; a failure without it)
 if command -v script >/dev/null 2>&1; then
   cp "$GEO/rodbeam.geo" named.geo
   script -qec "'$EXE' named.geo --circle 0.015 -q" /dev/null >/dev/null 2>&1
   [ -f named.fe.h5 ] || bad "named.geo with a terminal on stdout: no named.fe.h5"
+else
+  bad "script(1) missing (bsdutils, installed by make check): the terminal case cannot run"
 fi
 
 # every example command of the man page and of --help, as written there (run from the top of
@@ -180,11 +182,19 @@ echo "ok: docs/FORMAT.md h5dump sample reproduced"
 expect 1 'nosuch.geo' 'cannot open' -- nosuch.geo
 mkdir -p adir.geo
 expect 1 'adir.geo' 'not a regular file' -- adir.geo
+cp good.msh unreadable.msh && chmod 000 unreadable.msh
 if [ "$(id -u)" != 0 ]; then
-  cp good.msh unreadable.msh && chmod 000 unreadable.msh
   expect 1 'unreadable.msh' 'cannot open' -- unreadable.msh
+elif command -v setpriv >/dev/null 2>&1; then
+  # root reads anything: the case runs as nobody (util-linux's setpriv, installed by make check)
+  chmod 755 . && chmod 644 good.msh
+  HOME=/tmp setpriv --reuid=65534 --regid=65534 --clear-groups "$EXE" unreadable.msh -o /tmp/unreadable-$$.fe.h5 >stdout.txt 2>stderr.txt
+  st=$?
+  [ $st -eq 1 ] && grep -q "unreadable.msh.*cannot open" stderr.txt \
+    || bad "unreadable file (as nobody): exit $st, $(cat stderr.txt)"
+  rm -f /tmp/unreadable-$$.fe.h5
 else
-  echo "skip: unreadable file (running as root, which reads anything)"
+  bad "setpriv missing (util-linux): the unreadable-file case cannot run as root"
 fi
 echo 'solid x' >part.igs
 expect 2 'part.igs' "unknown geometry type '.igs'" -- part.igs
