@@ -25,6 +25,9 @@ import scipy.linalg as sl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fegen  # noqa: E402
+
 ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
 BUILD = os.environ.get("BUILD", "build")
 TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_cbcheck_hold")
@@ -79,16 +82,7 @@ chi = np.sort(spl.eigsh(Kf, k=NM + 1, M=Mf, sigma=0, which="LM", tol=1e-12)[0])
 w1 = np.sqrt(chi[0])
 
 # rigid motions in the active dofs (translations; rotations about the origin)
-R = np.zeros((n, 6))
-for i, (p, d) in enumerate(dofs):
-    if d < 3:
-        R[i, d] = 1.0
-        for c in range(3):
-            e = np.zeros(3)
-            e[c] = 1.0
-            R[i, 3 + c] = np.cross(e, nodes[p])[d]
-    else:
-        R[i, d] = 1.0
+R = fegen.rigid_modes(nodes, dofs)
 
 
 def clamped(fn):

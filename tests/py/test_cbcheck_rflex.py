@@ -18,6 +18,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fegen  # noqa: E402
+
 ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
 BUILD = os.environ.get("BUILD", "build")
 TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_cbcheck_rflex")
@@ -103,17 +106,7 @@ check(np.all(err <= TOL) and np.all(err > -1e-9), "kept eigenvalues off the full
 U = (E @ X).reshape(nn, 6, nm)          # row 6p+d of /expand: component d of node p
 with h5py.File(os.path.join(TMP, "rod.rflex.h5"), "r") as f:
     dofs = f["dofs"][()]
-R = np.zeros((len(dofs), 6))
-for i, (p_, d_) in enumerate(dofs):
-    if d_ < 3:
-        R[i, d_] = 1.0
-        x = nodes[p_]
-        for c_ in range(3):
-            e = np.zeros(3)
-            e[c_] = 1.0
-            R[i, 3 + c_] = np.cross(e, x)[d_]
-    else:
-        R[i, 3 + d_ - 3] = 1.0
+R = fegen.rigid_modes(nodes, dofs)
 RMX = R.T @ (M @ X)
 msq = np.sqrt(float(body["mass"]))
 eps = np.zeros((3, 3, 3))
