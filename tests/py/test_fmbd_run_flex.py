@@ -75,12 +75,13 @@ if make_bodies(cant, os.path.join(TMP, "rodbeam.cb.h5")):
     d_exact = P * L ** 3 / (3 * E * Iz)
     # Euler-Bernoulli beam elements are exact at the nodes for a tip load, and the complete CB
     # basis (both ends' constraint modes + 10 fixed-interface modes) spans the static shape:
-    # 1e-3 is round-off and the damped transient
-    check(abs(-y[-1] / d_exact - 1) < 1e-3, f"static tip deflection {-y[-1]:.6e} m vs P L^3/(3EI) = {d_exact:.6e} m "
+    # what remains is the damped transient and the Newton tolerance (1.5e-5 measured): 1e-4
+    check(abs(-y[-1] / d_exact - 1) < 1e-4, f"static tip deflection {-y[-1]:.6e} m vs P L^3/(3EI) = {d_exact:.6e} m "
           f"(rel {-y[-1] / d_exact - 1:.1e})")
     # the clamp carries the load: reaction on ground side = -(applied) ... side 1 is ground:
     # the reaction reported is minus what the joint applies to the beam, i.e. the tip load
-    check(abs(abs(Fr[1]) - P) < 1e-3 * P, f"clamp reaction {Fr} N balances the 100 N load")
+    # (3.1e-5 relative measured, the same transient): 1e-4
+    check(abs(abs(Fr[1]) - P) < 1e-4 * P, f"clamp reaction {Fr} N balances the 100 N load")
     check(abs(es / (0.5 * P * d_exact) - 1) < 2e-3, f"strain energy {es:.5e} J vs P d / 2 = {0.5 * P * d_exact:.5e} J")
 
     # convergence in the number of kept (free-free) modes: the error falls as modes are added
@@ -134,9 +135,10 @@ if make_bodies(spin, os.path.join(TMP, "rodbeam.rflex.h5")):
     dL = np.max(np.linalg.norm(Lm - Lm[0], axis=1)) / np.linalg.norm(Lm[0])
     dH = np.max(np.linalg.norm(H - H[0], axis=1)) / np.linalg.norm(H[0])
     # no external load: momenta are invariants of the equations, and of the scheme up to the
-    # Newton tolerance (1e-8 relative increments; measured 4e-10 and 1.3e-9): 1e-7
-    check(dL < 1e-7, f"linear momentum conserved to {dL:.1e} (relative)")
-    check(dH < 1e-7, f"angular momentum conserved to {dH:.1e} (relative)")
+    # Newton tolerance (1e-8 relative increments; measured 1.3e-9 and 4.0e-9): 1e-8, that
+    # tolerance; a missing inertia term breaks it by orders of magnitude
+    check(dL < 1e-8, f"linear momentum conserved to {dL:.1e} (relative)")
+    check(dH < 1e-8, f"angular momentum conserved to {dH:.1e} (relative)")
     check(es.max() > 0, f"the spin deforms the rod: strain energy up to {es.max():.3e} J (kinetic {ek[0]:.3e} J)")
     # stress output needs /modes/stress in the rflex
     with h5py.File(os.path.join(TMP, "rodbeam.rflex.h5"), "r") as f:
