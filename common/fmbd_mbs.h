@@ -148,6 +148,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "fmbd_csr.h"
+
 typedef struct fmbd_mbs fmbd_mbs;
 
 /// The ground "body" id.
@@ -396,5 +398,42 @@ int fmbd_mbs_redundant(const fmbd_mbs *m, int k, int *joint, int *eq, const char
 // --- rotation helpers ----------------------------------------------------------------------
 /// @brief Rotation matrix (row-major) of the rotation by angle (rad) about axis (any length > 0).
 void fmbd_mbs_rotation_axis_angle(const double axis[3], double angle, double A[9]);
+
+// --- the mechanism's equations outside the integrator (for linearisation, global modes) ---
+/// The equations of motion linearised at a state, M x'' + C x' + K x = Q (the terms the
+/// iteration matrix uses; position-dependent force terms are dropped by design, as there),
+/// and the kept constraint equations Phi(x, t) = 0 with their Jacobian Cq. Sparse: M, C, K are
+/// block diagonal by body (dense n_i x n_i blocks, n_i = 7 + modes), Cq has one row per kept
+/// equation with the coordinates of its one or two bodies; a 100 k-coordinate mechanism stays
+/// sparse. Coordinates as everywhere in fmbd_mbs: per body R (3), Euler parameters p (4),
+/// modal q. M holds PMASS-regularised inertia in the p direction (mu p p', the direction the
+/// normalisation equation removes: on the constraints' null space it plays no role).
+typedef struct fmbd_mbs_linear {
+  int64_t n;     ///< coordinates
+  int64_t nc;    ///< kept constraint equations (redundant ones removed at init)
+  fmbd_csr *M;   ///< n x n mass matrix
+  fmbd_csr *C;   ///< n x n velocity tangent (gyroscopic, Coriolis, modal damping)
+  fmbd_csr *K;   ///< n x n tangent stiffness (modal Kff; the rest dropped by design)
+  fmbd_csr *Cq;  ///< nc x n constraint Jacobian (joints, drivers, normalisations)
+  double *Q;     ///< (n) generalized forces at zero accelerations (gravity, loads,
+                 ///< elastic, quadratic velocity terms): -(residual at x'' = 0)
+  double *phi;   ///< (nc) the constraint values Phi(x, t)
+  int64_t *eq;   ///< (nc) index of each row among all equations (for names, as
+                 ///< fmbd_mbs_redundant numbers them)
+} fmbd_mbs_linear;
+
+/// @brief Evaluate the linearised equations at state (x, xd) and time t (x, xd NULL: the
+/// model's current state, e.g. the initial configuration projected onto the constraints by
+/// fmbd_mbs_init). The model's state is left unchanged. Needs fmbd_mbs_init.
+/// @param[in] x, xd (n) or NULL, borrowed
+/// @param[out] L filled; release with fmbd_mbs_linear_free
+/// @return FMBD_OK, FMBD_ERR_VALUE (not initialised), FMBD_ERR_NOMEM
+int fmbd_mbs_linearise(fmbd_mbs *m, double t, const double *x, const double *xd,
+                       fmbd_mbs_linear *L);
+/// @brief Release the arrays of L (L itself is the caller's); zeroes it. NULL is fine.
+void fmbd_mbs_linear_free(fmbd_mbs_linear *L);
+/// @brief Number of coordinates n (after fmbd_mbs_init), and the current state x (n, borrowed).
+int64_t fmbd_mbs_ncoordinates(const fmbd_mbs *m);
+const double *fmbd_mbs_state(const fmbd_mbs *m);
 
 #endif
