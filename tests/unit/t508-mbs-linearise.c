@@ -20,7 +20,9 @@
 #include "fmbd_log.h"
 #include "fmbd_mbs.h"
 
-static double get(const fmbd_csr *A, int64_t i, int64_t j) { return fmbd_csr_get(A, i, j); }
+static double get(const fmbd_csr *A, int64_t i, int64_t j) {
+  return fmbd_csr_get(A, i, j);
+}
 
 int main(void) {
   fmbd_log_init("t508", FMBD_LOG_ERROR);
@@ -63,8 +65,8 @@ int main(void) {
   EXPECT(fmbd_mbs_add_point_world(m, a, o, &p1) == 0, "p1");
   EXPECT(fmbd_mbs_add_point_world(m, a, k1, &p2) == 0, "p2");
   EXPECT(fmbd_mbs_add_point_world(m, b, k1, &p3) == 0, "p3");
-  fmbd_mbs_joint_desc j1 = {.name = "pivot", .kind = FMBD_MBS_REVOLUTE, .point = {p0, p1},
-                            .axis = {0, 0, 1}};
+  fmbd_mbs_joint_desc j1 = {
+      .name = "pivot", .kind = FMBD_MBS_REVOLUTE, .point = {p0, p1}, .axis = {0, 0, 1}};
   fmbd_mbs_joint_desc j2 = {.name = "ball", .kind = FMBD_MBS_SPHERICAL, .point = {p2, p3}};
   int jid;
   EXPECT(fmbd_mbs_add_joint(m, &j1, &jid) == 0, "revolute");
@@ -103,16 +105,16 @@ int main(void) {
                "body %d: M translational block (%d,%d) = %g", bi, i, j, get(L.M, off + i, off + j));
       }
       // Q at rest: the weight
-      EXPECT(fabs(L.Q[off + i] - mass[bi] * g[i]) <= 1e-12, "body %d: Q[%d] = %g, weight %g", bi,
-             i, L.Q[off + i], mass[bi] * g[i]);
+      EXPECT(fabs(L.Q[off + i] - mass[bi] * g[i]) <= 1e-12, "body %d: Q[%d] = %g, weight %g", bi, i,
+             L.Q[off + i], mass[bi] * g[i]);
     }
   }
   for (int k = 0; k < 2; k++) {
     for (int l = 0; l < 2; l++) {
       int64_t r = 21 + k, c = 21 + l;
       EXPECT(fabs(get(L.M, r, c) - Mff[k + 2 * l]) <= 1e-14, "Mff block (%d,%d)", k, l);
-      EXPECT(fabs(get(L.K, r, c) - Kff[k + 2 * l]) <= 1e-9 * Kff[3], "Kff block (%d,%d) = %g", k,
-             l, get(L.K, r, c));
+      EXPECT(fabs(get(L.K, r, c) - Kff[k + 2 * l]) <= 1e-9 * Kff[3], "Kff block (%d,%d) = %g", k, l,
+             get(L.K, r, c));
       double d = k == l ? 2 * 0.05 * sqrt(Kff[k + 2 * k]) : 0;
       EXPECT(fabs(get(L.C, r, c) - d) <= 1e-12 * 30, "damping block (%d,%d) = %g, expected %g", k,
              l, get(L.C, r, c), d);
