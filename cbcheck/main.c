@@ -4,7 +4,7 @@
 //
 // A thin command line over common/: fmbd_cb_read (the reduced body), fmbd_est (estimates,
 // downdates, selection), fmbd_cb_extend (more fixed-interface modes from the fe file),
-// fmbd_eig (exact errors), fmbd_modal (secondary reduction, rflex file), fmbd_svg (plots).
+// fmbd_eig (exact errors), fmbd_rflex (secondary reduction, rflex file), fmbd_svg (plots).
 // See docs/man/cbcheck.1.
 #include <math.h>
 #include <stdio.h>
@@ -22,7 +22,7 @@
 #include "fmbd_fe.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
-#include "fmbd_modal.h"
+#include "fmbd_rflex.h"
 #include "fmbd_svg.h"
 
 static const char *usage_text =
@@ -1020,9 +1020,9 @@ int main(int argc, char **argv) {
       ldx = nd + cb->nb;
       FMBD_GCALL(rc);
     }
-    fmbd_modal_input mi = {r.desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd,  cb->Phi,
+    fmbd_rflex_input mi = {r.desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd,  cb->Phi,
                            cb->ns, cb->Psi, nkept,  chif,         Xif,          ldx, a.stress};
-    rc = fmbd_modal_build(&mi, &rf);
+    rc = fmbd_rflex_build(&mi, &rf);
     fmbd_free(chif);
     fmbd_free(Xif);
     FMBD_GCALL(rc);

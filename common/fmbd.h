@@ -16,6 +16,7 @@
 #include "fmbd_err.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
+#include "fmbd_sha256.h"
 #include "fmbd_svg.h"
 // linear algebra
 #include "fmbd_chol.h"
@@ -27,7 +28,7 @@
 #include "fmbd_est.h"
 #include "fmbd_fe.h"
 #include "fmbd_mesh.h"
-#include "fmbd_modal.h"
+#include "fmbd_rflex.h"
 // multibody simulation (fmbd-run)
 #include "fmbd_mbs.h"
 #include "fmbd_scene.h"

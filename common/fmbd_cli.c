@@ -102,6 +102,7 @@ void fmbd_cli_init(const char *prog, int argc, char **argv) {
   size_t n = 1;
   for (int i = 0; i < argc; i++) n += quoted_len(argv[i]) + 1;
   g_cmdline = fmbd_malloc(n);
+  fmbd_h5_set_provenance(fmbd_version(), "");
   if (!g_cmdline) return;  // fmbd_cli_command_line then gives "" (out of memory at start)
   char *p = g_cmdline;
   for (int i = 0; i < argc; i++) {
@@ -109,6 +110,7 @@ void fmbd_cli_init(const char *prog, int argc, char **argv) {
     p = append_quoted(p, argv[i]);
   }
   *p = '\0';
+  fmbd_h5_set_provenance(fmbd_version(), g_cmdline);
 }
 
 const char *fmbd_cli_command_line(void) {
@@ -228,6 +230,7 @@ int fmbd_cli_parse_int(const char *opt, const char *text, long *out) {
 }
 
 int fmbd_cli_finish(int rc) {
+  fmbd_h5_set_provenance(fmbd_version(), "");  // the command line is released below
   if (rc > 0) {  // an exit status already reported (fmbd_cli_usage_error's 2): as is
     fmbd_free(g_cmdline);
     g_cmdline = NULL;

@@ -22,9 +22,9 @@
 #include <unistd.h>
 
 #include "fmbd_alloc.h"
-#include "fmbd_cli.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
+#include "fmbd_sha256.h"
 
 struct fmbd_h5 {
   hid_t fid;
@@ -363,6 +363,17 @@ void fmbd_h5_abandon(fmbd_h5 **pf) {
   *pf = NULL;
 }
 
+// --- provenance of the files created (set by the program: fmbd_cli_init) ---------------------
+#ifndef FMBD_VERSION
+#define FMBD_VERSION "unknown"
+#endif
+static const char *g_version = FMBD_VERSION, *g_command_line = "";
+
+void fmbd_h5_set_provenance(const char *version, const char *command_line) {
+  g_version = version ? version : FMBD_VERSION;
+  g_command_line = command_line ? command_line : "";
+}
+
 // --- creating -------------------------------------------------------------------------------
 int fmbd_h5_create(const char *name, const char *format, const char *format_version,
                    fmbd_h5 **out) {
@@ -402,11 +413,11 @@ int fmbd_h5_create(const char *name, const char *format, const char *format_vers
   f->last_flush_s = fmbd_wall_s();
   // --- root attributes known now; inputs and times follow at commit ---
   char creator[256];
-  snprintf(creator, sizeof creator, "%s %s", fmbd_log_prog(), fmbd_version());
+  snprintf(creator, sizeof creator, "%s %s", fmbd_log_prog(), g_version);
   FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "format", format));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "format_version", format_version));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "creator", creator));
-  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "command_line", fmbd_cli_command_line()));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, "/", "command_line", g_command_line));
   *out = f;
   f = NULL;
 done:

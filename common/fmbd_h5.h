@@ -159,22 +159,11 @@ int fmbd_h5_series_append(fmbd_h5_series *s, int64_t nrows, const double *rows);
 int64_t fmbd_h5_series_rows(const fmbd_h5_series *s);
 void fmbd_h5_series_close(fmbd_h5_series **s);
 
-// --- hashing (common/fmbd_sha256.c, FIPS 180-4) -----------------------------------------------
-/// Streaming SHA-256 state: init, update any number of times, final.
-typedef struct fmbd_sha256 {
-  uint32_t h[8];
-  uint64_t nbytes;
-  unsigned nbuf;
-  unsigned char buf[64];
-} fmbd_sha256;
-void fmbd_sha256_init(fmbd_sha256 *s);
-void fmbd_sha256_update(fmbd_sha256 *s, const void *data, uint64_t n);
-/// @brief Finish: 64 lowercase hex chars + NUL. The state must be re-initialised to be reused.
-void fmbd_sha256_final(fmbd_sha256 *s, char hex[65]);
-/// @brief SHA-256 of a byte buffer as 64 lowercase hex chars + NUL.
-void fmbd_sha256_hex(const void *data, uint64_t n, char hex[65]);
-/// @brief SHA-256 of a file's contents. FMBD_ERR_IO if it cannot be read.
-int fmbd_sha256_file(const char *path, char hex[65]);
+/// @brief The toolchain version and the command line that fmbd_h5_create writes into the root
+/// attributes `creator` (with the program name of fmbd_log_init) and `command_line` (both
+/// borrowed: they must outlive the files; until set, the compiled-in version and ""). The
+/// command-line layer (fmbd_cli_init) calls it, so that this layer does not depend on that one.
+void fmbd_h5_set_provenance(const char *version, const char *command_line);
 
 /// @brief For a signal handler (async-signal-safe): remove the ".part" of the output being
 /// written, if any (created by fmbd_h5_create and neither committed, closed nor abandoned), so

@@ -16,7 +16,7 @@
 // The library never prints except through fmbd_log (redundant constraints: WARN; steps: DEBUG).
 //
 // CONVENTIONS. SI units. 3x3 matrices are ROW-major (A[3*i + j] = A_ij, as in the scene and
-// the fmbd-fe /body attribute). Modal arrays use the layout of fmbd_rflex (fmbd_modal.h):
+// the fmbd-fe /body attribute). Modal arrays use the layout of fmbd_rflex (fmbd_rflex.h):
 // first index fastest, so an fmbd_rflex's arrays can be passed as they are:
 //   S1[a + 3k], XS[a + 3b + 9k], SS[a + 3b + 9k + 9 nm l], Mff/Kff[k + nm l],
 //   point modal translation / rotation T[a + 3k] (3 x nm).

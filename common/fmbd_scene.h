@@ -234,7 +234,7 @@ bool fmbd_scene_list_has(const char *list, const char *name);
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text);
 
 // --- the scene as a multibody system (fmbd_scene_build.c) ----------------------------------
-#include "fmbd_modal.h"
+#include "fmbd_rflex.h"
 
 /// A scene turned into an fmbd_mbs system, with what the outputs need to be evaluated.
 typedef struct fmbd_scene_model {
@@ -274,7 +274,7 @@ double fmbd_scene_strain(double E, double nu, const double sigma[6], double eps[
 void fmbd_scene_model_destroy(fmbd_scene_model **m);
 /// @brief A flexible body from a .cb.h5 (format fmbd-cb): the flexible eigenvectors of the
 /// reduced problem (/reduced/eigenvectors without /reduced/rigid), expanded to the FE dofs
-/// (qF = [Phi Psi; 0 I] Xi, mass-normalised), built by fmbd_modal_build (the one producer of
+/// (qF = [Phi Psi; 0 I] Xi, mass-normalised), built by fmbd_rflex_build (the one producer of
 /// reduced bodies, as cbcheck's), its inertia invariants with the mass the modes come from
 /// (docs/THEORY.md section 9); with stress, the modal stresses of its modes (the fe
 /// description in the cb file carries the elements and the material).

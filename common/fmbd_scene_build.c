@@ -84,7 +84,7 @@ static int truncate_modes(fmbd_rflex *r, int64_t n) {
 
 // --- a modal body from a cb file ------------------------------------------------------------
 // The flexible modes of the reduced eigenproblem (those /reduced/rigid does not flag), turned
-// into a body by the one producer, fmbd_modal_build, exactly as cbcheck does for a selection.
+// into a body by the one producer, fmbd_rflex_build, exactly as cbcheck does for a selection.
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
   int rc = FMBD_OK;
   fmbd_cb *cb = NULL;
@@ -102,9 +102,9 @@ int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
     memcpy(Xi + nr * j, cb->Xi + nr * k, sizeof(double) * (size_t)nr);
     j++;
   }
-  fmbd_modal_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
+  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
                          cb->ns, cb->Psi, nm,     chibar,       Xi,           nr,     stress};
-  FMBD_GCALL(fmbd_modal_build(&mi, out));
+  FMBD_GCALL(fmbd_rflex_build(&mi, out));
 done:
   fmbd_free(Xi);
   fmbd_free(chibar);

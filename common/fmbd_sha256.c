@@ -1,11 +1,12 @@
 // common/fmbd_sha256.c: SHA-256 (FIPS 180-4, section 6.2), written from the standard
 // SPDX-License-Identifier: MIT
+#include "fmbd_sha256.h"
+
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "fmbd_err.h"
-#include "fmbd_h5.h"
 
 // FIPS 180-4 section 4.2.2: the first 32 bits of the fractional parts of the cube roots of
 // the first 64 primes.

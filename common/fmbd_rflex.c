@@ -1,7 +1,7 @@
-// common/fmbd_modal.c: the reduced flexible body: secondary reduction, FFRF invariants,
+// common/fmbd_rflex.c: the reduced flexible body: secondary reduction, FFRF invariants,
 // fmbd-rflex file I/O
 // SPDX-License-Identifier: MIT
-#include "fmbd_modal.h"
+#include "fmbd_rflex.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -150,7 +150,7 @@ static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *
 }
 
 // --- secondary reduction ------------------------------------------------------------------
-int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out) {
+int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   int rc = FMBD_OK;
   fmbd_rflex *r = NULL;
   double *U = NULL, *Wa = NULL, *Ub = NULL;

@@ -1,6 +1,6 @@
-// tests/unit/t401-modal.c: the reduced flexible body (common/fmbd_modal) and the SVG writer
+// tests/unit/t401-rflex.c: the reduced flexible body (common/fmbd_rflex) and the SVG writer
 // (common/fmbd_svg): a free beam with two interfaces assembled by fmbd_fe, reduced by fmbd_cb,
-// secondary reduction by fmbd_modal_build; mass normalisation, rflex file round trip
+// secondary reduction by fmbd_rflex_build; mass normalisation, rflex file round trip
 // (bit-exact), accessors, von Mises, wrong-format refusal; SVG output and its errors.
 // SPDX-License-Identifier: MIT
 #include <math.h>
@@ -18,7 +18,7 @@
 #include "fmbd_est.h"
 #include "fmbd_fe.h"
 #include "fmbd_h5.h"
-#include "fmbd_modal.h"
+#include "fmbd_rflex.h"
 #include "fmbd_svg.h"
 
 enum { NEL = 12 };
@@ -35,7 +35,7 @@ static const char *tmp(const char *name) {
 
 int main(void) {
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
-  snprintf(dir, sizeof dir, "%s/%s/test-tmp/t401-modal", root ? root : ".",
+  snprintf(dir, sizeof dir, "%s/%s/test-tmp/t401-rflex", root ? root : ".",
            build ? build : "build");
   char cmd[700];
   snprintf(cmd, sizeof cmd, "mkdir -p '%s'", dir);
@@ -99,10 +99,10 @@ int main(void) {
     chif[k] = cb->chibar[nrig + k];
     memcpy(Xif + nr * k, cb->Xi + nr * (nrig + k), sizeof(double) * (size_t)nr);
   }
-  fmbd_modal_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
+  fmbd_rflex_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
                          cb->ns, cb->Psi, nm,     chif,         Xif,          nr,     true};
   fmbd_rflex *rf = NULL;
-  EXPECT(fmbd_modal_build(&mi, &rf) == 0, "build: %s", fmbd_err_get()->msg);
+  EXPECT(fmbd_rflex_build(&mi, &rf) == 0, "build: %s", fmbd_err_get()->msg);
   // shapes' M shapes = I: T0' M T0 = M_ (closed form) and Xi' M_ Xi = I; round-off of the
   // reduction ~1e-13 on this 78-dof beam; 1e-9 tolerates it, a wrong shape is O(1)
   int64_t n = b->ndof;

@@ -1,4 +1,4 @@
-// common/fmbd_modal.h: the reduced flexible body (fmbd-rflex): modes, interface modes, FFRF
+// common/fmbd_rflex.h: the reduced flexible body (fmbd-rflex): modes, interface modes, FFRF
 // inertia invariants, modal stress; written by cbcheck, read by fmbd-run
 // SPDX-License-Identifier: MIT
 //
@@ -22,8 +22,8 @@
 //                                      file: (nnodes, 6, Nm)); NULL when the file has none
 //   node_xyz      3 x nnodes           node_xyz[a + 3*p]        (file /mesh/nodes (nnodes, 3))
 //   dofs          2 x ndof             dofs[0 + 2*i] = node, dofs[1 + 2*i] = direction
-#ifndef FMBD_MODAL_H
-#define FMBD_MODAL_H
+#ifndef FMBD_RFLEX_H
+#define FMBD_RFLEX_H
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -98,7 +98,7 @@ int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out);
 int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r);
 
 /// What the secondary reduction needs (all borrowed). Column-major matrices.
-typedef struct fmbd_modal_input {
+typedef struct fmbd_rflex_input {
   const fmbd_fe_body *body;      ///< description: nodes, node_mass, dofs, expand, interfaces,
                                  ///< /body, elements and material (for stress); K, M unused
   int64_t ns, nb;                ///< interior and boundary dofs (ns + nb <= body->ndof; the
@@ -114,7 +114,7 @@ typedef struct fmbd_modal_input {
   const double *Xi;      ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
   int64_t ldxi;          ///< leading dimension of Xi (>= nd+nb)
   bool stress;           ///< compute /modes/stress (fmbd_fe_nodal_stress)
-} fmbd_modal_input;
+} fmbd_rflex_input;
 
 /// @brief The secondary reduction [H46-H50]: shapes qF = T0 PhiT (T0 = [Phi_d Psi; 0 I] in
 /// the s/b partition), node and interface modal motion through /expand, the /ffrf invariants
@@ -124,9 +124,9 @@ typedef struct fmbd_modal_input {
 /// @param[out] out caller releases with fmbd_rflex_destroy
 /// @return FMBD_OK, FMBD_ERR_VALUE (inconsistent sizes), FMBD_ERR_NOMEM, errors of
 ///         fmbd_fe_nodal_stress
-int fmbd_modal_build(const fmbd_modal_input *in, fmbd_rflex **out);
+int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out);
 
-/// @brief True when fmbd_modal_build evaluates the invariants S1, XS, SS with the body's
+/// @brief True when fmbd_rflex_build evaluates the invariants S1, XS, SS with the body's
 /// scalar consistent mass (a solid body, tet4/tet10, meshed with consistent mass: the mass the
 /// modes come from), false when with the lumped nodal masses (lumped-mass bodies, beams).
 bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b);
