@@ -4,8 +4,9 @@
 #   docs/THEORY.md section 8, docs/THEORY.md sections 2 and 3  -> a heading "## 8." (and "## 2.", "## 3.")
 #   docs/TOOLCHAIN.md section 3g                                -> "### g." under "## 3."
 #   docs/TOOLCHAIN.md gotcha 11, gotchas 8-10                   -> items 11, 8..10 of its "Gotchas"
-#   any NAME.md (capitals)                                       -> a tracked file of that name
-# and nothing may refer to ../shared/ (the developers' briefing, which users do not have).
+#   any other upper-case name ending in .md                       -> a tracked file of that name
+# and nothing may refer to the developers' private briefing folder (SHARED below), which users
+# of the repository do not have.
 # SPDX-License-Identifier: MIT
 import os
 import re
@@ -14,6 +15,7 @@ import sys
 
 ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "../..")))
 SELF = "tests/py/test_doc_citations.py"
+SHARED = ".." + "/shared"  # spelled apart so that this file does not cite it itself
 
 
 def tracked_files():
@@ -59,8 +61,8 @@ CITE = re.compile(r"(?<![\w/.-])((?:docs/)?([A-Z][A-Z_]+)\.md)"
 def check_text(name, text, docs, names, problems):
     """Append to problems every bad citation in text (name: where it comes from)."""
     for ln, line in enumerate(text.split("\n"), 1):
-        if "../shared" in line:
-            problems.append("%s:%d: refers to ../shared/, which users do not have" % (name, ln))
+        if SHARED in line:
+            problems.append("%s:%d: refers to %s/, which users do not have" % (name, ln, SHARED))
         for m in CITE.finditer(line):
             path, base, kind, a, b = m.groups()
             fname = base + ".md"
@@ -96,14 +98,16 @@ def main():
             with open(os.path.join(ROOT, f), encoding="utf-8", errors="replace") as fp:
                 docs[f] = sections(fp.read())
     # --- self-check: the scanner must catch each kind of bad citation --------------------------
-    synthetic = ("see docs/THEORY.md section 99\nBRIEF.md /ffrf\nin ../shared/THEORY.md\n"
-                 "docs/NOPE.md\ndocs/TOOLCHAIN.md gotchas 1-999\ndocs/THEORY.md section 1\n")
+    missing = "docs/" + "NO" + "PE.md"  # a document that does not exist (spelled apart, as above)
+    synthetic = ("see docs/THEORY.md section 99\n" + "BRI" + "EF.md /ffrf\n"
+                 "in " + SHARED + "/THEORY.md\n" + missing + "\n"
+                 "docs/TOOLCHAIN.md gotchas 1-999\ndocs/THEORY.md section 1\n")
     caught = []
     check_text("synthetic", synthetic, docs, names, caught)
     lines = sorted({int(p.split(":")[1]) for p in caught})
     ok_self = lines == [1, 2, 3, 4, 5]
     print(("ok    " if ok_self else "FAIL  ") + "scanner catches a made-up section, document, "
-          "../shared and gotcha range, and passes a good citation (lines %s)" % lines)
+          "the private briefing folder and a gotcha range, and passes a good citation (lines %s)" % lines)
     # --- the repository ------------------------------------------------------------------------
     problems = []
     n = 0
