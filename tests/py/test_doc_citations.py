@@ -98,8 +98,8 @@ def main():
             with open(os.path.join(ROOT, f), encoding="utf-8", errors="replace") as fp:
                 docs[f] = sections(fp.read())
     # --- self-check: the scanner must catch each kind of bad citation --------------------------
-    missing = "docs/" + "NO" + "PE.md"  # a document that does not exist (spelled apart, as above)
-    synthetic = ("see docs/THEORY.md section 99\n" + "BRI" + "EF.md /ffrf\n"
+    missing = "docs/NOPE" + ".md"  # a document that does not exist (spelled apart, as above)
+    synthetic = ("see docs/THEORY.md section 99\n" + "BRIEF" + ".md /ffrf\n"
                  "in " + SHARED + "/THEORY.md\n" + missing + "\n"
                  "docs/TOOLCHAIN.md gotchas 1-999\ndocs/THEORY.md section 1\n")
     caught = []
