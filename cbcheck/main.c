@@ -2,21 +2,20 @@
 // selection to a tolerance, and the reduced flexible body (BODY.rflex.h5)
 // SPDX-License-Identifier: MIT
 //
-// A thin command line over common/: fmbd_cb_read (the reduced body), fmbd_est (estimates,
-// downdates, selection), fmbd_cb_extend (more fixed-interface modes from the fe file),
-// fmbd_eig (exact errors), fmbd_rflex (secondary reduction, rflex file), fmbd_svg (plots).
+// A thin command line over common/: fmbd_check (the cb file, the fe file it came from, the
+// estimators, more fixed-interface modes, exact eigenvalues, the rflex file), fmbd_est
+// (estimates, selection), fmbd_svg (plots). What stays here: the options, the report table, the
+// CSV file and the plots.
 // See docs/man/cbcheck.1.
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "fmbd_alloc.h"
 #include "fmbd_cb.h"
+#include "fmbd_check.h"
 #include "fmbd_cli.h"
-#include "fmbd_csr.h"
-#include "fmbd_eig.h"
 #include "fmbd_err.h"
 #include "fmbd_est.h"
 #include "fmbd_fe.h"
@@ -174,15 +173,7 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
       }
     } else if (!strcmp(arg, "--estimator")) {
       NEED_VALUE();
-      if (!strcmp(val, "upper")) {
-        a->which = FMBD_EST_UPPER;
-      } else if (!strcmp(val, "upper-next")) {
-        a->which = FMBD_EST_UPPER_NEXT;
-      } else if (!strcmp(val, "second")) {
-        a->which = FMBD_EST_SECOND;
-      } else if (!strcmp(val, "lower")) {
-        a->which = FMBD_EST_LOWER;
-      } else {
+      if (fmbd_est_which_parse(val, &a->which)) {
         return fmbd_cli_usage_error("--estimator: '%s' is not upper, upper-next, second or lower",
                                     val);
       }
@@ -223,238 +214,6 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
     return fmbd_cli_usage_error("-o - and --csv - cannot both use standard output");
   }
   return 0;
-}
-
-// --- the state of one run ------------------------------------------------------------------
-typedef struct run {
-  const args *a;
-  fmbd_h5 *cbf;        // the cb file
-  fmbd_cb *cb;         // its /cb, /reduced
-  fmbd_fe_body *desc;  // its description (no K, M)
-  char *fe_name;       // fe file used (or NULL)
-  char fe_sha[65];
-  fmbd_fe_body *fe;  // the fe body with K, M (NULL until needed/available)
-  bool fe_tried;
-  fmbd_est *est;       // the body as reduced (every boundary dof free)
-  fmbd_est *est_held;  // --hold: the held problem (boundary = the free dofs), else NULL
-  int64_t nheld, nfree;
-  int64_t *held_idx, *free_idx;  // positions in /cb/boundary_dofs
-  int64_t nd_max;
-  double t_extend_s, t_exact_s, t_est_s, t_load_s;  // wall
-  double c_exact_s, c_est_s, c_load_s;              // cpu
-  int64_t nd_file;                                  // modes in the cb file
-  int64_t nextend;
-} run;
-
-static char *path_beside(const char *ref, const char *name) {
-  const char *slash = strrchr(ref, '/');
-  if (!slash || name[0] == '/') {
-    return fmbd_strdup(name);
-  }
-  size_t n = (size_t)(slash - ref) + strlen(name) + 2;
-  char *p = fmbd_malloc(n);
-  if (p) {
-    snprintf(p, n, "%.*s/%s", (int)(slash - ref), ref, name);
-  }
-  return p;
-}
-
-// Open and check the fe file. required (always when --fe names it): failure is an error; else a
-// warning and fe = NULL.
-static int load_fe(run *r, bool required, const char *why) {
-  int rc = FMBD_OK;
-  fmbd_h5 *f = NULL;
-  char *cand = NULL;
-  if (r->fe) {
-    return FMBD_OK;
-  }
-  if (r->a->fe && !r->a->plain && !required) {
-    // a file the user named must be usable: never a warning and a silent fallback
-    required = true;
-    why = "it was given with --fe";
-  }
-  if ((r->fe_tried || r->a->plain) && !required) {
-    return FMBD_OK;
-  }
-  r->fe_tried = true;
-  double t_open = fmbd_wall_s(), c_open = fmbd_cpu_s();
-  const char *cbname = fmbd_h5_name(r->cbf);
-  const char *name = r->a->fe ? r->a->fe : r->cb->fe_file;
-  if (!name || !name[0]) {
-    fmbd_err_context(cbname, "/cb");
-    if (required) {
-      FMBD_GFAIL(FMBD_ERR_FORMAT, "no fe file recorded (attribute fe_file) and no --fe given: %s",
-                 why);
-    }
-    goto done;
-  }
-  // as given, else beside the cb file
-  if (r->a->fe || access(name, R_OK) == 0) {
-    FMBD_GALLOC(cand = fmbd_strdup(name));
-  } else {
-    FMBD_GALLOC(cand = path_beside(cbname, name));
-    if (access(cand, R_OK) != 0) {
-      fmbd_free(cand);
-      FMBD_GALLOC(cand = fmbd_strdup(name));
-    }
-  }
-  rc = fmbd_h5_open(cand, &f);
-  if (rc != FMBD_OK) {
-    if (!required) {
-      fmbd_log(FMBD_LOG_WARN,
-               "%s: source fe file %s not readable; estimates from the cb file alone", cbname,
-               cand);
-      fmbd_err_clear();
-      rc = FMBD_OK;
-      goto done;
-    }
-    fmbd_err_context(cbname, "/cb");
-    FMBD_GFAIL(FMBD_ERR_IO, "source fe file %s (attribute fe_file%s) cannot be read: %s", cand,
-               r->a->fe ? ", or --fe" : "", why);
-  }
-  fmbd_err_context(cand, "");
-  FMBD_GCALL(fmbd_h5_check_format(
-      f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR));  // the kind first: a cb file is not "changed"
-  const char *sha = fmbd_h5_sha256(f);
-  if (r->cb->fe_sha256[0] && strcmp(sha, r->cb->fe_sha256) != 0) {
-    if (!required) {
-      fmbd_log(FMBD_LOG_WARN, "%s: %s changed since fe2cb read it (SHA-256 differs); not used",
-               cbname, cand);
-      goto done;
-    }
-    fmbd_err_context(cbname, "/cb");
-    FMBD_GFAIL(FMBD_ERR_VALUE,
-               "source fe file %s changed since fe2cb read it: SHA-256 %.12s..., recorded "
-               "fe_sha256 %.12s... (%s)",
-               cand, sha, r->cb->fe_sha256, why);
-  }
-  fmbd_err_context(cand, "");
-  FMBD_GCALL(fmbd_fe_read(f, &r->fe));
-  if (!r->fe->K || !r->fe->M || r->fe->ndof != r->cb->ndof) {
-    fmbd_err_context(cand, "/K");
-    fmbd_fe_body_destroy(&r->fe);
-    FMBD_GFAIL(FMBD_ERR_FORMAT, "no stiffness and mass of %lld dofs to match the cb file",
-               (long long)r->cb->ndof);
-  }
-  snprintf(r->fe_sha, sizeof r->fe_sha, "%s", sha);
-  r->t_load_s = fmbd_wall_s() - t_open;
-  r->c_load_s = fmbd_cpu_s() - c_open;
-  r->fe_name = cand;
-  cand = NULL;
-done:
-  fmbd_free(cand);
-  fmbd_h5_close(&f);
-  return rc;
-}
-
-// --hold: the positions in /cb/boundary_dofs of the held interfaces' dofs, and the others
-static int held_partition(run *r) {
-  int rc = FMBD_OK;
-  const fmbd_cb *cb = r->cb;
-  const fmbd_fe_body *d = r->desc;
-  bool *held = NULL;
-  FMBD_GALLOC(held = fmbd_calloc((size_t)(cb->nb + 1), sizeof(bool)));
-  FMBD_GALLOC(r->held_idx = fmbd_malloc(sizeof(int64_t) * (size_t)(cb->nb + 1)));
-  FMBD_GALLOC(r->free_idx = fmbd_malloc(sizeof(int64_t) * (size_t)(cb->nb + 1)));
-  for (int q = 0; q < r->a->nhold; q++) {
-    int found = -1;
-    for (int i = 0; i < d->ninterfaces; i++) {
-      if (!strcmp(d->interfaces[i].name, r->a->hold[q])) found = i;
-    }
-    if (found < 0) {
-      char names[512] = "";
-      for (int i = 0; i < d->ninterfaces; i++) {
-        size_t l = strlen(names);
-        snprintf(names + l, sizeof names - l, "%s%s", i ? ", " : "", d->interfaces[i].name);
-      }
-      fmbd_err_context(fmbd_h5_name(r->cbf), "/interfaces");
-      FMBD_GFAIL(FMBD_ERR_VALUE, "--hold %s: no such interface (the body has: %s)", r->a->hold[q],
-                 names[0] ? names : "none");
-    }
-    int64_t node = d->interfaces[found].node, n = 0;
-    for (int64_t j = 0; j < cb->nb; j++) {
-      if (d->dofs[2 * cb->boundary[j]] == node) held[j] = true, n++;
-    }
-    FMBD_GCHECK(n > 0, FMBD_ERR_VALUE, "--hold %s: its node is not among the boundary dofs",
-                r->a->hold[q]);
-  }
-  r->nheld = r->nfree = 0;
-  for (int64_t j = 0; j < cb->nb; j++) {
-    if (held[j])
-      r->held_idx[r->nheld++] = j;
-    else
-      r->free_idx[r->nfree++] = j;
-  }
-done:
-  fmbd_free(held);
-  return rc;
-}
-
-// Residual blocks at nd = pool (projected with Ks, Ms when the fe file is there) -> estimator
-static int set_pool(run *r) {
-  int rc = FMBD_OK;
-  fmbd_cb *cb = r->cb;
-  int64_t nb = cb->nb;
-  double *Xb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
-  double *Gb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
-  FMBD_GCHECK(Xb && Gb, FMBD_ERR_NOMEM, "out of memory");
-  if (nb > 0) {
-    if (r->fe && !r->a->plain) {
-      FMBD_GCALL(fmbd_est_base_projected(r->fe->K, r->fe->M, cb->ns, cb->interior, nb, cb->nd,
-                                         cb->A, cb->KsinvA, cb->Phi, cb->kappa, cb->PhitA, Xb, Gb));
-    } else {
-      FMBD_GCALL(fmbd_est_base_plain(cb->ns, nb, cb->nd, cb->A, cb->KsinvA, cb->KsinvMsKsinvA,
-                                     cb->kappa, cb->PhitA, Xb, Gb, NULL));
-    }
-  }
-  FMBD_GCALL(fmbd_est_set_pool(r->est, cb->nd, cb->kappa, cb->PhitA, Xb, Gb));
-  fmbd_est_set_kappa_next(r->est, cb->kappa_next);
-  if (r->est_held) {
-    FMBD_GCALL(fmbd_est_set_pool_subset(r->est_held, r->est, r->nfree, r->free_idx));
-  }
-done:
-  fmbd_free(Xb);
-  fmbd_free(Gb);
-  return rc;
-}
-
-// ctx: a label ("more fixed-interface modes", "exact eigenvalues")
-static void eig_progress(void *ctx, const char *stage, int64_t solves, int64_t nev) {
-  fmbd_progress("%s (%lld): %s, %lld solves", (const char *)ctx, (long long)nev, stage,
-                (long long)solves);
-}
-
-// fmbd_est_extend_fn: grow the pool through fe2cb's library
-static int extend(void *ctx, fmbd_est *e, int64_t nd_wanted) {
-  run *r = ctx;
-  (void)e;
-  char why[128];
-  snprintf(why, sizeof why, "%lld fixed-interface modes needed, the cb file has %lld",
-           (long long)nd_wanted, (long long)r->cb->nd);
-  FMBD_CALL(load_fe(r, true, why));
-  int64_t np = r->cb->nd;
-  int64_t grow = np / 2 > 10 ? np / 2 : 10;
-  int64_t nd_new = nd_wanted > np + grow ? nd_wanted : np + grow;
-  if (nd_new > r->nd_max) {
-    nd_new = r->nd_max;
-  }
-  if (nd_new < nd_wanted) {
-    nd_new = nd_wanted;
-  }
-  fmbd_log(FMBD_LOG_INFO, "extending the fixed-interface modes from %lld to %lld", (long long)np,
-           (long long)nd_new);
-  double t0 = fmbd_wall_s();
-  fmbd_eig_opts eo;
-  fmbd_eig_defaults(&eo);
-  eo.progress = eig_progress;
-  eo.progress_ctx = (void *)"more fixed-interface modes";
-  fmbd_err_context(r->fe_name, "/K");
-  FMBD_CALL(fmbd_cb_extend(r->fe->K, r->fe->M, r->cb, nd_new, &eo));
-  fmbd_progress(NULL);
-  FMBD_CALL(set_pool(r));
-  r->t_extend_s += fmbd_wall_s() - t0;
-  r->nextend++;
-  return FMBD_OK;
 }
 
 // --- report ------------------------------------------------------------------------------------
@@ -612,44 +371,6 @@ static int write_csv(const char *name, const table *t) {
   return FMBD_OK;
 }
 
-// --- exact errors ------------------------------------------------------------------------------
-// Eigenvalues of the first nflex FLEXIBLE modes of the full body (its rigid-body modes, as many
-// as the reduced body has, skipped), into *chi (nflex). Method nm: the modes are exact
-// eigenpairs of the (free or held) body, so chi = chibar and the exact error is 0 by construction.
-static int exact_eigenvalues(run *r, const fmbd_est_modes *m, int64_t nflex, double **chi) {
-  *chi = fmbd_calloc((size_t)nflex + 1, sizeof(double));
-  FMBD_CHECK(*chi, FMBD_ERR_NOMEM, "out of memory");
-  if (!strcmp(r->cb->method, "nm")) {
-    int64_t j = 0;
-    for (int64_t k = 0; k < m->nmodes && j < nflex; k++) {
-      if (!m->rigid[k]) {
-        (*chi)[j++] = m->chibar[k];
-      }
-    }
-    return FMBD_OK;
-  }
-  FMBD_CALL(load_fe(r, true, "--exact needs the full body"));
-  int64_t nrig = r->cb->n_rigid;
-  fmbd_eig_opts eo;
-  fmbd_eig_defaults(&eo);
-  eo.nev = nrig + nflex;
-  eo.free_body = nrig > 0;
-  eo.progress = eig_progress;
-  eo.progress_ctx = (void *)"exact eigenvalues of the full body";
-  fmbd_eig_result res = {0};
-  double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s();
-  fmbd_err_context(r->fe_name, "/K");
-  int rc = fmbd_eig_solve(r->fe->K, r->fe->M, NULL, &eo, &res);
-  fmbd_progress(NULL);
-  r->t_exact_s += fmbd_wall_s() - t0;
-  r->c_exact_s += fmbd_cpu_s() - c0;
-  if (rc == FMBD_OK) {
-    memcpy(*chi, res.lambda + nrig, sizeof(double) * (size_t)nflex);
-  }
-  fmbd_eig_result_free(&res);
-  return rc;
-}
-
 // --- plots -------------------------------------------------------------------------------------
 static int plot_estimates(const char *prefix, const table *t, bool exact, int64_t nd) {
   int rc = FMBD_OK;
@@ -681,8 +402,8 @@ static int plot_estimates(const char *prefix, const table *t, bool exact, int64_
 }
 
 // error of chosen flexible modes against nd = nd_lo..nd_hi (rank-one steps of the estimator)
-static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t nd_lo, int64_t nd_hi,
-                            const double *chi, int64_t nchi, int which, double tol) {
+static int plot_convergence(fmbd_est *E, const char *prefix, int64_t nflex, int64_t nd_lo,
+                            int64_t nd_hi, const double *chi, int64_t nchi, int which, double tol) {
   int rc = FMBD_OK;
   enum { NPICK = 6 };
   int64_t pick[NPICK], npick = 0;
@@ -699,7 +420,6 @@ static int plot_convergence(run *r, const char *prefix, int64_t nflex, int64_t n
       pick[npick++] = j;
     }
   }
-  fmbd_est *E = r->est_held ? r->est_held : r->est;
   int64_t nd_save = fmbd_est_nd(E);
   FMBD_GALLOC(xs = fmbd_calloc((size_t)nx, sizeof(double)));
   FMBD_GALLOC(ys = fmbd_calloc((size_t)(nx * npick), sizeof(double)));
@@ -772,7 +492,7 @@ int main(int argc, char **argv) {
   }
   fmbd_cli_set_verbosity(a.quiet, a.verbose);
   int rc = FMBD_OK;
-  run r = {.a = &a};
+  fmbd_check *r = NULL;
   fmbd_est_modes m = {0};
   fmbd_est_select_result sel = {0};
   int64_t nkept_out = 0;
@@ -780,24 +500,24 @@ int main(int argc, char **argv) {
   double *chi = NULL, *Xi = NULL;
   int64_t nchi = 0;
   fmbd_rflex *rf = NULL;
-  fmbd_h5 *out = NULL;
   char *outname = NULL;
   FILE *rep = stdout;
 
-  // --- the reduced body ---
-  FMBD_GCALL(fmbd_h5_open(a.input, &r.cbf));
-  FMBD_GCALL(fmbd_h5_check_format(r.cbf, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR));
-  FMBD_GCALL(fmbd_cb_read(r.cbf, &r.cb));
-  FMBD_GCALL(fmbd_fe_read(r.cbf, &r.desc));
-  fmbd_cb *cb = r.cb;
-  r.nd_file = cb->nd;
-  const char *cbname = fmbd_h5_name(r.cbf);
+  // --- the reduced body and its estimators (the fe file if available: exact arithmetic of the
+  // residual blocks) ---
+  double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s(), t_sel = 0, c_sel = 0;
+  fmbd_check_opts co;
+  fmbd_check_opts_defaults(&co);
+  co.fe = a.fe;
+  co.plain = a.plain;
+  co.nhold = a.nhold;
+  co.hold = a.hold;
+  co.max_modes = a.max_modes;
+  FMBD_GCALL(fmbd_check_open(a.input, &co, &r));
+  fmbd_cb *cb = r->cb;
+  const char *cbname = fmbd_h5_name(r->cbf);
   int64_t nflex_body = cb->ndof - cb->n_rigid - cb->n_rigid_removed - cb->nheld;
   int64_t nflex_red = cb->nr - cb->n_rigid;
-  r.nd_max = cb->ns - 1;
-  if (a.max_modes > 0 && a.max_modes < r.nd_max) {
-    r.nd_max = a.max_modes;
-  }
   int64_t nm = a.range > 0 ? a.range : (a.has_tol ? 10 : nflex_red);
   if (a.has_tol && a.tol < 10.0 * cb->max_residual) {
     fmbd_log(FMBD_LOG_WARN,
@@ -806,17 +526,17 @@ int main(int argc, char **argv) {
              "that far",
              cbname, a.tol, cb->max_residual);
   }
-  if (a.has_tol && a.init > r.nd_max) {
+  if (a.has_tol && a.init > r->nd_max) {
     fmbd_err_context(cbname, "/cb/interior_dofs");
     FMBD_GFAIL(FMBD_ERR_VALUE,
                "--init %ld: at most %lld fixed-interface modes (%lld interior dofs%s)", a.init,
-               (long long)r.nd_max, (long long)cb->ns,
-               r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
+               (long long)r->nd_max, (long long)cb->ns,
+               r->nd_max < cb->ns - 1 ? ", --max-modes" : "");
   }
   // the most flexible modes a reduced body can have: Nd <= ns - 1 (the eigensolver needs
   // nev < n) plus the boundary dofs, less the rigid-body modes
-  if (r.nd_max + cb->nb - cb->n_rigid < nflex_body) {
-    nflex_body = r.nd_max + cb->nb - cb->n_rigid;
+  if (r->nd_max + cb->nb - cb->n_rigid < nflex_body) {
+    nflex_body = r->nd_max + cb->nb - cb->n_rigid;
   }
   if (nm > nflex_body) {
     fmbd_err_context(cbname, "/dofs");
@@ -824,7 +544,7 @@ int main(int argc, char **argv) {
                "--range %lld: the body can have at most %lld flexible modes (%lld dofs, %lld "
                "rigid-body modes%s)",
                (long long)nm, (long long)nflex_body, (long long)cb->ndof, (long long)cb->n_rigid,
-               r.nd_max < cb->ns - 1 ? ", --max-modes" : "");
+               r->nd_max < cb->ns - 1 ? ", --max-modes" : "");
   }
   if (a.nd >= 0 && !a.has_tol) {
     nflex_red = a.nd + cb->nb - cb->n_rigid;
@@ -856,34 +576,7 @@ int main(int argc, char **argv) {
   if (a.quiet) {
     rep = NULL;
   }
-
-  // --- estimator: fe file if available (exact arithmetic of the residual blocks) ---
-  double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s(), t_sel = 0, c_sel = 0;
-  FMBD_GCALL(load_fe(&r, false, ""));
-  {
-    int64_t nb = cb->nb, nd = cb->nd, nr = cb->nr;
-    double *Mbb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
-    double *Kbb = fmbd_calloc((size_t)(nb * nb + 1), sizeof(double));
-    FMBD_GCHECK(Mbb && Kbb, FMBD_ERR_NOMEM, "out of memory");
-    for (int64_t j = 0; j < nb; j++) {
-      for (int64_t i = 0; i < nb; i++) {
-        Mbb[i + nb * j] = cb->Mr[(nd + i) + nr * (nd + j)];
-        Kbb[i + nb * j] = cb->Kr[(nd + i) + nr * (nd + j)];
-      }
-    }
-    fmbd_est_options eopt;
-    fmbd_est_options_defaults(&eopt);
-    rc = fmbd_est_create(nb, Mbb, Kbb, &eopt, &r.est);
-    fmbd_free(Mbb);
-    fmbd_free(Kbb);
-    FMBD_GCALL(rc);
-  }
-  FMBD_GCALL(set_pool(&r));
-  if (a.nhold > 0) {
-    FMBD_GCALL(held_partition(&r));
-    FMBD_GCALL(fmbd_est_create_subset(r.est, r.nfree, r.free_idx, &r.est_held));
-  }
-  fmbd_est *E = r.est_held ? r.est_held : r.est;  // the problem estimated and selected
+  fmbd_est *E = fmbd_check_estimator(r);  // the problem estimated and selected
   if (rep) {
     fprintf(rep,
             "cbcheck: %s: method %s, %lld dofs, %lld boundary dofs, %lld fixed-interface modes, "
@@ -891,26 +584,21 @@ int main(int argc, char **argv) {
             cbname, cb->method, (long long)cb->ndof, (long long)cb->nb, (long long)cb->nd,
             (long long)cb->n_rigid);
     fprintf(rep, "residual flexibility: %s\n",
-            r.fe && !a.plain ? "projected with the FE matrices of the fe file (no cancellation)"
-                             : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone "
-                               "(may lose digits on slender bodies)");
+            r->fe && !a.plain ? "projected with the FE matrices of the fe file (no cancellation)"
+                              : "A' Ks^-1 A - (Phi'A)' Lambda^-1 (Phi'A) from the cb file alone "
+                                "(may lose digits on slender bodies)");
   }
 
   // --- selection or plain estimates ---
   if (a.has_tol) {
-    fmbd_est_select_opts so = {a.tol, nm, a.init, r.nd_max, a.which};
+    fmbd_est_select_opts so = {a.tol, nm, a.init, r->nd_max, a.which};
     double ts = fmbd_wall_s(), cs = fmbd_cpu_s();
-    FMBD_GCALL(fmbd_est_select(E, &so, extend, &r, &sel));
+    FMBD_GCALL(fmbd_est_select(E, &so, fmbd_check_extend, r, &sel));
     t_sel = fmbd_wall_s() - ts;
     c_sel = fmbd_cpu_s() - cs;
     if (rep) {
       fprintf(rep, "selection: tol %g on flexible modes 1..%lld, estimator %s, from Nd = %ld\n",
-              a.tol, (long long)nm,
-              a.which == FMBD_EST_UPPER        ? "upper (kappa_n)"
-              : a.which == FMBD_EST_UPPER_NEXT ? "upper (kappa_(Nd+1))"
-              : a.which == FMBD_EST_SECOND     ? "second order"
-                                               : "lower",
-              a.init);
+              a.tol, (long long)nm, fmbd_est_which_label(a.which), a.init);
       fprintf(rep, "%6s %14s %14s\n", "Nd", "first_failing", "largest");
       for (int64_t i = 0; i < sel.niter; i++) {
         fprintf(rep, "%6lld %14lld %14.4e\n", (long long)sel.log[i].nd,
@@ -918,27 +606,27 @@ int main(int argc, char **argv) {
       }
     }
   } else if (a.nd >= 0) {  // the estimates of another Nd (extended from the fe file if larger)
-    if (a.nd > r.nd_max) {
+    if (a.nd > r->nd_max) {
       fmbd_err_context(cbname, "/cb/interior_dofs");
       FMBD_GFAIL(FMBD_ERR_VALUE, "--nd %ld: at most %lld fixed-interface modes", a.nd,
-                 (long long)r.nd_max);
+                 (long long)r->nd_max);
     }
-    if (a.nd > fmbd_est_npool(r.est)) {
-      FMBD_GCALL(extend(&r, E, a.nd));
+    if (a.nd > fmbd_est_npool(r->est)) {
+      FMBD_GCALL(fmbd_check_extend(r, E, a.nd));
     }
     FMBD_GCALL(fmbd_est_set_nd(E, a.nd));
   } else {
     FMBD_GCALL(fmbd_est_set_nd(E, cb->nd));
   }
   int64_t nd = fmbd_est_nd(E), nr = nd + fmbd_est_nb(E);
-  if (r.est_held) {
-    FMBD_GCALL(fmbd_est_set_nd(r.est, nd));  // the full problem at the same Nd (held modes)
+  if (r->est_held) {
+    FMBD_GCALL(fmbd_est_set_nd(r->est, nd));  // the full problem at the same Nd (held modes)
   }
   FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nr + 1)));
   FMBD_GCALL(fmbd_est_run(E, &m, Xi));
-  r.t_est_s = fmbd_wall_s() - t0 - t_sel;  // the selection is timed apart
-  r.c_est_s = fmbd_cpu_s() - c0 - c_sel;
-  if (!a.has_tol && nd == r.nd_file) {  // the re-solved reduced problem must be the file's
+  double t_est = fmbd_wall_s() - t0 - t_sel;  // the selection is timed apart
+  double c_est = fmbd_cpu_s() - c0 - c_sel;
+  if (!a.has_tol && nd == r->nd_file) {  // the re-solved reduced problem must be the file's
     for (int64_t k = 0; k < m.nmodes && k < cb->nr; k++) {
       double d = fabs(m.chibar[k] - cb->chibar[k]);
       if (!m.rigid[k] && d > 1e-6 * fabs(cb->chibar[k])) {
@@ -953,14 +641,14 @@ int main(int argc, char **argv) {
   for (int64_t k = 0; k < m.nmodes; k++) {
     nrig += m.rigid[k];
   }
-  if (nrig != cb->n_rigid && !r.est_held) {
+  if (nrig != cb->n_rigid && !r->est_held) {
     fmbd_log(FMBD_LOG_WARN, "%s: %lld rigid-body modes found at Nd = %lld, /cb n_rigid = %lld",
              cbname, (long long)nrig, (long long)nd, (long long)cb->n_rigid);
   }
   int64_t nlist = nm < m.nmodes - nrig ? nm : m.nmodes - nrig;
   if (a.exact) {
     nchi = nlist;
-    FMBD_GCALL(exact_eigenvalues(&r, &m, nlist, &chi));
+    FMBD_GCALL(fmbd_check_exact(r, &m, nlist, &chi));
   }
   FMBD_GCALL(table_fill(&t, &m, nlist, chi, nchi));
   if (rep) {
@@ -975,7 +663,7 @@ int main(int argc, char **argv) {
                "tolerance %g not reached for flexible modes 1..%lld with up to Nd = %lld "
                "fixed-interface modes%s; best reached: largest estimate %.4g at Nd = %lld",
                a.tol, (long long)nm, (long long)(sel.nd > 0 ? sel.nd : 0),
-               r.nd_max == cb->ns - 1 ? " (the body's interior dofs)" : " (--max-modes)",
+               r->nd_max == cb->ns - 1 ? " (the body's interior dofs)" : " (--max-modes)",
                sel.best_largest, (long long)sel.best_nd);
   }
 
@@ -986,76 +674,25 @@ int main(int argc, char **argv) {
     FMBD_GCALL(plot_estimates(a.plot, &t, a.exact, nd));
     int64_t lo = a.has_tol ? (a.init > 0 ? a.init : 1) : 1;
     int64_t hi = nd > lo ? nd : lo;
-    if (hi > fmbd_est_npool(r.est)) {
-      hi = fmbd_est_npool(r.est);
+    if (hi > fmbd_est_npool(r->est)) {
+      hi = fmbd_est_npool(r->est);
     }
     FMBD_GCALL(
-        plot_convergence(&r, a.plot, nlist, lo, hi, chi, nchi, a.which, a.has_tol ? a.tol : 0));
+        plot_convergence(E, a.plot, nlist, lo, hi, chi, nchi, a.which, a.has_tol ? a.tol : 0));
   }
   // --- the reduced flexible body ---
   if (outname) {
     FMBD_GCHECK(nlist == nm, FMBD_ERR_VALUE, "the reduced body has only %lld flexible modes",
                 (long long)nlist);
-    double *chif = fmbd_calloc((size_t)nm + 1, sizeof(double));
-    double *Xif = fmbd_calloc((size_t)(nr * nm) + 1, sizeof(double));
-    FMBD_GCHECK(chif && Xif, FMBD_ERR_NOMEM, "out of memory");
-    int64_t j = 0;
-    for (int64_t k = 0; k < m.nmodes && j < nm; k++) {
-      if (!m.rigid[k]) {
-        chif[j] = m.chibar[k];
-        memcpy(Xif + nr * j, Xi + nr * k, sizeof(double) * (size_t)nr);
-        j++;
-      }
-    }
-    int64_t nkept = nm, ldx = nr;
-    if (r.est_held) {
-      // the held problem's modes with the held dofs' constraint modes, Ritz on the full body
-      // (docs/THEORY.md section 12)
-      double *ch = NULL, *xh = NULL;
-      rc = fmbd_est_held_modes(r.est, r.nheld, r.held_idx, nm, Xif, nr, &nkept, &ch, &xh);
-      fmbd_free(chif);
-      fmbd_free(Xif);
-      chif = ch;
-      Xif = xh;
-      ldx = nd + cb->nb;
-      FMBD_GCALL(rc);
-    }
-    fmbd_rflex_input mi = {r.desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd,  cb->Phi,
-                           cb->ns, cb->Psi, nkept,  chif,         Xif,          ldx, a.stress};
-    rc = fmbd_rflex_build(&mi, &rf);
-    fmbd_free(chif);
-    fmbd_free(Xif);
-    FMBD_GCALL(rc);
-    nkept_out = nkept;
-    FMBD_GCALL(fmbd_h5_create(outname, FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, &out));
-    FMBD_GCALL(fmbd_h5_add_input(out, a.input, fmbd_h5_sha256(r.cbf)));
-    if (r.fe_name) {
-      FMBD_GCALL(fmbd_h5_add_input(out, r.fe_name, r.fe_sha));
-    }
-    FMBD_GCALL(fmbd_fe_copy_description(r.cbf, out));
-    FMBD_GCALL(fmbd_rflex_write(out, rf));
-    int64_t ndv = nd;
-    FMBD_GCALL(fmbd_h5_write_attr_i64(out, "/modes", "n_fixed_interface_modes", 1, &ndv));
-    double maxest = 0;
+    FMBD_GCALL(fmbd_check_rflex(r, &m, Xi, nm, a.stress, &rf, &nkept_out));
+    fmbd_check_record rec = {nd, 0, a.has_tol ? a.tol : 0};
     for (int64_t q = 0; q < t.nflex; q++) {
-      maxest = fmax(maxest, a.which == FMBD_EST_UPPER_NEXT ? t.unext[q]
-                            : a.which == FMBD_EST_SECOND   ? t.second[q]
-                            : a.which == FMBD_EST_LOWER    ? t.lower[q]
-                                                           : t.upper[q]);
+      rec.max_estimate = fmax(rec.max_estimate, a.which == FMBD_EST_UPPER_NEXT ? t.unext[q]
+                                                : a.which == FMBD_EST_SECOND   ? t.second[q]
+                                                : a.which == FMBD_EST_LOWER    ? t.lower[q]
+                                                                               : t.upper[q]);
     }
-    FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "max_estimate", 1, &maxest));
-    if (a.has_tol) {
-      FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "tolerance", 1, &a.tol));
-    }
-    {  // the interfaces held in the problem the modes were selected for ("" = none: free)
-      char held[1024] = "";
-      for (int q = 0; q < a.nhold; q++) {
-        size_t l = strlen(held);
-        snprintf(held + l, sizeof held - l, "%s%s", q ? "," : "", a.hold[q]);
-      }
-      FMBD_GCALL(fmbd_h5_write_attr_str(out, "/modes", "held_interfaces", held));
-    }
-    FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
+    FMBD_GCALL(fmbd_check_write_rflex(r, outname, rf, &rec, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
   }
   if (rep) {
     fflush(rep);
@@ -1064,17 +701,17 @@ int main(int argc, char **argv) {
     fmbd_log(FMBD_LOG_INFO,
              "time: estimates %.3f s (reading the fe file %.3f s), selection %.3f s for %lld "
              "iterations of which extensions %.3f s (%lld calls, %lld modes), exact %.3f s",
-             r.t_est_s, r.t_load_s, t_sel, (long long)sel.niter, r.t_extend_s, (long long)r.nextend,
-             (long long)(r.cb->nd - r.nd_file), r.t_exact_s);
+             t_est, r->t_load_s, t_sel, (long long)sel.niter, r->t_extend_s, (long long)r->nextend,
+             (long long)(r->cb->nd - r->nd_file), r->t_exact_s);
     fmbd_log(FMBD_LOG_INFO,
              "cpu: estimates %.3f s (reading the fe file %.3f s), selection %.3f s, exact %.3f s",
-             r.c_est_s, r.c_load_s, c_sel, r.c_exact_s);
+             c_est, r->c_load_s, c_sel, r->c_exact_s);
   }
   if (a.has_tol) {
     fmbd_cli_summary(
         "%s: Nd = %lld meets %g on flexible modes 1..%lld%s (%lld iterations, %lld extensions), "
         "%lld modes kept",
-        outname, (long long)nd, a.tol, (long long)nm, r.est_held ? " of the held body" : "",
+        outname, (long long)nd, a.tol, (long long)nm, r->est_held ? " of the held body" : "",
         (long long)sel.niter, (long long)sel.nextend, (long long)nkept_out);
   } else if (outname) {
     fmbd_cli_summary("%s: %lld flexible modes of Nd = %lld", outname, (long long)nm, (long long)nd);
@@ -1086,7 +723,6 @@ done:
   if (rep) {
     fflush(rep);
   }
-  fmbd_h5_close(&out);
   fmbd_rflex_destroy(&rf);
   table_free(&t);
   fmbd_est_modes_free(&m);
@@ -1094,14 +730,6 @@ done:
   fmbd_free(chi);
   fmbd_free(Xi);
   fmbd_free(outname);
-  fmbd_est_destroy(&r.est);
-  fmbd_est_destroy(&r.est_held);
-  fmbd_free(r.held_idx);
-  fmbd_free(r.free_idx);
-  fmbd_fe_body_destroy(&r.fe);
-  fmbd_fe_body_destroy(&r.desc);
-  fmbd_free(r.fe_name);
-  fmbd_cb_destroy(&r.cb);
-  fmbd_h5_close(&r.cbf);
+  fmbd_check_close(&r);
   return fmbd_cli_finish(rc);
 }

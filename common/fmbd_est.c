@@ -486,6 +486,28 @@ double fmbd_est_pick(const fmbd_est_modes *m, int which, int64_t n) {
   }
 }
 
+static const char *const which_word[4] = {"upper", "upper-next", "second", "lower"};
+static const char *const which_label[4] = {"upper (kappa_n)", "upper (kappa_(Nd+1))",
+                                           "second order", "lower"};
+
+const char *fmbd_est_which_word(int which) {
+  return which >= 0 && which < 4 ? which_word[which] : "?";
+}
+
+const char *fmbd_est_which_label(int which) {
+  return which >= 0 && which < 4 ? which_label[which] : "?";
+}
+
+int fmbd_est_which_parse(const char *word, int *which) {
+  for (int k = 0; k < 4; k++) {
+    if (!strcmp(word, which_word[k])) {
+      *which = k;
+      return 0;
+    }
+  }
+  return -1;
+}
+
 // estimate of flexible mode j (1-based) of m, INFINITY if the body has fewer flexible modes
 static double flex_estimate(const fmbd_est_modes *m, int which, int64_t j) {
   int64_t seen = 0;

@@ -168,6 +168,12 @@ enum fmbd_est_which {
 };
 /// @brief The estimate `which` of mode n of m.
 double fmbd_est_pick(const fmbd_est_modes *m, int which, int64_t n);
+/// The names of an estimate: the command-line word ("upper", "upper-next", "second", "lower")
+/// and the label of reports and plots ("upper (kappa_n)", ...).
+const char *fmbd_est_which_word(int which);
+const char *fmbd_est_which_label(int which);
+/// The estimate named by a command-line word: 0 and *which, or -1 (unknown word).
+int fmbd_est_which_parse(const char *word, int *which);
 
 /// Grow the pool to at least nd_wanted modes (and call fmbd_est_set_pool); return an error
 /// (FMBD_ERR_*) if impossible.
