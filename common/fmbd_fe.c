@@ -15,27 +15,6 @@
 #include "fmbd_log.h"
 
 // --- small helpers ----------------------------------------------------------------------------
-void fmbd_mesh_destroy(fmbd_mesh *m) {
-  if (!m) return;
-  fmbd_free(m->xyz);
-  fmbd_free(m->tet);
-  fmbd_free(m->beam);
-  if (m->group_name) {
-    for (int g = 0; g < m->ngroups; g++) fmbd_free(m->group_name[g]);
-  }
-  fmbd_free(m->group_name);
-  fmbd_free(m->group_ptr);
-  fmbd_free(m->group_node);
-  memset(m, 0, sizeof *m);
-}
-
-int fmbd_mesh_find_group(const fmbd_mesh *m, const char *name) {
-  for (int g = 0; g < m->ngroups; g++) {
-    if (m->group_name[g] && strcmp(m->group_name[g], name) == 0) return g;
-  }
-  return -1;
-}
-
 void fmbd_fe_options_defaults(fmbd_fe_options *o) {
   memset(o, 0, sizeof *o);
   o->E = 210e9;

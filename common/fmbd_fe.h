@@ -26,29 +26,7 @@
 
 #include "fmbd_csr.h"
 #include "fmbd_h5.h"
-
-// --- the mesh input ------------------------------------------------------------------------
-/// The mesh as read from gmsh or CGAL (the contract between mesh2fe and this module).
-typedef struct fmbd_mesh {
-  int64_t nnodes;
-  double *xyz;  // (nnodes, 3) row-major
-  int64_t ntet;
-  int tet_nodes;
-  int64_t *tet;  // tet_nodes 4 or 10 (gmsh order); (ntet, tet_nodes)
-  int64_t nbeam;
-  int64_t *beam;  // (nbeam, 2)
-  int ngroups;
-  char **group_name;  // physical group names
-  int64_t *group_ptr;
-  int64_t *group_node;  // group g: group_node[group_ptr[g]..group_ptr[g+1]]
-} fmbd_mesh;            // all arrays owned; fmbd_mesh_destroy(&m)
-
-/// @brief Release every array of the mesh (fmbd_free) and zero the struct. NULL is fine.
-/// The struct itself is not freed (it usually lives on the stack).
-void fmbd_mesh_destroy(fmbd_mesh *m);
-
-/// @brief Index of the group called `name`, or -1.
-int fmbd_mesh_find_group(const fmbd_mesh *m, const char *name);
+#include "fmbd_mesh.h"  // the mesh input: struct fmbd_mesh
 
 // --- options -------------------------------------------------------------------------------
 typedef enum fmbd_fe_mass_kind {

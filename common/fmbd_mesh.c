@@ -18,6 +18,7 @@
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
+#include "fmbd_fe.h"  // fmbd_fe_tet_shape, fmbd_fe_tet_rule
 #include "fmbd_log.h"
 
 void fmbd_mesh_options_defaults(fmbd_mesh_options *o) {
@@ -158,39 +159,35 @@ static double bbox_diagonal(int64_t n, const double *xyz) {
 
 // --- element geometry ------------------------------------------------------------------------
 
-// Reference derivatives of tet4/tet10 shape functions (gmsh order) at (xi, eta, zeta):
-// barycentric L0 = 1 - xi - eta - zeta, L1 = xi, L2 = eta, L3 = zeta; corners L(2L - 1),
-// mid-edges 4 La Lb on (0,1) (1,2) (0,2) (0,3) (2,3) (1,3).
-static const int tet10_edge[6][2] = {{0, 1}, {1, 2}, {0, 2}, {0, 3}, {2, 3}, {1, 3}};
-
-static void tet_dshape(int nn, const double p[3], double dN[10][3]) {
-  static const double dL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  if (nn == 4) {
-    for (int a = 0; a < 4; a++) {
-      for (int k = 0; k < 3; k++) {
-        dN[a][k] = dL[a][k];
-      }
-    }
-    return;
+// --- the mesh struct ---------------------------------------------------------------------------
+void fmbd_mesh_destroy(fmbd_mesh *m) {
+  if (!m) return;
+  fmbd_free(m->xyz);
+  fmbd_free(m->tet);
+  fmbd_free(m->beam);
+  if (m->group_name) {
+    for (int g = 0; g < m->ngroups; g++) fmbd_free(m->group_name[g]);
   }
-  double L[4] = {1.0 - p[0] - p[1] - p[2], p[0], p[1], p[2]};
-  for (int a = 0; a < 4; a++) {
-    for (int k = 0; k < 3; k++) {
-      dN[a][k] = (4.0 * L[a] - 1.0) * dL[a][k];
-    }
-  }
-  for (int e = 0; e < 6; e++) {
-    int a = tet10_edge[e][0], b = tet10_edge[e][1];
-    for (int k = 0; k < 3; k++) {
-      dN[4 + e][k] = 4.0 * (dL[a][k] * L[b] + L[a] * dL[b][k]);
-    }
-  }
+  fmbd_free(m->group_name);
+  fmbd_free(m->group_ptr);
+  fmbd_free(m->group_node);
+  memset(m, 0, sizeof *m);
 }
+
+int fmbd_mesh_find_group(const fmbd_mesh *m, const char *name) {
+  for (int g = 0; g < m->ngroups; g++) {
+    if (m->group_name[g] && strcmp(m->group_name[g], name) == 0) return g;
+  }
+  return -1;
+}
+
+// gmsh's tet10 mid-edge nodes 4..9 sit on the edges (0,1) (1,2) (0,2) (0,3) (2,3) (1,3)
+static const int tet10_edge[6][2] = {{0, 1}, {1, 2}, {0, 2}, {0, 3}, {2, 3}, {1, 3}};
 
 // det of dX/dxi of element `nodes` (nn of them) at reference point p
 static double tet_detj(const double *xyz, int nn, const int64_t *nodes, const double p[3]) {
-  double dN[10][3], J[3][3] = {{0}};
-  tet_dshape(nn, p, dN);
+  double N[10], dN[10][3], J[3][3] = {{0}};
+  fmbd_fe_tet_shape(nn, p, N, &dN[0][0]);  // the element library's shape functions
   for (int a = 0; a < nn; a++) {
     const double *x = xyz + 3 * nodes[a];
     for (int i = 0; i < 3; i++) {
@@ -203,9 +200,6 @@ static double tet_detj(const double *xyz, int nn, const int64_t *nodes, const do
          J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) +
          J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
 }
-
-// 4-point degree-2 rule on the unit tetrahedron (weights 1/24 each)
-static const double gauss4_a = 0.1381966011250105, gauss4_b = 0.5854101966249685;
 
 // Check points of a tet: corners, mid-edges, centroid, 4 Gauss points (tet4: the centroid)
 static int tet_check_points(int nn, double pts[15][3]) {
@@ -225,13 +219,11 @@ static int tet_check_points(int nn, double pts[15][3]) {
   }
   pts[n][0] = pts[n][1] = pts[n][2] = 0.25;
   n++;
-  for (int g = 0; g < 4; g++, n++) {
-    for (int k = 0; k < 3; k++) {
-      pts[n][k] = gauss4_a;
-    }
-    if (g > 0) {
-      pts[n][g - 1] = gauss4_b;
-    }
+  int ng;
+  const double *gp, *gw;
+  fmbd_fe_tet_rule(2, &ng, &gp, &gw);  // the 4-point rule of the element library
+  for (int g = 0; g < ng; g++, n++) {
+    memcpy(pts[n], gp + 3 * g, sizeof pts[n]);
   }
   return n;
 }
@@ -349,19 +341,13 @@ int fmbd_mesh_check(const fmbd_mesh *m) {
 
 double fmbd_mesh_volume(const fmbd_mesh *m) {
   double v = 0.0;
-  double pts[4][3];
-  for (int g = 0; g < 4; g++) {
-    for (int k = 0; k < 3; k++) {
-      pts[g][k] = gauss4_a;
-    }
-    if (g > 0) {
-      pts[g][g - 1] = gauss4_b;
-    }
-  }
+  int ng;
+  const double *gp, *gw;
+  fmbd_fe_tet_rule(2, &ng, &gp, &gw);  // degree 2: exact for the quadratic geometry's det J
   for (int64_t e = 0; e < m->ntet; e++) {
     const int64_t *nd = m->tet + e * m->tet_nodes;
-    for (int g = 0; g < 4; g++) {
-      v += tet_detj(m->xyz, m->tet_nodes, nd, pts[g]) / 24.0;
+    for (int g = 0; g < ng; g++) {
+      v += tet_detj(m->xyz, m->tet_nodes, nd, gp + 3 * g) * gw[g];
     }
   }
   return v;

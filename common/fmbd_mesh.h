@@ -1,7 +1,7 @@
 // common/fmbd_mesh.h: geometry and mesh input (gmsh C API; CGAL Mesh_3 for closed surfaces)
 // SPDX-License-Identifier: MIT
 //
-// Fills the fmbd_mesh struct of fmbd_fe.h (nodes, tet4/tet10 or beam2 elements, named node
+// Fills the fmbd_mesh struct below (nodes, tet4/tet10 or beam2 elements, named node
 // groups) from:
 //   .geo .step .stp .brep   geometry, meshed by gmsh: 3-D (tetrahedra) when the model has
 //                           volumes, 1-D (2-node line elements = beams) when it has only curves
@@ -17,7 +17,29 @@
 
 #include <stdint.h>
 
-#include "fmbd_fe.h"
+// --- the mesh input ------------------------------------------------------------------------
+/// The mesh as read from gmsh or CGAL: the contract between the mesh readers here and the FE
+/// assembly (fmbd_fe_assemble, fmbd_fe.h).
+typedef struct fmbd_mesh {
+  int64_t nnodes;
+  double *xyz;  // (nnodes, 3) row-major
+  int64_t ntet;
+  int tet_nodes;
+  int64_t *tet;  // tet_nodes 4 or 10 (gmsh order); (ntet, tet_nodes)
+  int64_t nbeam;
+  int64_t *beam;  // (nbeam, 2)
+  int ngroups;
+  char **group_name;  // physical group names
+  int64_t *group_ptr;
+  int64_t *group_node;  // group g: group_node[group_ptr[g]..group_ptr[g+1]]
+} fmbd_mesh;            // all arrays owned; fmbd_mesh_destroy(&m)
+
+/// @brief Release every array of the mesh (fmbd_free) and zero the struct. NULL is fine.
+/// The struct itself is not freed (it usually lives on the stack).
+void fmbd_mesh_destroy(fmbd_mesh *m);
+
+/// @brief Index of the group called `name`, or -1.
+int fmbd_mesh_find_group(const fmbd_mesh *m, const char *name);
 
 /// A tetrahedral mesher for closed triangle surfaces (the CGAL shim). Gets the surface
 /// (nv vertices (nv, 3), nf triangles (nf, 3)) and the target size; returns FMBD_OK with
