@@ -232,10 +232,10 @@ static int as_axis(ctx *c, yaml_node_t *n, const char *what, double v[3]) {
 }
 
 // --- time functions ------------------------------------------------------------------------
-static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) {
+static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_mbs_fn *f) {
   memset(f, 0, sizeof *f);
   if (n->type == YAML_SCALAR_NODE) {
-    f->kind = FMBD_FN_CONSTANT;
+    f->kind = FMBD_MBS_FN_CONSTANT;
     return as_double(c, n, what, &f->value);
   }
   static const char *const keys[] = {
@@ -258,12 +258,12 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
   static const char *const klinear[] = {"type", "t0", "v0", "rate", NULL};
   yaml_node_t *x;
   if (!strcmp(t, "constant")) {
-    f->kind = FMBD_FN_CONSTANT;
+    f->kind = FMBD_MBS_FN_CONSTANT;
     TRY(check_map(c, n, "a constant function", kconst));
     if (!(x = get(c, n, "value"))) return fail_at(c, n, "constant function: missing key 'value'");
     TRY(as_double(c, x, "value", &f->value));
   } else if (!strcmp(t, "ramp")) {
-    f->kind = FMBD_FN_RAMP;
+    f->kind = FMBD_MBS_FN_RAMP;
     TRY(check_map(c, n, "a ramp function", kramp));
     f->t0 = 0;
     f->v0 = 0;
@@ -276,7 +276,7 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
     if ((x = get(c, n, "v1"))) TRY(as_double(c, x, "v1", &f->v1));
     if ((x = get(c, n, "smooth"))) TRY(as_bool(c, x, "smooth", &f->smooth));
   } else if (!strcmp(t, "sine")) {
-    f->kind = FMBD_FN_SINE;
+    f->kind = FMBD_MBS_FN_SINE;
     TRY(check_map(c, n, "a sine function", ksine));
     if (!(x = get(c, n, "amplitude")))
       return fail_at(c, n, "sine function: missing key 'amplitude'");
@@ -293,14 +293,14 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
     }
     if ((x = get(c, n, "offset"))) TRY(as_double(c, x, "offset", &f->offset));
   } else if (!strcmp(t, "linear")) {
-    f->kind = FMBD_FN_LINEAR;
+    f->kind = FMBD_MBS_FN_LINEAR;
     TRY(check_map(c, n, "a linear function", klinear));
     if (!(x = get(c, n, "rate"))) return fail_at(c, n, "linear function: missing key 'rate'");
     TRY(as_double(c, x, "rate", &f->rate));
     if ((x = get(c, n, "t0"))) TRY(as_double(c, x, "t0", &f->t0));
     if ((x = get(c, n, "v0"))) TRY(as_double(c, x, "v0", &f->v0));
   } else if (!strcmp(t, "table")) {
-    f->kind = FMBD_FN_TABLE;
+    f->kind = FMBD_MBS_FN_TABLE;
     TRY(check_map(c, n, "a table function", ktable));
     yaml_node_t *pts = get(c, n, "points"), *tn = get(c, n, "t"), *vn = get(c, n, "v");
     if (pts && (tn || vn))
@@ -316,10 +316,13 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
       m = nitems(tn);
     }
     if (m < 2) return fail_at(c, pts ? pts : tn, "table function needs at least 2 points");
+    // the points are the scene's (fmbd_scene_destroy frees them); fmbd_mbs_fn borrows them
+    double *ft = fmbd_malloc(sizeof(double) * (size_t)m);
+    double *fv = fmbd_malloc(sizeof(double) * (size_t)m);
     f->n = m;
-    f->t = fmbd_malloc(sizeof(double) * (size_t)m);
-    f->v = fmbd_malloc(sizeof(double) * (size_t)m);
-    if (!f->t || !f->v) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+    f->t = ft;
+    f->v = fv;
+    if (!ft || !fv) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
     if (pts) {
       int i = 0;
       for (yaml_node_item_t *it = pts->data.sequence.items.start; it < pts->data.sequence.items.top;
@@ -331,19 +334,19 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
           return fail_at(c, e, "a table point must be a pair [t, v]");
         TRY(as_numbers(c, e, "table point", 2, tv, &k));
         if (k != 2) return fail_at(c, e, "a table point must be a pair [t, v]");
-        f->t[i] = tv[0];
-        f->v[i] = tv[1];
+        ft[i] = tv[0];
+        fv[i] = tv[1];
       }
     } else {
       int k = 0;
-      TRY(as_numbers(c, tn, "t", m, f->t, &k));
+      TRY(as_numbers(c, tn, "t", m, ft, &k));
       if (vn->type != YAML_SEQUENCE_NODE || nitems(vn) != m) {
         return fail_at(c, vn, "v must be a list of %d numbers, as many as t", m);
       }
-      TRY(as_numbers(c, vn, "v", m, f->v, &k));
+      TRY(as_numbers(c, vn, "v", m, fv, &k));
     }
     for (int i = 1; i < m; i++) {
-      if (!(f->t[i] > f->t[i - 1])) {
+      if (!(ft[i] > ft[i - 1])) {
         return fail_at(c, pts ? pts : tn, "table function: times must increase (point %d)", i + 1);
       }
     }
@@ -357,7 +360,7 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_scene_fn *f) 
 static const char *const joint_names[] = {"spherical",   "revolute", "universal", "prismatic",
                                           "cylindrical", "fixed",    NULL};
 const char *fmbd_scene_joint_name(int kind) {
-  return kind >= 0 && kind <= FMBD_JOINT_FIXED ? joint_names[kind] : "?";
+  return kind >= 0 && kind <= FMBD_MBS_FIXED ? joint_names[kind] : "?";
 }
 
 int fmbd_scene_find_body(const fmbd_scene *s, const char *name) {
@@ -392,15 +395,6 @@ static int body_ref(ctx *c, yaml_node_t *n, const char *what, int *idx) {
 }
 
 // --- rotation ------------------------------------------------------------------------------
-static void axis_angle(const double a[3], double th, double R[9]) {
-  double cth = cos(th), sth = sin(th), v = 1 - cth;
-  double x = a[0], y = a[1], z = a[2];
-  double M[9] = {cth + x * x * v,     x * y * v - z * sth, x * z * v + y * sth,
-                 y * x * v + z * sth, cth + y * y * v,     y * z * v - x * sth,
-                 z * x * v - y * sth, z * y * v + x * sth, cth + z * z * v};
-  memcpy(R, M, sizeof M);
-}
-
 static int parse_orientation(ctx *c, yaml_node_t *n, const char *what, double R[9]) {
   static const char *const keys[] = {"axis", "angle", "angle_deg", "matrix", NULL};
   TRY(check_map(c, n, what, keys));
@@ -437,7 +431,7 @@ static int parse_orientation(ctx *c, yaml_node_t *n, const char *what, double R[
     TRY(as_double(c, ad, "angle_deg", &th));
     th *= M_PI / 180;
   }
-  axis_angle(a, th, R);
+  fmbd_mbs_rotation_axis_angle(a, th, R);
   return 0;
 }
 
@@ -487,7 +481,7 @@ static int parse_solver(ctx *c, yaml_node_t *n) {
                                      "max_step",   "min_step", "tolerance", "newton_tol",
                                      "newton_max", NULL};
   TRY(check_map(c, n, "solver", keys));
-  fmbd_scene_solver *v = &c->s->solver;
+  fmbd_mbs_settings *v = &c->s->solver;
   yaml_node_t *x;
   if (!(x = get(c, n, "t_end"))) return fail_at(c, n, "solver: missing key 't_end' (end time, s)");
   TRY(as_double(c, x, "t_end", &v->t_end));
@@ -884,14 +878,14 @@ static int parse_joint(ctx *c, yaml_node_t *n, int idx) {
     if (!from_at)
       return fail_at(c, n, "%s: missing key 'point' (the joint's world point at the start)", what);
   }
-  bool wants_axis = j->kind == FMBD_JOINT_REVOLUTE || j->kind == FMBD_JOINT_PRISMATIC ||
-                    j->kind == FMBD_JOINT_CYLINDRICAL || j->kind == FMBD_JOINT_UNIVERSAL;
+  bool wants_axis = j->kind == FMBD_MBS_REVOLUTE || j->kind == FMBD_MBS_PRISMATIC ||
+                    j->kind == FMBD_MBS_CYLINDRICAL || j->kind == FMBD_MBS_UNIVERSAL;
   x = get(c, n, "axis");
   if (wants_axis && !x) return fail_at(c, n, "%s: a %s joint needs key 'axis'", what, t);
   if (!wants_axis && x) return fail_at(c, x, "key 'axis' does not apply to a %s joint", t);
   if (x) TRY(as_axis(c, x, "axis", j->axis));
   x = get(c, n, "axis2");
-  if (j->kind == FMBD_JOINT_UNIVERSAL) {
+  if (j->kind == FMBD_MBS_UNIVERSAL) {
     if (!x)
       return fail_at(c, n, "%s: a universal joint needs key 'axis2' (the axis fixed in body2)",
                      what);
@@ -946,7 +940,7 @@ static int parse_driver(ctx *c, yaml_node_t *n, int idx) {
           what);
     TRY(find_joint(c, jn, "joint", &d->joint));
     int k = c->s->joints[d->joint].kind;
-    if (k != FMBD_JOINT_REVOLUTE && k != FMBD_JOINT_PRISMATIC && k != FMBD_JOINT_CYLINDRICAL) {
+    if (k != FMBD_MBS_REVOLUTE && k != FMBD_MBS_PRISMATIC && k != FMBD_MBS_CYLINDRICAL) {
       return fail_at(
           c, jn,
           "%s: a %s joint has no single coordinate to drive (revolute, prismatic or cylindrical)",
@@ -1034,7 +1028,7 @@ static int parse_load(ctx *c, yaml_node_t *n, int idx) {
   if ((x = get(c, n, "function"))) {
     TRY(parse_fn(c, x, what, &l->fn));
   } else {
-    l->fn.kind = FMBD_FN_CONSTANT;
+    l->fn.kind = FMBD_MBS_FN_CONSTANT;
     l->fn.value = 1;
   }
   return 0;
@@ -1046,8 +1040,8 @@ static int parse_outputs(ctx *c, yaml_node_t *n) {
   fmbd_scene *s = c->s;
   yaml_node_t *x;
   if ((x = get(c, n, "every"))) {
-    TRY(as_double(c, x, "every", &s->output_every));
-    if (s->output_every < 0) return fail_at(c, x, "every must not be negative");
+    TRY(as_double(c, x, "every", &s->solver.output_every));
+    if (s->solver.output_every < 0) return fail_at(c, x, "every must not be negative");
   }
   if ((x = get(c, n, "energy"))) TRY(as_bool(c, x, "energy", &s->energy));
   if ((x = get(c, n, "momentum"))) TRY(as_bool(c, x, "momentum", &s->momentum));
@@ -1179,6 +1173,7 @@ static int parse_root(ctx *c, yaml_node_t *root) {
     TRY(parse_list(c, x, "loads", (void **)&s->loads, &s->nloads, sizeof *s->loads, parse_load));
   }
   if ((x = get(c, root, "outputs"))) TRY(parse_outputs(c, x));
+  s->solver.reactions = s->nreactions > 0;
   return 0;
 }
 
@@ -1211,14 +1206,8 @@ int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *tex
       FMBD_GALLOC(s->dir = fmbd_strdup("."));
     }
   }
-  // defaults (docs/SCENE.md)
-  s->solver.rho_inf = 0.9;
-  s->solver.first_step = 1e-6;
-  s->solver.max_step = 1e-2;
-  s->solver.min_step = 1e-12;
-  s->solver.tolerance = 1e-4;
-  s->solver.newton_tol = 1e-8;
-  s->solver.newton_max = 10;
+  // defaults (docs/SCENE.md): the multibody library's own
+  fmbd_mbs_settings_defaults(&s->solver);
   if (!yaml_parser_initialize(&parser)) FMBD_GFAIL(FMBD_ERR_NOMEM, "cannot start the YAML parser");
   parser_ok = true;
   yaml_parser_set_input_string(&parser, (const unsigned char *)text, (size_t)len);
@@ -1295,9 +1284,9 @@ done:
   return rc;
 }
 
-static void fn_free(fmbd_scene_fn *f) {
-  fmbd_free(f->t);
-  fmbd_free(f->v);
+static void fn_free(fmbd_mbs_fn *f) {  // the table points the scene allocated (parse_fn)
+  fmbd_free((void *)f->t);
+  fmbd_free((void *)f->v);
 }
 
 void fmbd_scene_destroy(fmbd_scene **sp) {
@@ -1387,7 +1376,7 @@ void fmbd_scene_held_interfaces(const fmbd_scene *s, const char *file, int body,
   if (n) buf[0] = '\0';
   for (int j = 0; j < s->njoints; j++) {
     const fmbd_scene_joint *jt = &s->joints[j];
-    if (jt->kind == FMBD_JOINT_SPHERICAL) continue;  // holds translations only
+    if (jt->kind == FMBD_MBS_SPHERICAL) continue;  // holds translations only
     for (int k = 0; k < 2; k++) {
       int bi = jt->body[k];
       if (bi < 0 || jt->at[k].kind != FMBD_AT_INTERFACE || !jt->at[k].interface) continue;

@@ -6,8 +6,9 @@
 // ranges and references between items (joint -> body, driver -> joint, output -> body), and
 // reports the first fault as `FILE:LINE:COLUMN: message` (fmbd_err_contextf), e.g.
 // `quad.yaml:12:5: unknown key 'foo' in joint 'j1'`. Nothing is computed here: body files
-// are named, not opened (fmbd_scene_build in fmbd_scene_build.c turns a scene into a
-// multibody system).
+// are named, not opened (fmbd_scene_build, fmbd_scene_build.h, turns a scene into a
+// multibody system). The scene speaks the multibody library's types: its time functions are
+// fmbd_mbs_fn, its joint kinds FMBD_MBS_*, its solver section a fmbd_mbs_settings.
 //
 // Units SI; angles in radians unless a key ends in `_deg`. Vectors are world components
 // unless documented as body-frame.
@@ -24,29 +25,6 @@
 typedef struct fmbd_scene_loc {
   int line, column;
 } fmbd_scene_loc;
-
-/// A scalar function of time (drivers, loads).
-enum fmbd_scene_fn_kind {
-  FMBD_FN_CONSTANT = 0,  ///< value
-  FMBD_FN_RAMP,          ///< v0 until t0, linear (or smooth: C1 cubic) to v1 at t1, then v1
-  FMBD_FN_SINE,          ///< offset + amplitude * sin(2 pi frequency_hz t + phase)
-  FMBD_FN_TABLE,         ///< piecewise linear through (t[i], v[i]), constant outside
-  FMBD_FN_LINEAR,        ///< v0 + rate (t - t0) for all t (constant-speed drivers)
-};
-typedef struct fmbd_scene_fn {
-  int kind;                                       ///< fmbd_scene_fn_kind
-  double value;                                   ///< constant
-  double t0, t1, v0, v1;                          ///< ramp; linear uses t0, v0
-  double rate;                                    ///< linear: slope (unit/s)
-  bool smooth;                                    ///< ramp: 3s^2 - 2s^3 blend instead of linear
-  double amplitude, frequency_hz, phase, offset;  ///< sine
-  int64_t n;      ///< table: number of points (>= 2, t strictly increasing)
-  double *t, *v;  ///< table points (owned)
-} fmbd_scene_fn;
-
-/// @brief The same function as the multibody core's fmbd_mbs_fn (table points borrowed from
-/// f), evaluated with fmbd_mbs_fn_eval: the one implementation of the time functions.
-fmbd_mbs_fn fmbd_scene_fn_to_mbs(const fmbd_scene_fn *f);
 
 enum fmbd_scene_body_kind { FMBD_SCENE_RIGID = 0, FMBD_SCENE_FLEXIBLE };
 
@@ -79,14 +57,6 @@ typedef struct fmbd_scene_body {
   double angular_velocity[3];
 } fmbd_scene_body;
 
-enum fmbd_scene_joint_kind {
-  FMBD_JOINT_SPHERICAL = 0,
-  FMBD_JOINT_REVOLUTE,
-  FMBD_JOINT_UNIVERSAL,
-  FMBD_JOINT_PRISMATIC,
-  FMBD_JOINT_CYLINDRICAL,
-  FMBD_JOINT_FIXED,
-};
 /// @brief The scene keyword of a joint kind ("spherical", ...).
 const char *fmbd_scene_joint_name(int kind);
 
@@ -109,7 +79,7 @@ typedef struct fmbd_scene_at {
 typedef struct fmbd_scene_joint {
   char *name;
   fmbd_scene_loc loc;
-  int kind;     ///< fmbd_scene_joint_kind
+  int kind;     ///< fmbd_mbs_joint_kind (FMBD_MBS_SPHERICAL, ...)
   int body[2];  ///< body indices, -1 = ground
   fmbd_scene_loc body_loc[2];
   fmbd_scene_at at[2];  ///< attachment on each side
@@ -126,7 +96,7 @@ typedef struct fmbd_scene_driver {
   int joint;       ///< joint index (revolute/prismatic/cylindrical coordinate), or -1
   int body;        ///< body index for a body coordinate, or -1
   int coordinate;  ///< body coordinate 0..2 = x y z of the origin (world)
-  fmbd_scene_fn fn;
+  fmbd_mbs_fn fn;  ///< table points owned by the scene
 } fmbd_scene_driver;
 
 enum fmbd_scene_load_kind { FMBD_LOAD_FORCE = 0, FMBD_LOAD_TORQUE };
@@ -138,7 +108,7 @@ typedef struct fmbd_scene_load {
   fmbd_scene_at at;     ///< point of application (forces)
   bool body_frame;      ///< direction given in the body frame (default world)
   double direction[3];  ///< load = direction * fn(t)
-  fmbd_scene_fn fn;     ///< default constant 1
+  fmbd_mbs_fn fn;       ///< default constant 1; table points owned by the scene
 } fmbd_scene_load;
 
 /// Quantities of a point output (bit flags).
@@ -158,26 +128,15 @@ typedef struct fmbd_scene_output {
   unsigned quantities;  ///< FMBD_OUT_* flags
 } fmbd_scene_output;
 
-typedef struct fmbd_scene_solver {
-  double t_end;       ///< s (required)
-  double rho_inf;     ///< spectral radius at infinity, default 0.9
-  bool fixed;         ///< fixed step (`step` given)
-  double step;        ///< fixed step, s
-  double first_step;  ///< variable: default 1e-6 (paper [H])
-  double max_step;    ///< variable: default 1e-2 (paper [H])
-  double min_step;    ///< default 1e-12: Newton failure at this size stops the run
-  double tolerance;   ///< local error tolerance (variable steps), default 1e-4
-  double newton_tol;  ///< scaled Newton increment tolerance, default 1e-8
-  int newton_max;     ///< Newton iterations per step, default 10
-} fmbd_scene_solver;
-
 typedef struct fmbd_scene {
   char *file;  ///< the scene file's name as given
   char *dir;   ///< its folder ("." if none), against which body files resolve
   char *title;
   char *text;         ///< the scene file's text as read (provenance in the run file)
   double gravity[3];  ///< default 0
-  fmbd_scene_solver solver;
+  /// The solver section with the library's defaults (fmbd_mbs_settings_defaults); output.every
+  /// is its output_every, reactions are asked when the outputs name joints. t_end is required.
+  fmbd_mbs_settings solver;
   int nbodies;
   fmbd_scene_body *bodies;
   int njoints;
@@ -191,9 +150,8 @@ typedef struct fmbd_scene {
   int nreactions;
   int *reactions;  ///< joint indices whose reactions are written
   fmbd_scene_loc *reaction_locs;
-  bool energy;          ///< write /energy/{kinetic,potential,strain}
-  bool momentum;        ///< write /momentum/{linear,angular} (about the world origin)
-  double output_every;  ///< output interval in s; 0 = every accepted step
+  bool energy;    ///< write /energy/{kinetic,potential,strain}
+  bool momentum;  ///< write /momentum/{linear,angular} (about the world origin)
 } fmbd_scene;
 
 /// @brief Read a scene file ("-": standard input). Every fault is reported with
@@ -232,53 +190,5 @@ bool fmbd_scene_list_has(const char *list, const char *name);
 /// (relative to the current folder). Rigid-only scenes depend on the scene file alone.
 /// @param[out] text caller frees with fmbd_free
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text);
-
-// --- the scene as a multibody system (fmbd_scene_build.c) ----------------------------------
-#include "fmbd_rflex.h"
-
-/// A scene turned into an fmbd_mbs system, with what the outputs need to be evaluated.
-typedef struct fmbd_scene_model {
-  fmbd_mbs *mbs;      ///< owned; fmbd_mbs_init not yet called
-  int nbodies;        ///< = scene nbodies
-  int *body_id;       ///< scene body -> mbs body id
-  fmbd_rflex **flex;  ///< per body: the modal body (NULL for rigid), owned
-  double *E, *nu;     ///< per body: material of a flexible body (strain outputs)
-  char **file_kind;   ///< per body: "fmbd-rflex" / "fmbd-cb" / NULL (rigid)
-  int *joint_id;      ///< scene joint -> mbs joint id
-  int noutputs;
-  int *out_point;         ///< per output: mbs point id
-  int *out_body;          ///< per output: scene body index
-  int64_t *out_node;      ///< per output: node of a flexible body, or -1
-  double **out_sigma;     ///< per output: 6 x nm modal stress (stress/strain asked), or NULL
-  int ninputs;            ///< body files read (provenance)
-  char **input_name;      ///< owned names
-  char (*input_sha)[65];  ///< their SHA-256
-} fmbd_scene_model;
-
-/// @brief Build the multibody system of a scene: open every body file (.rflex.h5 or .cb.h5;
-/// another kind is an error naming the scene line of `file`), keep the first N modes if
-/// asked, place points of joints, loads and outputs (a joint point that is not on its
-/// flexible body is an error naming the joint's line and the nearest node), add joints,
-/// drivers, loads and gravity. Modal stress is kept only for outputs asking for it.
-/// @param[out] out caller destroys with fmbd_scene_model_destroy
-int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out);
-/// @brief The mbs settings of the scene's solver section (and reactions when asked).
-void fmbd_scene_settings(const fmbd_scene *s, fmbd_mbs_settings *set);
-/// @brief Stress (xx yy zz xy yz zx, Pa) at output `o` now (out_sigma times the body's
-/// modal coordinates). FMBD_ERR_VALUE if that output has no stress.
-int fmbd_scene_output_stress(const fmbd_scene_model *m, int o, double sigma[6]);
-/// @brief Linear elastic strain (tensor components xx yy zz xy yz zx) of a stress, and its
-/// von Mises equivalent 2 (1 + nu) sigma_vm / (3 E) (returned).
-double fmbd_scene_strain(double E, double nu, const double sigma[6], double eps[6]);
-/// @brief Release the model; NULL fine.
-void fmbd_scene_model_destroy(fmbd_scene_model **m);
-/// @brief A flexible body from a .cb.h5 (format fmbd-cb): the flexible eigenvectors of the
-/// reduced problem (/reduced/eigenvectors without /reduced/rigid), expanded to the FE dofs
-/// (qF = [Phi Psi; 0 I] Xi, mass-normalised), built by fmbd_rflex_build (the one producer of
-/// reduced bodies, as cbcheck's), its inertia invariants with the mass the modes come from
-/// (docs/THEORY.md section 9); with stress, the modal stresses of its modes (the fe
-/// description in the cb file carries the elements and the material).
-/// @param[out] out caller destroys with fmbd_rflex_destroy
-int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out);
 
 #endif

@@ -3,6 +3,8 @@
 //
 // Body files are opened here; every error names the scene file and the line:column of the
 // item at fault (the body's `file` key, the joint, the output), and the body file.
+#include "fmbd_scene_build.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -12,44 +14,12 @@
 #include "fmbd_err.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
-#include "fmbd_scene.h"
 
 #define SFAIL(s, loc, code, ...)    \
   do {                              \
     fmbd_scene_context((s), (loc)); \
     FMBD_GFAIL(code, __VA_ARGS__);  \
   } while (0)
-
-void fmbd_scene_settings(const fmbd_scene *s, fmbd_mbs_settings *set) {
-  fmbd_mbs_settings_defaults(set);
-  set->t_end = s->solver.t_end;
-  set->rho_inf = s->solver.rho_inf;
-  set->fixed = s->solver.fixed;
-  if (s->solver.fixed) set->step = s->solver.step;
-  set->first_step = s->solver.first_step;
-  set->max_step = s->solver.max_step;
-  set->min_step = s->solver.min_step;
-  set->tolerance = s->solver.tolerance;
-  set->newton_tol = s->solver.newton_tol;
-  set->newton_max = s->solver.newton_max;
-  set->output_every = s->output_every;
-  set->reactions = s->nreactions > 0;
-}
-
-fmbd_mbs_fn fmbd_scene_fn_to_mbs(const fmbd_scene_fn *f) {
-  switch (f->kind) {
-    case FMBD_FN_RAMP:
-      return fmbd_mbs_fn_ramp(f->t0, f->v0, f->t1, f->v1, f->smooth);
-    case FMBD_FN_SINE:
-      return fmbd_mbs_fn_sine(f->offset, f->amplitude, f->frequency_hz, f->phase);
-    case FMBD_FN_TABLE:
-      return fmbd_mbs_fn_table(f->n, f->t, f->v);
-    case FMBD_FN_LINEAR:
-      return fmbd_mbs_fn_linear(f->t0, f->v0, f->rate);
-    default:
-      return fmbd_mbs_fn_constant(f->value);
-  }
-}
 
 // --- keeping the first n modes of a modal body ----------------------------------------------
 static int truncate_modes(fmbd_rflex *r, int64_t n) {
@@ -436,7 +406,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
   // --- drivers ---
   for (int k = 0; k < s->ndrivers; k++) {
     const fmbd_scene_driver *d = &s->drivers[k];
-    fmbd_mbs_fn fn = fmbd_scene_fn_to_mbs(&d->fn);
+    fmbd_mbs_fn fn = d->fn;
     if (d->joint >= 0) {
       rc = fmbd_mbs_add_driver_joint(m->mbs, d->name, m->joint_id[d->joint], &fn, NULL);
     } else {
@@ -451,7 +421,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
     snprintf(what, sizeof what, "load '%s'", l->name);
     int pid;
     FMBD_GCALL(add_point(m, s, l->body, &l->at, NULL, l->loc, what, &pid, NULL));
-    fmbd_mbs_fn fn = fmbd_scene_fn_to_mbs(&l->fn);
+    fmbd_mbs_fn fn = l->fn;
     rc = fmbd_mbs_add_load(m->mbs, l->name,
                            l->kind == FMBD_LOAD_TORQUE ? FMBD_MBS_TORQUE : FMBD_MBS_FORCE, pid,
                            l->body_frame, l->direction, &fn, NULL);

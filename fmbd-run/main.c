@@ -20,6 +20,7 @@
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
 #include "fmbd_scene.h"
+#include "fmbd_scene_build.h"
 #include "fmbd_svg.h"
 
 static volatile sig_atomic_t g_signal = 0;
@@ -554,7 +555,7 @@ int main(int argc, char **argv) {
   {
     double steps =
         s->solver.fixed ? s->solver.t_end / s->solver.step : s->solver.t_end / s->solver.max_step;
-    double rows = s->output_every > 0 ? s->solver.t_end / s->output_every : steps;
+    double rows = s->solver.output_every > 0 ? s->solver.t_end / s->solver.output_every : steps;
     if (steps > 1e8) {
       fmbd_log(FMBD_LOG_WARN, "%s: %s %.3g steps (t_end %g s, %s %g s): this run may take days",
                scene_file, s->solver.fixed ? "fixed step:" : "at least", steps, s->solver.t_end,
@@ -565,15 +566,13 @@ int main(int argc, char **argv) {
       fmbd_log(FMBD_LOG_WARN,
                "%s: about %.3g output rows (t_end %g s, every %g s): the run file may be "
                "very large; set outputs.every",
-               scene_file, rows, s->solver.t_end, s->output_every);
+               scene_file, rows, s->solver.t_end, s->solver.output_every);
     }
   }
 
   // --- build and initialise -----------------------------------------------------------------
   FMBD_GCALL(fmbd_scene_build(s, &m));
-  fmbd_mbs_settings set;
-  fmbd_scene_settings(s, &set);
-  rc = fmbd_mbs_init(m->mbs, &set);
+  rc = fmbd_mbs_init(m->mbs, &s->solver);
   if (rc) {
     fmbd_err_context(scene_file, "");  // the message names joint/body; the file is the scene
     goto done;

@@ -7,7 +7,7 @@
 #include "check.h"
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
-#include "fmbd_scene.h"
+#include "fmbd_scene_build.h"
 
 static const char *scene_text =
     "gravity: [0, -9.81, 0]\n"
@@ -40,8 +40,7 @@ int main(void) {
   if (m) {
     EXPECT(fmbd_mbs_nbodies(m->mbs) == 2 && m->body_id[0] == 0 && m->body_id[1] == 1, "bodies");
     EXPECT(m->out_node[0] == -1 && m->out_sigma[0] == NULL, "rigid output has no node, no stress");
-    fmbd_mbs_settings set;
-    fmbd_scene_settings(s, &set);
+    fmbd_mbs_settings set = s->solver;  // the scene's solver section is the mbs settings
     EXPECT(set.fixed && set.step == 1e-3 && set.t_end == 0.1 && set.reactions, "settings");
     rc = fmbd_mbs_init(m->mbs, &set);
     EXPECT(rc == 0, "init: %s", fmbd_err_get()->msg);
@@ -102,8 +101,7 @@ int main(void) {
       }
       ex[2][2] = 0;
       for (int d = 0; d < 3; d++) {
-        fmbd_mbs_fn mf = fmbd_scene_fn_to_mbs(&f->drivers[d].fn);
-        double d1, d2, v = fmbd_mbs_fn_eval(&mf, t, &d1, &d2);
+        double d1, d2, v = fmbd_mbs_fn_eval(&f->drivers[d].fn, t, &d1, &d2);
         EXPECT(fabs(v - ex[d][0]) < 1e-12 && fabs(d1 - ex[d][1]) < 1e-12 &&
                    fabs(d2 - ex[d][2]) < 1e-12,
                "driver %d at t = %g: %g %g %g vs %g %g %g", d, t, v, d1, d2, ex[d][0], ex[d][1],
