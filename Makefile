@@ -151,6 +151,30 @@ info:
 batch: deps
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory -f examples/batch/Makefile BUILD=$(BUILD) PYTHON=$(PYTHON)
+# fe2cb-mpi: the distributed reduction, built only where PETSc and SLEPc are installed (Debian
+# libpetsc-real-dev libslepc-real-dev openmpi-bin; make deps installs them). Its objects are
+# compiled with mpicc and never enter libfmbd.a: fe2cb and the other programs link no MPI.
+MPICC        ?= mpicc
+PETSC_CFLAGS ?= $(shell $(PKG_CONFIG) --cflags slepc petsc 2>/dev/null)
+PETSC_LIBS   ?= $(shell $(PKG_CONFIG) --libs slepc petsc 2>/dev/null)
+MPI_OBJ      := $(BUILD)/mpi/fmbd_slepc.o $(BUILD)/fe2cb-mpi/main.o
+.PHONY: mpi
+mpi: $(BUILD)/bin/fe2cb-mpi
+$(BUILD)/mpi/%.o: mpi/%.c
+	$(call msg,MPICC,$<)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_CPPFLAGS) -Impi $(PETSC_CFLAGS) $(CPPFLAGS) $(FMBD_CFLAGS) $(CFLAGS) -c -o $@ $<
+$(BUILD)/fe2cb-mpi/%.o: fe2cb-mpi/%.c
+	$(call msg,MPICC,$<)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_CPPFLAGS) -Impi $(PETSC_CFLAGS) $(CPPFLAGS) $(FMBD_CFLAGS) $(CFLAGS) -c -o $@ $<
+$(BUILD)/bin/fe2cb-mpi: $(MPI_OBJ) $(LIB)
+	$(call msg,LD,$@)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(MPI_OBJ) $(LIB) $(PETSC_LIBS) $(FMBD_LDLIBS) $(LDLIBS)
+ifneq ($(strip $(PETSC_LIBS)),)
+check-build: $(BUILD)/bin/fe2cb-mpi
+endif
 # <<< batch and distributed <<<
 
 -include $(shell find $(BUILD) -name '*.d' -not -path '*/test-tmp/*' -not -path '*/demo/*' -not -path '*/bench/*' 2>/dev/null)
