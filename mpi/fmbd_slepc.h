@@ -51,8 +51,13 @@ void fmbd_slepc_defaults(fmbd_slepc_opts *o);
 
 /// Where the time went (wall seconds, the slowest process's).
 typedef struct fmbd_slepc_timing {
-  double distribute, factor_and_modes, sturm, constraint, gather, reduced;
-  int64_t nconv, its;  ///< converged pairs, Krylov-Schur restarts
+  double distribute, factor, modes, sturm, constraint, gather, reduced;
+  int64_t nconv, its;     ///< converged pairs, Krylov-Schur restarts
+  int64_t solves;         ///< solves with the factor of Ks (Krylov-Schur's and the 3 nb others)
+  double factor_entries;  ///< entries of MUMPS's factor of Ks (INFOG(29))
+  double factor_flops;    ///< its elimination flops (RINFOG(3))
+  double factor_mb_max;   ///< MUMPS memory of the largest process, MB (INFOG(21))
+  double factor_mb_sum;   ///< summed over the processes, MB (INFOG(22))
 } fmbd_slepc_timing;
 
 /// @brief Reduce (method cb). Collective: every process passes the body's full K, M (read by
