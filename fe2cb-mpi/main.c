@@ -9,6 +9,7 @@
 // of the distributed part are in mpi/fmbd_slepc.c; reading, the boundary, the reduced problem
 // and the file are the library's (fmbd_fe_read, fmbd_cb_boundary, fmbd_cb_update_reduced,
 // fmbd_cb_write).
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -76,46 +77,51 @@ static int split_groups(args *a, const char *text) {
   return 0;
 }
 
+enum { OPT_OUTPUT = 1, OPT_MODES, OPT_BOUNDARY, OPT_NO_STURM, OPT_SERIAL_ONLY };
+static const fmbd_cli_option options[] = {
+    {"--output", 'o', true, OPT_OUTPUT},   {"--modes", 0, true, OPT_MODES},
+    {"--boundary", 0, true, OPT_BOUNDARY}, {"--no-sturm", 0, false, OPT_NO_STURM},
+    {"--fmax", 0, true, OPT_SERIAL_ONLY},  {"--method", 0, true, OPT_SERIAL_ONLY},
+    {"--hold", 0, false, OPT_SERIAL_ONLY}, {0}};
+
 // 0: go on; -1: done (help/version printed); > 0: exit status (usage error)
 static int parse_args(int argc, char **argv, args *a) {
-  for (int i = 1; i < argc; i++) {
-    const char *arg = argv[i], *val = NULL;
-#define NEED_VALUE()                                                                \
-  do {                                                                              \
-    if (i + 1 >= argc) return fmbd_cli_usage_error("option %s needs a value", arg); \
-    val = argv[++i];                                                                \
-  } while (0)
-    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
-    if (common == FMBD_CLI_DONE) {
-      return -1;
-    } else if (common == FMBD_CLI_TAKEN) {
-      continue;
-    } else if (!strcmp(arg, "-o") || !strcmp(arg, "--output")) {
-      NEED_VALUE();
-      a->output = val;
-    } else if (!strcmp(arg, "--modes")) {
-      NEED_VALUE();
-      long n = 0;
-      if (fmbd_cli_parse_int(arg, val, &n)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (n < 1) return fmbd_cli_usage_error("--modes: %ld is below 1", n);
-      a->o.nmodes = n;
-    } else if (!strcmp(arg, "--boundary")) {
-      NEED_VALUE();
-      int st = split_groups(a, val);
-      if (st) return st;
-    } else if (!strcmp(arg, "--no-sturm")) {
-      a->o.sturm = false;
-    } else if (!strcmp(arg, "--fmax") || !strcmp(arg, "--method") || !strcmp(arg, "--hold")) {
-      return fmbd_cli_usage_error("%s is fe2cb's: fe2cb-mpi computes --modes N (method cb)", arg);
-    } else if (arg[0] == '-' && arg[1] != '\0') {
-      return fmbd_cli_usage_error("unknown option '%s'", arg);
-    } else {
-      if (a->input)
-        return fmbd_cli_usage_error("one BODY.fe.h5 expected, got '%s' and '%s'", a->input, arg);
-      a->input = arg;
+  fmbd_cli_args p;
+  fmbd_cli_args_init(&p, argc, argv, options, usage_text);
+  for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
+    const char *val = p.value;
+    switch (id) {
+      case FMBD_CLI_EXIT:
+        return p.status ? p.status : -1;
+      case FMBD_CLI_ARG:
+        if (a->input)
+          return fmbd_cli_usage_error("one BODY.fe.h5 expected, got '%s' and '%s'", a->input, val);
+        a->input = val;
+        break;
+      case OPT_OUTPUT:
+        a->output = val;
+        break;
+      case OPT_MODES: {
+        long n = 0;
+        if (fmbd_cli_long(&p, 1, LONG_MAX, &n)) return p.status;
+        a->o.nmodes = n;
+        break;
+      }
+      case OPT_BOUNDARY: {
+        int st = split_groups(a, val);
+        if (st) return st;
+        break;
+      }
+      case OPT_NO_STURM:
+        a->o.sturm = false;
+        break;
+      case OPT_SERIAL_ONLY:
+        return fmbd_cli_usage_error("%s is fe2cb's: fe2cb-mpi computes --modes N (method cb)",
+                                    p.opt);
     }
-#undef NEED_VALUE
   }
+  a->quiet = p.quiet;
+  a->verbose = p.verbose;
   if (!a->input) return fmbd_cli_usage_error("no BODY.fe.h5 given");
   if (!strcmp(a->input, "-")) return fmbd_cli_usage_error("every process reads BODY.fe.h5: no '-'");
   if (a->output && !strcmp(a->output, "-")) {
