@@ -210,14 +210,15 @@ done:
                "%.4g entries, %.4g flops, %.0f MB on the largest process, %.0f MB in all",
                nproc, (long long)cb->ndof, (long long)cb->ns, (long long)cb->nb, tm.factor_entries,
                tm.factor_flops, tm.factor_mb_max, tm.factor_mb_sum);
-      fmbd_log(FMBD_LOG_INFO,
-               "time: read %.3g s, distribution %.3g s, MUMPS factorisation %.3g s, "
-               "Krylov-Schur %.3g s (%lld restarts, %lld converged), modes gathered %.3g s, "
-               "constraint modes and projections %.3g s (%lld solves), Sturm count %.3g s, "
-               "reduced problem %.3g s, write %.3g s; %lld solves with the factor in all",
-               t_read, tm.distribute, tm.factor, tm.modes, (long long)tm.its, (long long)tm.nconv,
-               tm.gather, tm.constraint, (long long)(3 * cb->nb), tm.sturm, tm.reduced, t_write,
-               (long long)tm.solves);
+      fmbd_log(
+          FMBD_LOG_INFO,
+          "time: read %.3g s, distribution %.3g s, MUMPS factorisation %.3g s (cpu %.3g s), "
+          "Krylov-Schur %.3g s (%lld restarts, %lld converged), modes gathered %.3g s, "
+          "constraint modes and projections %.3g s (cpu %.3g s, %lld solves), Sturm count %.3g s, "
+          "reduced problem %.3g s, write %.3g s; %lld solves with the factor in all",
+          t_read, tm.distribute, tm.factor, tm.factor_cpu, tm.modes, (long long)tm.its,
+          (long long)tm.nconv, tm.gather, tm.constraint, tm.constraint_cpu, (long long)(3 * cb->nb),
+          tm.sturm, tm.reduced, t_write, (long long)tm.solves);
       fmbd_log(FMBD_LOG_INFO,
                "modes: %.6g .. %.6g Hz, largest residual %.2g; Sturm count %lld below %.6g Hz; "
                "peak memory: process 0 %.0f MB, largest process %.0f MB",

@@ -264,7 +264,7 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
   t->distribute = tmax(MPI_Wtime() - t0);
 
   // --- fixed-interface modes: Krylov-Schur, shift-and-invert at 0, MUMPS Cholesky of Ks ---
-  double t1 = MPI_Wtime();
+  double t1 = MPI_Wtime(), c1 = fmbd_cpu_s();
   int64_t nd = o.nmodes, want = nd + 1 < ns ? nd + 1 : nd;  // one more: kappa_next
   ST st = NULL;
   PC pc = NULL;
@@ -286,6 +286,7 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
   PCALL(EPSSetFromOptions(eps));  // PETSC_OPTIONS may change any of it (-eps_view etc.)
   PCALL(EPSSetUp(eps));           // the MUMPS factorisation of Ks (analysis + numeric)
   t->factor = tmax(MPI_Wtime() - t1);
+  t->factor_cpu = fmbd_cpu_s() - c1;
   {
     Mat F = NULL;
     PetscInt entries = 0, mb_max = 0, mb_sum = 0;
@@ -381,6 +382,7 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
 
   // --- constraint modes and projections with the same factor (the ST's KSP) ---
   t1 = MPI_Wtime();
+  c1 = fmbd_cpu_s();
   if (rank == 0) {
     FMBD_GALLOC(cb->Psi = fmbd_malloc((size_t)(ns * (nb ? nb : 1)) * sizeof(double)));
     FMBD_GALLOC(cb->A = fmbd_malloc((size_t)(ns * (nb ? nb : 1)) * sizeof(double)));
@@ -402,6 +404,7 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
     FMBD_GCALL(gather0(sc, z, x0, rank == 0 ? cb->KsinvMsKsinvA + off : NULL));
   }
   t->constraint = tmax(MPI_Wtime() - t1);
+  t->constraint_cpu = fmbd_cpu_s() - c1;
   t->gather = tmax(t->gather);
   EPSDestroy(&eps);  // the factor of Ks: freed before the Sturm factor (as large)
   ksp = NULL;

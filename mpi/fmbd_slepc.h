@@ -52,7 +52,8 @@ void fmbd_slepc_defaults(fmbd_slepc_opts *o);
 /// Where the time went (wall seconds, the slowest process's).
 typedef struct fmbd_slepc_timing {
   double distribute, factor, modes, sturm, constraint, gather, reduced;
-  int64_t nconv, its;     ///< converged pairs, Krylov-Schur restarts
+  double factor_cpu, constraint_cpu;  ///< process 0's CPU seconds of the same (load-independent)
+  int64_t nconv, its;                 ///< converged pairs, Krylov-Schur restarts
   int64_t solves;         ///< solves with the factor of Ks (Krylov-Schur's and the 3 nb others)
   double factor_entries;  ///< entries of MUMPS's factor of Ks (INFOG(29))
   double factor_flops;    ///< its elimination flops (RINFOG(3))
