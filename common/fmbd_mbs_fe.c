@@ -27,7 +27,8 @@ void mbs_fe_free(mbs_fe **pf) {
   mbs_fe *f = *pf;
   fmbd_csr_destroy(&f->E), fmbd_csr_destroy(&f->Et), fmbd_csr_destroy(&f->Mn);
   fmbd_csr_destroy(&f->P);
-  double *arrs[] = {f->x,  f->m1, f->mx, f->S1, f->Mv, f->Kv, f->Dv, f->U,  f->Ud,
+  fmbd_free(f->Gv);
+  double *arrs[] = {f->x,   f->m1, f->mx, f->S1, f->Mv, f->Kv, f->Dv, f->U,  f->Ud,
                     f->Udd, f->W,  f->Vd, f->Y,  f->z,  f->v1, f->h,  f->cu, f->cl};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
   fmbd_free(f->dofs), fmbd_free(f->pu), fmbd_free(f->pl), fmbd_free(f->pff);
@@ -101,9 +102,9 @@ static void fe_inertia(const mbody *b, double *c, double *J, double *s1qd, doubl
   }
   for (int a = 0; a < 3; a++) {
     for (int bb = a; bb < 3; bb++) {
-      double v = dotn(nn, f->mx + nn * a, f->U + nn * bb) + dotn(nn, f->mx + nn * bb, f->U + nn * a) +
-                 0.5 * (dotn(nn, f->U + nn * a, f->W + nn * bb) +
-                        dotn(nn, f->U + nn * bb, f->W + nn * a));
+      double v =
+          dotn(nn, f->mx + nn * a, f->U + nn * bb) + dotn(nn, f->mx + nn * bb, f->U + nn * a) +
+          0.5 * (dotn(nn, f->U + nn * a, f->W + nn * bb) + dotn(nn, f->U + nn * bb, f->W + nn * a));
       J[3 * a + bb] = J[3 * bb + a] = 0.5 * (b->J0[3 * a + bb] + b->J0[3 * bb + a]) + v;
     }
   }
@@ -347,7 +348,11 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
     }
   }
   const int64_t nnz = f->P->indptr[n];
-  for (int64_t e = 0; e < nnz; e++) Ax[f->pff[e]] += cm * f->Mv[e] + cc * f->Dv[e] + ck * f->Kv[e];
+  const double g0 = 2 * cc * w[0], g1 = 2 * cc * w[1], g2 = 2 * cc * w[2];
+  const double *G0 = f->Gv, *G1 = f->Gv + nnz, *G2 = f->Gv + 2 * nnz;
+  for (int64_t e = 0; e < nnz; e++)
+    Ax[f->pff[e]] +=
+        cm * f->Mv[e] + cc * f->Dv[e] + ck * f->Kv[e] + g0 * G0[e] + g1 * G1[e] + g2 * G2[e];
 #undef Z
 }
 
@@ -470,6 +475,45 @@ static int union_pattern(int64_t n, const fmbd_csr *const *A, int na, fmbd_csr *
   return FMBD_OK;
 }
 
+// Gv[. + nnz a] = sum_bc eps_abc X^cb on the pattern P, X^cb = E_c' Mn E_b (entries of X off
+// P are dropped: for solids and beams X's pattern lies within K's)
+static int gyro_values(mbs_fe *f, int64_t n, int64_t nnz) {
+  int rc = FMBD_OK;
+  const int64_t nn = f->nn;
+  fmbd_csr *Ec[3] = {NULL, NULL, NULL}, *Ect[3] = {NULL, NULL, NULL}, *B = NULL, *X = NULL;
+  int64_t *rows = NULL, *cols = NULL;
+  double *v = NULL;
+  FMBD_GALLOC(f->Gv = fmbd_calloc((size_t)(3 * nnz) + 1, sizeof(double)));
+  FMBD_GALLOC(rows = fmbd_malloc(sizeof(int64_t) * (size_t)nn));
+  FMBD_GALLOC(cols = fmbd_malloc(sizeof(int64_t) * (size_t)n));
+  FMBD_GALLOC(v = fmbd_malloc(sizeof(double) * (size_t)(nnz + 1)));
+  for (int64_t k = 0; k < n; k++) cols[k] = k;
+  for (int a = 0; a < 3; a++) {
+    for (int64_t p = 0; p < nn; p++) rows[p] = a * nn + p;
+    FMBD_GCALL(fmbd_csr_submatrix(f->E, nn, rows, n, cols, &Ec[a]));
+    FMBD_GCALL(fmbd_csr_transpose(Ec[a], &Ect[a]));
+  }
+  for (int b = 0; b < 3; b++) {
+    FMBD_GCALL(fmbd_csr_matmul(f->Mn, Ec[b], &B));  // Mn E_b
+    for (int c = 0; c < 3; c++) {
+      if (c == b) continue;
+      FMBD_GCALL(fmbd_csr_matmul(Ect[c], B, &X));  // E_c' Mn E_b
+      on_pattern(f->P, X, v);
+      // eps_abc: a is the third index of (b, c)
+      int a = 3 - b - c;
+      double sg = ((a + 1) % 3 == b) ? 1.0 : -1.0;
+      for (int64_t e = 0; e < nnz; e++) f->Gv[e + nnz * a] += sg * v[e];
+      fmbd_csr_destroy(&X);
+    }
+    fmbd_csr_destroy(&B);
+  }
+done:
+  for (int a = 0; a < 3; a++) fmbd_csr_destroy(&Ec[a]), fmbd_csr_destroy(&Ect[a]);
+  fmbd_csr_destroy(&B), fmbd_csr_destroy(&X);
+  fmbd_free(rows), fmbd_free(cols), fmbd_free(v);
+  return rc;
+}
+
 int mbs_fe_create(const fmbd_mbs_fe_data *d, mbs_fe **out) {
   int rc = FMBD_OK;
   mbs_fe *f = NULL;
@@ -502,6 +546,7 @@ int mbs_fe_create(const fmbd_mbs_fe_data *d, mbs_fe **out) {
   on_pattern(f->P, d->M, f->Mv);
   on_pattern(f->P, d->K, f->Kv);
   if (d->D) on_pattern(f->P, d->D, f->Dv);
+  FMBD_GCALL(gyro_values(f, n, nnz));
   if (d->dofs) {
     FMBD_GALLOC(f->dofs = fmbd_malloc(sizeof(int64_t) * (size_t)(2 * n)));
     memcpy(f->dofs, d->dofs, sizeof(int64_t) * (size_t)(2 * n));

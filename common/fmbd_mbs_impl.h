@@ -120,13 +120,15 @@ static inline void A_to_quat(const double *A, double *p) {
 // A full FE body's data (fmbd_mbs_fe.c; docs/THEORY.md section 4b). Nodal fields are nn x 3
 // column-major (u[p + nn a]); E maps the n coordinates to them.
 typedef struct mbs_fe {
-  int64_t nn;                             // nodes
-  fmbd_csr *E, *Et, *Mn;                  // (3 nn) x n, its transpose, nn x nn scalar nodal mass
-  double *x, *m1, *mx;                    // nn x 3 positions; Mn 1 (nn); Mn x (nn x 3)
-  double *S1;                             // 3 x n: S1[a + 3k] = (E_a' Mn 1)_k
-  fmbd_csr *P;                            // n x n pattern of M + K + D; values in Mv, Kv, Dv
-  double *Mv, *Kv, *Dv;                   // on P's entries
-  int64_t *dofs;                          // 2 x n (node, direction) or NULL
+  int64_t nn;             // nodes
+  fmbd_csr *E, *Et, *Mn;  // (3 nn) x n, its transpose, nn x nn scalar nodal mass
+  double *x, *m1, *mx;    // nn x 3 positions; Mn 1 (nn); Mn x (nn x 3)
+  double *S1;             // 3 x n: S1[a + 3k] = (E_a' Mn 1)_k
+  fmbd_csr *P;            // n x n pattern of M + K + D; values in Mv, Kv, Dv
+  double *Mv, *Kv, *Dv;   // on P's entries
+  double *Gv;     // 3 nnz: Gv[e + nnz a] = (sum_bc eps_abc E_c' Mn E_b)(entry e): the gyroscopic
+                  // tangent 2 w . int rho S_l x S_k of the flexible rows = 2 sum_a w_a G_a
+  int64_t *dofs;  // 2 x n (node, direction) or NULL
   double *U, *Ud, *Udd, *W, *Vd, *Y, *z;  // nn x 3 workspace
   double *v1, *h;                         // (n), (10 n) workspace
   double *cu, *cl;                        // 6 x n coupling blocks (upper [i + 6k], lower)
