@@ -7,7 +7,7 @@
 #      scipy's static solution on the same K (the file's /K, /M with the interface node's dofs
 #      removed), its first frequency against scipy's lowest eigenvalue of that clamped K, M;
 #      a beam mesh under a tip load against P L^3 / (3 E I);
-#  (c) the scene's errors for a full-model body (`modes:`, no interface node).
+#  (c) the scene's errors for a full-model body (`modes:`, no interface node) and its -M rule.
 # The residual derivatives of an FE body are checked in tests/unit/t509-mbs-fe-derivatives.c.
 import os
 import shutil
@@ -225,6 +225,19 @@ p = run("fmbd-run", "noitf.yaml", "-o", "noitf.run.h5", ok=False)
 check(p.returncode != 0 and "noitf.yaml:4" in p.stderr and "interface node" in p.stderr
       and not os.path.exists(os.path.join(TMP, "noitf.run.h5")),
       f"a full-model body without an interface node is refused: {p.stderr.strip()}")
+
+# fmbd-run -M: a full-model body's file is made by mesh2fe alone
+write("mk.yaml", """title: made
+solver: {t_end: 0.01}
+bodies:
+  - name: rod
+    type: flexible
+    file: made.fe.h5
+    make: {geometry: GEO/rod.geo, mesh2fe: --size 0.05 --order 1 --interface end0}
+""".replace("GEO", GEO))
+p = run("fmbd-run", "-M", "mk.yaml", "-o", "mk.run.h5")
+check(p.returncode == 0 and "made.fe.h5: " in p.stdout and "\tmesh2fe " in p.stdout and "fe2cb" not in p.stdout
+      and "cbcheck" not in p.stdout, "-M for a .fe.h5 body: the mesh2fe rule only")
 
 print(f"{len(failures)} failure(s)")
 sys.exit(1 if failures else 0)
