@@ -20,10 +20,11 @@
 #include "fmbd_runfile.h"
 #include "fmbd_scene.h"
 #include "fmbd_scene_build.h"
+#include "fmbd_xdmf.h"
 
 static const char *usage_text =
     "Usage: fmbd-run SCENE [-o RUN.h5] [--reference REF.run.h5 [--window T0:T1]]\n"
-    "                [--plot PREFIX] [--t-end T] [--body-dir DIR] [-M] [-q] [-v]\n"
+    "                [--plot PREFIX] [--xdmf] [--t-end T] [--body-dir DIR] [-M] [-q] [-v]\n"
     "Simulate the mechanism of a scene file (YAML, docs/SCENE.md): rigid and reduced flexible\n"
     "bodies (.rflex.h5, .cb.h5) in the floating frame of reference, joints, drivers, loads,\n"
     "gravity; index-3 generalized-alpha with step-size control. Writes the run file\n"
@@ -37,6 +38,9 @@ static const char *usage_text =
     "      --window T0:T1      with --reference: the errors over T0 <= t <= T1 only (chaotic\n"
     "                          motion: before the trajectories separate)\n"
     "      --plot PREFIX       SVG plots PREFIX<output>-position.svg and -trajectory.svg\n"
+    "      --xdmf              RUN.xdmf beside RUN.h5 (.h5 replaced): the deformed flexible\n"
+    "                          bodies at every output instant, coloured by von Mises stress,\n"
+    "                          for ParaView (fields in /fields of the run file)\n"
     "      --t-end T           end the run at T seconds instead of the scene's t_end\n"
     "      --body-dir DIR      body files (and the fe/cb files of -M rules) in DIR instead of\n"
     "                          the scene's folder (the geometry stays beside the scene)\n"
@@ -63,6 +67,8 @@ typedef struct run {
   int energy[3], momentum[2];
   int (*react)[2];  // per reaction: force, torque
   double last_progress_s, t0_wall;
+  fmbd_xdmf *xdmf;  // --xdmf: the fields of the flexible bodies
+  int nx, *xbody;   // their mbs body ids
 } run;
 
 static void get_stats(void *user, fmbd_runfile_stats *st) {
@@ -171,7 +177,60 @@ static int record(run *r) {
     FMBD_CALL(fmbd_runfile_put(r->rf, r->react[k][0], F));
     FMBD_CALL(fmbd_runfile_put(r->rf, r->react[k][1], T));
   }
+  if (r->xdmf) {
+    double R[64][3], A[64][9];
+    const double *Rp[64], *Ap[64], *qp[64];
+    for (int i = 0; i < r->nx; i++) {
+      fmbd_mbs_body_pose(mb, r->xbody[i], R[i], A[i]);
+      fmbd_mbs_modal(mb, r->xbody[i], &qp[i], NULL, NULL);
+      Rp[i] = R[i];
+      Ap[i] = A[i];
+    }
+    FMBD_CALL(fmbd_xdmf_frame(r->xdmf, fmbd_mbs_time(mb), Rp, Ap, qp));
+  }
   return FMBD_OK;
+}
+
+// --xdmf: every flexible body with solid elements, its modal stresses read again (the model
+// keeps them only where an output asks).
+static int add_fields(run *r, const char *xdmf_name) {
+  const fmbd_scene *s = r->s;
+  const fmbd_scene_model *m = r->m;
+  int rc = FMBD_OK;
+  fmbd_h5 *f = NULL;
+  fmbd_rflex *rf = NULL;
+  FMBD_CALL(fmbd_xdmf_create(r->rf, xdmf_name, &r->xdmf));
+  FMBD_GALLOC(r->xbody = fmbd_calloc((size_t)s->nbodies + 1, sizeof(int)));
+  for (int b = 0; b < s->nbodies; b++) {
+    if (!m->flex[b]) continue;
+    const char *file = s->bodies[b].file;
+    FMBD_GCALL(fmbd_h5_open(file, &f));
+    fmbd_err_context(file, "");
+    if (!fmbd_h5_exists(f, "/mesh/elements/tet4") && !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
+      fmbd_log(FMBD_LOG_WARN, "--xdmf: body '%s' (%s) has no solid elements: not in the fields",
+               s->bodies[b].name, file);
+    } else {
+      FMBD_GCHECK(r->nx < 64, FMBD_ERR_VALUE, "--xdmf: more than 64 flexible bodies");
+      if (!strcmp(m->file_kind[b], FMBD_RFLEX_FORMAT)) {
+        FMBD_GCALL(fmbd_rflex_read(f, &rf));
+      } else {
+        FMBD_GCALL(fmbd_scene_rflex_from_cb(f, true, &rf));
+      }
+      int id = m->body_id[b];
+      FMBD_GCALL(fmbd_xdmf_add_body(r->xdmf, s->bodies[b].name, file, rf, f,
+                                    fmbd_mbs_body_nm(m->mbs, id)));
+      r->xbody[r->nx++] = id;
+      fmbd_rflex_destroy(&rf);
+    }
+    fmbd_h5_close(&f);
+  }
+  fmbd_err_context(s->file, "");
+  FMBD_GCHECK(r->nx > 0, FMBD_ERR_VALUE,
+              "--xdmf: the scene has no flexible body with solid elements");
+done:
+  fmbd_rflex_destroy(&rf);
+  fmbd_h5_close(&f);
+  return rc;
 }
 
 static int on_step(fmbd_mbs *mb, bool at_output, void *user) {
@@ -193,19 +252,32 @@ static int on_step(fmbd_mbs *mb, bool at_output, void *user) {
 int main(int argc, char **argv) {
   fmbd_cli_init("fmbd-run", argc, argv);
   int rc = 0;
-  bool make_rules = false;
+  bool make_rules = false, xdmf = false;
   const char *opt_o = NULL, *ref = NULL, *plot = NULL, *body_dir = NULL, *scene_file = NULL;
   double t_end = 0, window[2] = {NAN, NAN};
-  char *out_name = NULL, *rules = NULL;
+  char *out_name = NULL, *rules = NULL, *xdmf_name = NULL;
   fmbd_scene *s = NULL;
   fmbd_scene_model *m = NULL;
   run r = {0};
-  enum { OPT_OUTPUT = 1, OPT_REFERENCE, OPT_WINDOW, OPT_PLOT, OPT_T_END, OPT_BODY_DIR, OPT_RULES };
-  static const fmbd_cli_option options[] = {
-      {"--output", 'o', true, OPT_OUTPUT}, {"--reference", 0, true, OPT_REFERENCE},
-      {"--window", 0, true, OPT_WINDOW},   {"--plot", 0, true, OPT_PLOT},
-      {"--t-end", 0, true, OPT_T_END},     {"--body-dir", 0, true, OPT_BODY_DIR},
-      {NULL, 'M', false, OPT_RULES},       {0}};
+  enum {
+    OPT_OUTPUT = 1,
+    OPT_REFERENCE,
+    OPT_WINDOW,
+    OPT_PLOT,
+    OPT_XDMF,
+    OPT_T_END,
+    OPT_BODY_DIR,
+    OPT_RULES
+  };
+  static const fmbd_cli_option options[] = {{"--output", 'o', true, OPT_OUTPUT},
+                                            {"--reference", 0, true, OPT_REFERENCE},
+                                            {"--window", 0, true, OPT_WINDOW},
+                                            {"--plot", 0, true, OPT_PLOT},
+                                            {"--xdmf", 0, false, OPT_XDMF},
+                                            {"--t-end", 0, true, OPT_T_END},
+                                            {"--body-dir", 0, true, OPT_BODY_DIR},
+                                            {NULL, 'M', false, OPT_RULES},
+                                            {0}};
   fmbd_cli_args p;
   fmbd_cli_args_init(&p, argc, argv, options, usage_text);
   for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
@@ -234,6 +306,9 @@ int main(int argc, char **argv) {
         break;
       case OPT_PLOT:
         plot = p.value;
+        break;
+      case OPT_XDMF:
+        xdmf = true;
         break;
       case OPT_T_END:
         if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &t_end)) return fmbd_cli_finish(2);
@@ -323,6 +398,14 @@ int main(int argc, char **argv) {
   FMBD_GALLOC(r.out = fmbd_calloc((size_t)s->noutputs + 1, sizeof *r.out));
   FMBD_GALLOC(r.react = fmbd_calloc((size_t)s->nreactions + 1, sizeof *r.react));
   FMBD_GCALL(declare(&r));
+  if (xdmf) {
+    size_t n = strlen(out_name);
+    if (n > 3 && !strcmp(out_name + n - 3, ".h5")) n -= 3;
+    FMBD_GALLOC(xdmf_name = fmbd_malloc(n + 6));
+    memcpy(xdmf_name, out_name, n);
+    strcpy(xdmf_name + n, ".xdmf");
+    FMBD_GCALL(add_fields(&r, xdmf_name));
+  }
 
   // --- run ------------------------------------------------------------------------------------
   fmbd_runfile_catch_signals();
@@ -354,6 +437,7 @@ int main(int argc, char **argv) {
   }
   int64_t rows = fmbd_runfile_rows(r.rf);
   FMBD_GCALL(fmbd_runfile_commit(&r.rf));
+  if (r.xdmf) FMBD_GCALL(fmbd_xdmf_commit(&r.xdmf));
   fmbd_mbs_get_stats(m->mbs, &st);
   fmbd_cli_summary(
       "%s: %lld steps, %lld rejected, %lld Newton iterations, %lld rows to t = %g s (%.3gx real "
@@ -363,6 +447,9 @@ int main(int argc, char **argv) {
       run_cpu > 0 ? t_stop / run_cpu : INFINITY);
 done:
   fmbd_runfile_close(&r.rf);  // a failure before the run's end: no target
+  fmbd_xdmf_close(&r.xdmf);
+  fmbd_free(r.xbody);
+  fmbd_free(xdmf_name);
   fmbd_free(r.out);
   fmbd_free(r.react);
   fmbd_scene_model_destroy(&m);
