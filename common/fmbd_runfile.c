@@ -99,8 +99,8 @@ static int write_stats(fmbd_runfile *rf, bool complete) {
   if (rf->stats_fn) rf->stats_fn(rf->stats_user, &st);
   fmbd_h5 *f = rf->f;
   FMBD_CALL(fmbd_h5_make_group(f, "/stats"));
-  int64_t iv[] = {st.steps,         st.rejected_steps, st.newton_iterations,
-                  complete ? 1 : 0, st.factorizations, st.coordinates,
+  int64_t iv[] = {st.steps,         st.rejected_steps,      st.newton_iterations,
+                  complete ? 1 : 0, st.factorizations,      st.coordinates,
                   st.equations,     st.redundant_equations, rf->rows};
   const char *in[] = {"steps",     "rejected_steps",      "newton_iterations",
                       "complete",  "factorizations",      "coordinates",
@@ -493,8 +493,8 @@ done:
 }
 
 // --- pictures --------------------------------------------------------------------------------
-int fmbd_runfile_plot_position(const fmbd_runfile *rf, int id, const char *prefix,
-                               const char *name, const char *title) {
+int fmbd_runfile_plot_position(const fmbd_runfile *rf, int id, const char *prefix, const char *name,
+                               const char *title) {
   int rc = FMBD_OK;
   char path[1024], head[512];
   double *x = NULL, *y = NULL, *z = NULL;

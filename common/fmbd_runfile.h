@@ -125,14 +125,14 @@ int fmbd_runfile_signal(void);
 // --- comparison with a reference run (docs/THEORY.md section 7) -----------------------------
 /// The errors of one output series against a reference.
 typedef struct fmbd_runfile_error {
-  char name[200];      ///< the output (/outputs/NAME)
-  char quantity[56];   ///< the series (position, velocity, von_mises, stress, ...)
-  const char *unit;    ///< as declared (borrowed)
-  int64_t instants;    ///< instants compared
-  double rms;          ///< root mean square over the instants of the error's norm
-  double max;          ///< the largest error norm
-  double t_max;        ///< s, the instant of the largest error
-  double rms_ref;      ///< root mean square of the reference's norm (the errors' scale)
+  char name[200];     ///< the output (/outputs/NAME)
+  char quantity[56];  ///< the series (position, velocity, von_mises, stress, ...)
+  const char *unit;   ///< as declared (borrowed)
+  int64_t instants;   ///< instants compared
+  double rms;         ///< root mean square over the instants of the error's norm
+  double max;         ///< the largest error norm
+  double t_max;       ///< s, the instant of the largest error
+  double rms_ref;     ///< root mean square of the reference's norm (the errors' scale)
 } fmbd_runfile_error;
 
 /// @brief Check that `name` is a usable reference before a run: a complete run file (format
@@ -156,7 +156,7 @@ int fmbd_runfile_compare(fmbd_runfile *rf, const char *ref, double t0, double t1
 /// @brief SVG plots of a kept 3-column series (a position): its components against time in
 /// PREFIX<name>-position.svg and its path in the plane of its two largest ranges in
 /// PREFIX<name>-trajectory.svg; `title` heads both (the scene's title or file name).
-int fmbd_runfile_plot_position(const fmbd_runfile *rf, int id, const char *prefix,
-                               const char *name, const char *title);
+int fmbd_runfile_plot_position(const fmbd_runfile *rf, int id, const char *prefix, const char *name,
+                               const char *title);
 
 #endif

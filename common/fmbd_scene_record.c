@@ -165,7 +165,8 @@ static int add_fields(run *r, const char *xdmf_name) {
     FMBD_GCALL(fmbd_h5_open(file, &f));
     fmbd_err_context(file, "");
     if (!fmbd_h5_exists(f, "/mesh/elements/tet4") && !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
-      fmbd_log(FMBD_LOG_WARN, "XDMF fields: body '%s' (%s) has no solid elements: not in the fields",
+      fmbd_log(FMBD_LOG_WARN,
+               "XDMF fields: body '%s' (%s) has no solid elements: not in the fields",
                s->bodies[b].name, file);
     } else {
       FMBD_GCHECK(r->nx < 64, FMBD_ERR_VALUE, "XDMF fields: more than 64 flexible bodies");
@@ -190,7 +191,6 @@ done:
   fmbd_h5_close(&f);
   return rc;
 }
-
 
 int fmbd_scene_recorder_create(const fmbd_scene *s, fmbd_scene_model *m, fmbd_runfile *rf,
                                const char *xdmf_name, fmbd_scene_recorder **out) {

@@ -102,7 +102,7 @@ int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const f
   FMBD_CHECK(nm >= 0 && nm <= r->nm, FMBD_ERR_VALUE, "body '%s': %lld modes of %lld", name,
              (long long)nm, (long long)r->nm);
   // the elements: tet10 or tet4, one kind for the whole run
-  int k = fmbd_h5_exists(f, "/mesh/elements/tet10") ? 10
+  int k = fmbd_h5_exists(f, "/mesh/elements/tet10")  ? 10
           : fmbd_h5_exists(f, "/mesh/elements/tet4") ? 4
                                                      : 0;
   FMBD_CHECK(k, FMBD_ERR_VALUE,
@@ -114,8 +114,8 @@ int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const f
              "element kind",
              name, k, x->cell_nodes);
   int64_t dims[2] = {-1, k};
-  FMBD_GCALL(fmbd_h5_read_i64(f, k == 10 ? "/mesh/elements/tet10" : "/mesh/elements/tet4", 2,
-                              dims, &el));
+  FMBD_GCALL(
+      fmbd_h5_read_i64(f, k == 10 ? "/mesh/elements/tet10" : "/mesh/elements/tet4", 2, dims, &el));
   int64_t ne = dims[0], nn = r->nnodes;
   xbody *nb = fmbd_realloc(x->b, sizeof(xbody) * (size_t)(x->nb + 1));
   FMBD_GCHECK(nb, FMBD_ERR_NOMEM, "out of memory");
@@ -149,8 +149,8 @@ int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const f
   for (int64_t e = 0; e < ne; e++) {
     for (int j = 0; j < k; j++) {
       int64_t v = el[e * k + j];
-      FMBD_GCHECK(v >= 0 && v < nn, FMBD_ERR_FORMAT, "%s:/mesh/elements: node %lld of %lld",
-                  file, (long long)v, (long long)nn);
+      FMBD_GCHECK(v >= 0 && v < nn, FMBD_ERR_FORMAT, "%s:/mesh/elements: node %lld of %lld", file,
+                  (long long)v, (long long)nn);
     }
     if (k == 10) {
       int64_t s = el[e * k + 8];
@@ -300,8 +300,7 @@ int fmbd_xdmf_commit(fmbd_xdmf **xp) {
     snprintf(path, sizeof path, "/fields/frames/%" PRId64 "/displacement", k);
     item(o, h5, path, x->nnodes, 3, false);
     fprintf(o, "        </Attribute>\n");
-    fprintf(o,
-            "        <Attribute Name=\"von_mises\" AttributeType=\"Scalar\" Center=\"Node\">\n");
+    fprintf(o, "        <Attribute Name=\"von_mises\" AttributeType=\"Scalar\" Center=\"Node\">\n");
     snprintf(path, sizeof path, "/fields/frames/%" PRId64 "/von_mises", k);
     item(o, h5, path, x->nnodes, 0, false);
     fprintf(o, "        </Attribute>\n      </Grid>\n");
