@@ -425,6 +425,8 @@ int fmbd_runfile_compare(fmbd_runfile *rf, const char *ref, double t0, double t1
   int64_t nr = 0;
   if (nerr) *nerr = 0;
   if (errors) *errors = NULL;
+  FMBD_CHECK(rf->keep, FMBD_ERR_VALUE,
+             "%s: compared with a reference, but created without keep_history", rf->name);
   FMBD_GCALL(fmbd_h5_open(ref, &g));
   FMBD_GCALL(check_reference(g, ref, &rt, &nr));
   FMBD_GALLOC(err = fmbd_calloc((size_t)rf->n + 1, sizeof *err));
