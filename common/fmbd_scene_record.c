@@ -160,8 +160,14 @@ static int add_fields(run *r, const char *xdmf_name) {
   FMBD_CALL(fmbd_xdmf_create(r->rf, xdmf_name, &r->xdmf));
   FMBD_GALLOC(r->xbody = fmbd_calloc((size_t)s->nbodies + 1, sizeof(int)));
   for (int b = 0; b < s->nbodies; b++) {
-    if (!m->flex[b]) continue;
-    const char *file = s->bodies[b].file;
+    if (!m->file_kind || !m->file_kind[b]) continue;  // rigid
+    const char *file = s->bodies[b].file, *kind = m->file_kind[b];
+    if (!m->flex[b] || (strcmp(kind, FMBD_RFLEX_FORMAT) && strcmp(kind, FMBD_CB_FORMAT))) {
+      fmbd_log(FMBD_LOG_WARN,
+               "XDMF fields: body '%s' (%s, %s) is not a modal body: not in the fields",
+               s->bodies[b].name, file, kind);
+      continue;
+    }
     FMBD_GCALL(fmbd_h5_open(file, &f));
     fmbd_err_context(file, "");
     if (!fmbd_h5_exists(f, "/mesh/elements/tet4") && !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
