@@ -293,13 +293,7 @@ static void on_signal(int sig) {
   g_signal = sig;
 }
 void fmbd_runfile_catch_signals(void) {
-  struct sigaction sa;
-  memset(&sa, 0, sizeof sa);
-  sa.sa_handler = on_signal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, NULL);
-  sigaction(SIGTERM, &sa, NULL);
-  sigaction(SIGHUP, &sa, NULL);
+  fmbd_cli_on_signals(on_signal);
 }
 int fmbd_runfile_signal(void) {
   return (int)g_signal;
