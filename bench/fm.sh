@@ -58,7 +58,7 @@ for s in sizes:
         cpu = st["run_cpu_time_s"]
         est = cpu / st["t_reached"] * 7 / 60
         print(f"{'FM ' + s + ' ' + mode:30s} {st['coordinates']:7d} {st['steps']:6d} {st['rejected_steps']:4d} "
-              f"{st['newton_iterations']:7d} {st['factorizations']:5d} {cpu:7.2f} "
+              f"{st['newton_iterations']:7d} {st['factorizations']:5d} {cpu:7.3g} "
               f"{1e3 * cpu / st['steps']:8.1f} {1e3 * cpu / st['newton_iterations']:8.2f} {est:7.1f} min")
         rows.append((s, mode, st))
 for mode, text in (("fixed 5e-4", fixed), ("variable", scene)):
@@ -66,7 +66,7 @@ for mode, text in (("fixed 5e-4", fixed), ("variable", scene)):
     if st:
         cpu = st["run_cpu_time_s"]
         print(f"{'CB 30 modes (' + sizes[-1] + ') ' + mode:30s} {st['coordinates']:7d} {st['steps']:6d} "
-              f"{st['rejected_steps']:4d} {st['newton_iterations']:7d} {st['factorizations']:5d} {cpu:7.2f} "
+              f"{st['rejected_steps']:4d} {st['newton_iterations']:7d} {st['factorizations']:5d} {cpu:7.3g} "
               f"{1e3 * cpu / st['steps']:8.1f} {1e3 * cpu / st['newton_iterations']:8.2f} "
               f"{cpu / st['t_reached'] * 7 / 60:7.1f} min")
 # the variable-step rate past the first step-size ramp (from first_step 1e-6 s): the smallest
@@ -76,7 +76,7 @@ st = run(f"fm{sizes[0]}-var-long", scene.replace("t_end: 0.05", "t_end: 0.5")
 if st:
     cpu = st["run_cpu_time_s"]
     print(f"{'FM ' + sizes[0] + ' variable, 0.5 s':30s} {st['coordinates']:7d} {st['steps']:6d} "
-          f"{st['rejected_steps']:4d} {st['newton_iterations']:7d} {st['factorizations']:5d} {cpu:7.2f} "
+          f"{st['rejected_steps']:4d} {st['newton_iterations']:7d} {st['factorizations']:5d} {cpu:7.3g} "
           f"{1e3 * cpu / st['steps']:8.1f} {1e3 * cpu / st['newton_iterations']:8.2f} "
           f"{cpu / st['t_reached'] * 7 / 60:7.1f} min")
 fx = [(r[2]["coordinates"], r[2]["run_cpu_time_s"] / r[2]["newton_iterations"]) for r in rows if r[1] == "fixed 5e-4"]
