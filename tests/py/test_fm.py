@@ -131,6 +131,7 @@ joints:
 outputs:
   every: EVERY
   energy: true
+  reactions: [clamp]
   points:
     - {name: tip, body: rod, node: TIP, quantities: [position, von_mises]}
 """
@@ -148,6 +149,13 @@ check(abs(y_tip / u_tip - 1) < 1e-5, f"static tip deflection {y_tip:.6e} m vs sc
 with h5py.File(os.path.join(TMP, "static.run.h5"), "r") as f:
     vm = f["outputs/tip/von_mises"][:]
     es = f["energy/strain"][-1]
+    Fr = f["reactions/clamp/force"][-1]
+with h5py.File(fe, "r") as f:
+    mass = float(f["body"].attrs["mass"])
+# settled: the clamp carries the weight (the reaction on side 1, ground, is minus the force on
+# the rod); the same Newton and transient bounds as the deflection: 1e-6 relative
+check(abs(Fr[1] / (-mass * 9.81) - 1) < 1e-6 and abs(Fr[0]) + abs(Fr[2]) < 1e-6 * mass * 9.81,
+      f"clamp reaction {Fr} N carries the weight {mass * 9.81:.6f} N")
 # the strain energy of the static solution is u'K u / 2
 es_ref = 0.5 * u @ (Kf @ u)
 check(abs(es / es_ref - 1) < 1e-3, f"strain energy {es:.6e} J vs scipy {es_ref:.6e} J")
