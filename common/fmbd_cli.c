@@ -86,14 +86,18 @@ static void on_fatal_signal(int sig) {
   _exit(1);
 }
 
-void fmbd_cli_init(const char *prog, int argc, char **argv) {
+void fmbd_cli_on_signals(void (*handler)(int)) {
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
-  sa.sa_handler = on_fatal_signal;
+  sa.sa_handler = handler;
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
   sigaction(SIGHUP, &sa, NULL);
+}
+
+void fmbd_cli_init(const char *prog, int argc, char **argv) {
+  fmbd_cli_on_signals(on_fatal_signal);
   fmbd_timer_start(&g_timer);
   g_timer_started = true;
   fmbd_log_init(prog, FMBD_LOG_WARN);
@@ -175,6 +179,12 @@ int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const
   }
   FMBD_CHECK(input && strcmp(input, "-") != 0, FMBD_ERR_USAGE,
              "reading standard input: give the output name with -o (or pipe the output)");
+  return fmbd_cli_derive_name(input, strip, suffix, out);
+}
+
+int fmbd_cli_derive_name(const char *input, const char *const *strip, const char *suffix,
+                         char **out) {
+  *out = NULL;
   // --- cut the longest matching ending of `strip`, else the last ".ext" of the base name ---
   size_t n = strlen(input), cut = n;
   size_t best = 0;

@@ -11,6 +11,10 @@ const char *fmbd_version(void);
 /// @brief Start of every main(): program name for messages, the command line (kept for the
 /// command_line attribute), start of the wall/CPU timer, HDF5 error printing off.
 void fmbd_cli_init(const char *prog, int argc, char **argv);
+/// @brief Handle SIGINT, SIGTERM and SIGHUP with `handler` (fmbd_cli_init installs one that
+/// removes the output being written and exits 1; fmbd_runfile_catch_signals one that only sets a
+/// flag, so that a run keeps its valid prefix).
+void fmbd_cli_on_signals(void (*handler)(int));
 /// @brief The command line as one shell-quoted string (borrowed).
 const char *fmbd_cli_command_line(void);
 /// @brief Seconds of wall / CPU time since fmbd_cli_init.
@@ -29,6 +33,13 @@ void fmbd_cli_set_verbosity(int quiet, int verbose);
 /// @param[out] out caller frees with fmbd_free
 int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
                          const char *suffix, char **out);
+
+/// @brief The name fmbd_cli_output_name derives from a file name: the longest of `strip` that
+/// ends it cut (else its last ".ext"), then `suffix` appended ("scene.yaml" -> "scene.run.h5",
+/// "pend.run.h5" with {".h5"} -> "pend.run.xdmf"). A result equal to the input: usage error.
+/// @param[out] out caller frees with fmbd_free
+int fmbd_cli_derive_name(const char *input, const char *const *strip, const char *suffix,
+                         char **out);
 
 /// @brief True when a and b name the same existing file (same device and inode: also through
 /// another path, a hard or a symbolic link). "-" (a stream) is never the same file.

@@ -53,6 +53,11 @@
 //   int rho S_l x S_k, H_k,ab = int rho S_k,a u_b; D = diag(2 zeta_k sqrt(K_kk)) modal
 //   damping (zeta = damping ratio). A rigid body is the case nm = 0 with c0 = m com,
 //   J0 = (tr(Ic)/2) 1 - Ic + m com com' (no flexible term is evaluated).
+//   FULL FE BODIES (fmbd_mbs_add_fe; docs/THEORY.md section 4b): q = every FE dof the frame
+//   does not fix, S_k the nodal interpolation of dof k; the same equations with the
+//   invariants evaluated as sparse products with the nodal map E and the scalar nodal mass Mn
+//   (never an n x n dense array), Mff, Kff, D the sparse FE matrices; the body's block in the
+//   iteration matrix is [7 x 7, 7 x n coupling, n x n on the pattern of M + K + D].
 //   Constraints Phi(x, t) = 0 of joints (below), drivers and normalisations:
 //     M(x) x'' + Phi_x' lambda = Q(x, x', t),  Phi(x, t) = 0.                 [H8, C6]
 // INTEGRATOR: generalized-alpha for the index-3 system in the form of Arnold & Bruls (2007,
@@ -69,7 +74,8 @@
 //   gamma' = gamma/(beta h). Tangent: M exact (plus a mass mu p p' on the Euler parameters,
 //   mu = snorm/4: it makes the block regular and leaves the physics unchanged since G p = 0;
 //   the normalisation multiplier absorbs it); C_t the complete derivative of the quadratic
-//   velocity vector with respect to [R', wb, q'] and the modal damping; K_t = Kff only.
+//   velocity vector with respect to [R', wb, q'] and the modal damping (FE bodies: the same,
+//   with their damping D and gyroscopic block); K_t = Kff only.
 //   Neglected (convergence is monitored every iteration): the derivatives with respect to x
 //   of M x'', of the quadratic velocity vector, of gravity and loads (follower loads too), and
 //   the geometric stiffness (Phi_x' lambda)_x; they carry a factor h^2 relative to M.
@@ -211,6 +217,28 @@ typedef struct fmbd_mbs_flex_data {
   const double *q0, *qd0;   ///< initial modal coordinates and rates (nm each; NULL: zero)
 } fmbd_mbs_flex_data;
 
+/// A full finite-element body (docs/THEORY.md section 4b): every FE dof that the frame does
+/// not fix is a coordinate (nm = n), in the floating frame of reference. All matrices are
+/// sparse and copied; nothing of size n x n is ever dense. The inertia invariants are
+/// evaluated on the fly from a scalar nodal mass Mn and the map E from the coordinates to the
+/// nodal translations (THEORY 4b): S1 q = 1' Mn U, XS q = x' Mn U, SS q q = U' Mn U with
+/// U = E q (U_a: the a components of all nodes).
+typedef struct fmbd_mbs_fe_data {
+  int64_t n;                ///< coordinates (FE dofs not fixed by the frame), >= 1
+  double mass;              ///< m > 0
+  double first_moment[3];   ///< c0 = int rho x0 dV
+  double second_moment[9];  ///< J0 (symmetric)
+  const fmbd_csr *M, *K;    ///< n x n mass and stiffness (full symmetric storage)
+  const fmbd_csr *D;        ///< n x n damping (full symmetric storage) or NULL
+  int64_t nnodes;           ///< nodes of the body
+  const double *node_xyz;   ///< 3 x nnodes reference positions (body frame), xyz[a + 3p]
+  const fmbd_csr *Mn;       ///< nnodes x nnodes scalar mass of the invariants (symmetric)
+  const fmbd_csr *E;        ///< (3 nnodes) x n: row a nnodes + p = translation a of node p
+  const int64_t *dofs;      ///< 2 x n: node and direction (0..5) of each coordinate, or NULL
+                            ///< (names in messages)
+  const double *q0, *qd0;   ///< initial coordinates and rates (n each; NULL: zero)
+} fmbd_mbs_fe_data;
+
 /// @brief Create an empty system (no gravity).
 /// @param[out] out caller destroys with fmbd_mbs_destroy
 int fmbd_mbs_create(fmbd_mbs **out);
@@ -232,6 +260,13 @@ int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double 
 /// @return FMBD_OK, FMBD_ERR_VALUE (mass <= 0, Mff not positive definite, ...), FMBD_ERR_NOMEM
 int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d,
                       const fmbd_mbs_state0 *s0, int *id);
+
+/// @brief Add a full FE body (fmbd_mbs_fe_data). Its points (fmbd_mbs_add_point) take T and
+/// Rot as for a modal body (3 x n); only their nonzero columns are kept, so a point's
+/// equations touch only the coordinates that move it.
+/// @return FMBD_OK, FMBD_ERR_VALUE (sizes, mass, non-finite values), FMBD_ERR_NOMEM
+int fmbd_mbs_add_fe(fmbd_mbs *m, const char *name, const fmbd_mbs_fe_data *d,
+                    const fmbd_mbs_state0 *s0, int *id);
 
 /// @brief Add a point (joint attachment, load point, output point) on a body.
 /// @param[in] body  body id or FMBD_MBS_GROUND
