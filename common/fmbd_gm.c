@@ -141,8 +141,8 @@ int fmbd_gm_nullspace(const fmbd_csr *Cq, double rank_tol, fmbd_gm_null *N, int6
   klu_l_defaults(&kc);
   memset(N, 0, sizeof *N);
   if (bad_row) *bad_row = -1;
-  FMBD_CHECK(m <= n, FMBD_ERR_VALUE, "%lld constraint equations on %lld coordinates",
-             (long long)m, (long long)n);
+  FMBD_CHECK(m <= n, FMBD_ERR_VALUE, "%lld constraint equations on %lld coordinates", (long long)m,
+             (long long)n);
   N->n = n;
   N->m = m;
   // --- the touched columns ---
@@ -358,8 +358,7 @@ int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, cons
     FMBD_GCHECK(o.nmodes >= 1 && o.nmodes <= nflex_all, FMBD_ERR_VALUE,
                 "%lld flexible modes asked for; the mechanism has %lld (%lld independent "
                 "coordinates, f = %lld)",
-                (long long)o.nmodes, (long long)nflex_all, (long long)nz,
-                (long long)res->mobility);
+                (long long)o.nmodes, (long long)nflex_all, (long long)nz, (long long)res->mobility);
   }
   // --- the reduced problem ---
   t0 = fmbd_wall_s();
@@ -381,14 +380,23 @@ int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, cons
     eo.nev = res->mobility + o.nmodes;
   }
   t0 = fmbd_wall_s();
-  FMBD_GCALL(fmbd_eig_solve(Kr, Mr, NULL, &eo, &res->eig));
+  rc = fmbd_eig_solve(Kr, Mr, NULL, &eo, &res->eig);
+  if (rc == FMBD_ERR_SINGULAR) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    FMBD_GFAIL(rc,
+               "the mass matrix on the constraints' null space is not positive definite (%s): a "
+               "body's inertia invariants disagree with its modal mass (e.g. lumped-mass "
+               "invariants of a beam with a nearly complete modal basis)",
+               msg);
+  }
+  FMBD_GCALL(rc);
   res->t_eig_s = fmbd_wall_s() - t0;
   int64_t ne = res->eig.nev;
   int64_t f = 0;
   while (f < ne && res->eig.lambda[f] <= res->zero_bound) f++;
   res->f = f;
-  FMBD_GCHECK(f == res->mobility,
-              FMBD_ERR_VALUE,
+  FMBD_GCHECK(f == res->mobility, FMBD_ERR_VALUE,
               "%lld zero-frequency modes found (eigenvalues below %.3g), but the mobility of the "
               "mechanism is %lld: the configuration is singular or the model inconsistent",
               (long long)f, res->zero_bound, (long long)res->mobility);
@@ -466,17 +474,17 @@ int fmbd_gm_gmc(int64_t nq, int64_t nk, const double *Q, const double *W, double
   FMBD_GALLOC(WO = fmbd_malloc(sizeof(double) * (size_t)(nq * nk + 1)));  // W times them
   FMBD_GALLOC(v = fmbd_malloc(sizeof(double) * (size_t)(nq + 1)));
   FMBD_GALLOC(wv = fmbd_malloc(sizeof(double) * (size_t)(nq + 1)));
-#define WMUL(x, y)                                                          \
-  do {                                                                      \
-    for (int64_t i_ = 0; i_ < nq; i_++) {                                   \
-      double s_ = 0.0;                                                      \
-      if (W) {                                                              \
+#define WMUL(x, y)                                                           \
+  do {                                                                       \
+    for (int64_t i_ = 0; i_ < nq; i_++) {                                    \
+      double s_ = 0.0;                                                       \
+      if (W) {                                                               \
         for (int64_t j_ = 0; j_ < nq; j_++) s_ += W[i_ + nq * j_] * (x)[j_]; \
-      } else {                                                              \
-        s_ = (x)[i_];                                                       \
-      }                                                                     \
-      (y)[i_] = s_;                                                         \
-    }                                                                       \
+      } else {                                                               \
+        s_ = (x)[i_];                                                        \
+      }                                                                      \
+      (y)[i_] = s_;                                                          \
+    }                                                                        \
   } while (0)
   double big = 0.0;
   for (int64_t k = 0; k < nk; k++) {

@@ -35,6 +35,10 @@
 #include "fmbd_csr.h"
 #include "fmbd_eig.h"
 
+#define FMBD_GM_FORMAT "fmbd-gm"
+#define FMBD_GM_FORMAT_VERSION "1.0"
+#define FMBD_GM_FORMAT_MAJOR 1
+
 /// Options: fill with fmbd_gm_defaults.
 typedef struct fmbd_gm_opts {
   int64_t nmodes;     ///< flexible modes wanted (count mode), default 10
@@ -49,11 +53,11 @@ void fmbd_gm_defaults(fmbd_gm_opts *o);
 
 /// A sparse null-space basis of Cq by coordinate partitioning.
 typedef struct fmbd_gm_null {
-  int64_t n, m;   ///< coordinates, equations (full row rank)
-  fmbd_csr *Z;    ///< n x (n - m), Cq Z = 0
-  int64_t *dep;   ///< (m) the dependent coordinates (columns of Cd), in pivot order
-  int64_t *ind;   ///< (n - m) the independent coordinates, increasing: column k of Z is
-                  ///< the unit vector at ind[k] plus the dependent rows
+  int64_t n, m;      ///< coordinates, equations (full row rank)
+  fmbd_csr *Z;       ///< n x (n - m), Cq Z = 0
+  int64_t *dep;      ///< (m) the dependent coordinates (columns of Cd), in pivot order
+  int64_t *ind;      ///< (n - m) the independent coordinates, increasing: column k of Z is
+                     ///< the unit vector at ind[k] plus the dependent rows
   int64_t ntouched;  ///< columns Cq touches
   double cond_est;   ///< |R_11| / |R_mm| of the pivoted QR (a conditioning indicator of Cd)
 } fmbd_gm_null;
