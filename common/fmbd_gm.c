@@ -6,6 +6,7 @@
 #include <klu.h>
 #include <lapacke.h>
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "fmbd_alloc.h"
