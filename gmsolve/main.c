@@ -107,7 +107,8 @@ static int parse_args(int argc, char **argv, args *a) {
     } else if (!strcmp(arg, "--dense-max")) {
       NEED_VALUE();
       if (fmbd_cli_parse_int(arg, val, &a->dense_max)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (a->dense_max < 0) return fmbd_cli_usage_error("--dense-max: %ld is negative", a->dense_max);
+      if (a->dense_max < 0)
+        return fmbd_cli_usage_error("--dense-max: %ld is negative", a->dense_max);
     } else if (!strcmp(arg, "--keep-drivers")) {
       a->keep_drivers = true;
     } else if (!strcmp(arg, "--matrices")) {
@@ -323,8 +324,10 @@ static int write_body(fmbd_h5 *f, const fmbd_scene *s, const fmbd_scene_model *m
   int64_t removed = nk - nc;
   FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "columns_removed", 1, &removed));
   if (nc == 0) {
-    fmbd_log(FMBD_LOG_WARN, "%s:%d: body '%s' does not deform in any of the %lld global modes: "
-             "its GMc basis is empty", s->file, s->bodies[bi].loc.line, name, (long long)nk);
+    fmbd_log(FMBD_LOG_WARN,
+             "%s:%d: body '%s' does not deform in any of the %lld global modes: "
+             "its GMc basis is empty",
+             s->file, s->bodies[bi].loc.line, name, (long long)nk);
   }
 done:
   fmbd_free(Q);
@@ -389,7 +392,8 @@ int main(int argc, char **argv) {
   // --- the mechanism ---
   double t0 = fmbd_wall_s();
   FMBD_GCALL(fmbd_scene_build(s, &md));
-  for (int i = 0; i < md->ninputs; i++) FMBD_GCALL(fmbd_cli_check_not_input(oname, md->input_name[i]));
+  for (int i = 0; i < md->ninputs; i++)
+    FMBD_GCALL(fmbd_cli_check_not_input(oname, md->input_name[i]));
   bool any_flex = false;
   for (int i = 0; i < s->nbodies; i++) any_flex |= s->bodies[i].kind == FMBD_SCENE_FLEXIBLE;
   rc = fmbd_mbs_init(md->mbs, &s->solver);
@@ -455,7 +459,8 @@ int main(int argc, char **argv) {
   if (rc) {
     char msg[1100], name[600] = "";
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
-    if (rc == FMBD_ERR_SINGULAR && bad >= 0) eq_name(s, md, &qm, L.eq[rows[bad]], name, sizeof name);
+    if (rc == FMBD_ERR_SINGULAR && bad >= 0)
+      eq_name(s, md, &qm, L.eq[rows[bad]], name, sizeof name);
     fmbd_err_context(a.input, "");
     FMBD_GFAIL(rc, "%s%s%s%s", msg, name[0] ? " (" : "", name, name[0] ? ")" : "");
   }
@@ -577,12 +582,14 @@ int main(int argc, char **argv) {
   double t_write = fmbd_wall_s() - t1;
   double max_resid = 0.0;
   for (int64_t k = f; k < ne; k++) max_resid = fmax(max_resid, res.resid[k]);
-  fmbd_log(FMBD_LOG_INFO,
-           "%lld coordinates, %lld constraint rows (%lld driver rows %s); null space %lld with %lld "
-           "entries in Z; %s eigensolution; Sturm count %lld; max residual of the flexible pairs %.2g, max |Cq x| %.2g",
-           (long long)n, (long long)m, (long long)ndrv, a.keep_drivers ? "kept" : "left out",
-           (long long)res.nz, (long long)res.nnz_z, res.eig.dense ? "dense" : "Lanczos",
-           (long long)res.eig.sturm_count, max_resid, res.cq_resid);
+  fmbd_log(
+      FMBD_LOG_INFO,
+      "%lld coordinates, %lld constraint rows (%lld driver rows %s); null space %lld with %lld "
+      "entries in Z; %s eigensolution; Sturm count %lld; max residual of the flexible pairs %.2g, "
+      "max |Cq x| %.2g",
+      (long long)n, (long long)m, (long long)ndrv, a.keep_drivers ? "kept" : "left out",
+      (long long)res.nz, (long long)res.nnz_z, res.eig.dense ? "dense" : "Lanczos",
+      (long long)res.eig.sturm_count, max_resid, res.cq_resid);
   fmbd_log(FMBD_LOG_INFO,
            "time: build and linearise %.3g s, null space %.3g s, projection %.3g s, "
            "eigensolution %.3g s, write %.3g s",
