@@ -23,7 +23,8 @@
 
 static const char *usage_text =
     "Usage: gmsolve SCENE.yaml [-o SCENE.gm.h5] [--modes K | --fmax HZ] [--at T]\n"
-    "               [--keep-drivers] [--rank-tol E] [--matrices] [--dense-max N] [-M]\n"
+    "               [--keep-drivers] [--rank-tol E] [--matrices] [--dense-max N]\n"
+    "               [--body-dir DIR] [-M]\n"
     "Global modes of a mechanism linearised at a rigid-reference configuration (Cammarata\n"
     "2021): the constrained eigenproblem K x = w^2 M x, Cq x = 0 solved on a sparse null-\n"
     "space basis of the constraint Jacobian (checked so that no mode is skipped), the f\n"
@@ -49,6 +50,8 @@ static const char *usage_text =
     "                   (/linear), e.g. for an independent check\n"
     "  --dense-max N    solve the reduced eigenproblem densely (LAPACK) up to order N, by\n"
     "                   shift-invert Lanczos above (default 400)\n"
+    "  --body-dir DIR   resolve the scene's body files against DIR instead of the scene's\n"
+    "                   folder (as fmbd-run --body-dir)\n"
     "  -M               print make rules of the files the scene needs (as fmbd-run -M) for\n"
     "                   the target SCENE.gm.h5, and exit\n"
     "  -q, --quiet      errors only\n"
@@ -60,7 +63,7 @@ static const char *usage_text =
     "  gmsolve fourbar.yaml --modes 12 -o fourbar.gm.h5\n";
 
 typedef struct args {
-  const char *input, *output;
+  const char *input, *output, *body_dir;
   long modes;
   bool modes_given;
   double fmax_hz, at, rank_tol;
@@ -109,6 +112,9 @@ static int parse_args(int argc, char **argv, args *a) {
       if (fmbd_cli_parse_int(arg, val, &a->dense_max)) return fmbd_cli_finish(FMBD_ERR_USAGE);
       if (a->dense_max < 0)
         return fmbd_cli_usage_error("--dense-max: %ld is negative", a->dense_max);
+    } else if (!strcmp(arg, "--body-dir")) {
+      NEED_VALUE();
+      a->body_dir = val;
     } else if (!strcmp(arg, "--keep-drivers")) {
       a->keep_drivers = true;
     } else if (!strcmp(arg, "--matrices")) {
@@ -369,7 +375,7 @@ int main(int argc, char **argv) {
   static const char *const strip[] = {".yaml", ".yml", NULL};
   double T = a.at_given ? a.at : 0.0;
 
-  FMBD_GCALL(fmbd_scene_read(a.input, &s));
+  FMBD_GCALL(fmbd_scene_read_dir(a.input, a.body_dir, &s));
   if (a.make_rules) {
     if (a.output) {
       FMBD_GALLOC(oname = fmbd_strdup(a.output));
