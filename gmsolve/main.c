@@ -183,12 +183,13 @@ static void eq_name(const fmbd_scene *s, const fmbd_scene_model *md, const eqmap
 
 // --- the rigid-reference configuration -----------------------------------------------------------
 // Elastic coordinates zero, the frame coordinates moved (least change) onto Phi(x, T) = 0 by
-// Newton steps dx_r = -Cr' (Cr Cr')^-1 phi on the frame coordinates (Cr: Cq's frame columns).
+// Gauss-Newton steps dx_r = -Cr' (Cr Cr')^+ phi on the frame coordinates (Cr: Cq's frame
+// columns; pseudo-inverse: rows dependent on the frames alone are allowed).
 static int rigid_reference(fmbd_mbs *mbs, const fmbd_scene *s, const fmbd_scene_model *md,
                            const eqmap *qm, const bool *rigid, double T, double *x) {
   int rc = FMBD_OK;
   int64_t n = fmbd_mbs_ncoordinates(mbs);
-  double *xd = NULL, *G = NULL, *y = NULL;
+  double *xd = NULL, *G = NULL, *y = NULL, *ev = NULL, *tmp = NULL;
   fmbd_mbs_linear L = {0};
   memcpy(x, fmbd_mbs_state(mbs), sizeof(double) * (size_t)n);
   for (int64_t i = 0; i < n; i++) {
@@ -224,6 +225,10 @@ static int rigid_reference(fmbd_mbs *mbs, const fmbd_scene *s, const fmbd_scene_
     fmbd_free(y);
     FMBD_GALLOC(G = fmbd_calloc((size_t)(m * m + 1), sizeof(double)));
     FMBD_GALLOC(y = fmbd_calloc((size_t)(m + 1), sizeof(double)));
+    fmbd_free(ev);
+    fmbd_free(tmp);
+    FMBD_GALLOC(ev = fmbd_calloc((size_t)(m + 1), sizeof(double)));
+    FMBD_GALLOC(tmp = fmbd_calloc((size_t)(m + 1), sizeof(double)));
     const fmbd_csr *C = L.Cq;
     for (int64_t a = 0; a < m; a++) {
       for (int64_t b = a; b < m; b++) {
@@ -241,18 +246,22 @@ static int rigid_reference(fmbd_mbs *mbs, const fmbd_scene *s, const fmbd_scene_
         }
         G[a + m * b] = G[b + m * a] = g;
       }
-      y[a] = L.phi[a];
     }
-    rc = fmbd_dense_chol(m, G);
-    if (rc) {
-      fmbd_err_context(s->file, "");
-      FMBD_GFAIL(FMBD_ERR_SINGULAR,
-                 "the constraints cannot be solved for the frame coordinates at t = %g s (their "
-                 "Jacobian on the frames is singular: an equation on elastic coordinates only, or "
-                 "a singular configuration)",
-                 T);
+    // y = G^+ phi by the eigen-decomposition of G: the equations may be dependent on the
+    // frame coordinates alone (kept because the elastic coordinates make them independent)
+    FMBD_GCALL(fmbd_dense_syev(m, G, ev));
+    double top = m > 0 ? fabs(ev[m - 1]) : 0.0;
+    for (int64_t k = 0; k < m; k++) {
+      double c = 0.0;
+      for (int64_t r = 0; r < m; r++) c += G[r + m * k] * L.phi[r];
+      // eigenvalues below 1e-12 of the largest: round-off of a zero singular value squared
+      tmp[k] = ev[k] > 1e-12 * top ? c / ev[k] : 0.0;
     }
-    FMBD_GCALL(fmbd_dense_chol_solve(m, G, 1, y, m));
+    for (int64_t r = 0; r < m; r++) {
+      double c = 0.0;
+      for (int64_t k = 0; k < m; k++) c += G[r + m * k] * tmp[k];
+      y[r] = c;
+    }
     for (int64_t r = 0; r < m; r++) {
       for (int64_t p = C->indptr[r]; p < C->indptr[r + 1]; p++) {
         if (rigid[C->indices[p]]) x[C->indices[p]] -= C->data[p] * y[r];
@@ -264,6 +273,8 @@ done:
   fmbd_free(xd);
   fmbd_free(G);
   fmbd_free(y);
+  fmbd_free(ev);
+  fmbd_free(tmp);
   return rc;
 }
 
