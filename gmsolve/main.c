@@ -20,11 +20,12 @@
 #include "fmbd_mbs.h"
 #include "fmbd_scene.h"
 #include "fmbd_scene_build.h"
+#include "fmbd_svg.h"
 
 static const char *usage_text =
     "Usage: gmsolve SCENE.yaml [-o SCENE.gm.h5] [--modes K | --fmax HZ] [--at T]\n"
     "               [--keep-drivers] [--rank-tol E] [--matrices] [--dense-max N]\n"
-    "               [--body-dir DIR] [-M]\n"
+    "               [--plot PREFIX] [--body-dir DIR] [-M]\n"
     "Global modes of a mechanism linearised at a rigid-reference configuration (Cammarata\n"
     "2021): the constrained eigenproblem K x = w^2 M x, Cq x = 0 solved on a sparse null-\n"
     "space basis of the constraint Jacobian (checked so that no mode is skipped), the f\n"
@@ -50,6 +51,9 @@ static const char *usage_text =
     "                   (/linear), e.g. for an independent check\n"
     "  --dense-max N    solve the reduced eigenproblem densely (LAPACK) up to order N, by\n"
     "                   shift-invert Lanczos above (default 400)\n"
+    "  --plot PREFIX    PREFIX-mode1.svg ... PREFIX-mode6.svg: the first flexible modes drawn\n"
+    "                   on the mechanism (flexible bodies' nodes, rigid bodies' frame origins)\n"
+    "                   in the plane of its two largest extents\n"
     "  --body-dir DIR   resolve the scene's body files against DIR instead of the scene's\n"
     "                   folder (as fmbd-run --body-dir)\n"
     "  -M               print make rules of the files the scene needs (as fmbd-run -M) for\n"
@@ -63,7 +67,7 @@ static const char *usage_text =
     "  gmsolve fourbar.yaml --modes 12 -o fourbar.gm.h5\n";
 
 typedef struct args {
-  const char *input, *output, *body_dir;
+  const char *input, *output, *body_dir, *plot;
   long modes;
   bool modes_given;
   double fmax_hz, at, rank_tol;
@@ -112,6 +116,9 @@ static int parse_args(int argc, char **argv, args *a) {
       if (fmbd_cli_parse_int(arg, val, &a->dense_max)) return fmbd_cli_finish(FMBD_ERR_USAGE);
       if (a->dense_max < 0)
         return fmbd_cli_usage_error("--dense-max: %ld is negative", a->dense_max);
+    } else if (!strcmp(arg, "--plot")) {
+      NEED_VALUE();
+      a->plot = val;
     } else if (!strcmp(arg, "--body-dir")) {
       NEED_VALUE();
       a->body_dir = val;
@@ -357,6 +364,129 @@ done:
   return rc;
 }
 
+// --- --plot: the first modes drawn on the mechanism -------------------------------------------
+// Rotation matrix (row-major) of the Euler parameters p/|p|, as fmbd_mbs evaluates it (Nikravesh
+// 1988, eq. 6.19); used only to draw.
+static void quat_rot(const double *p, double *A) {
+  double n2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3];
+  double s = n2 > 0 ? 1.0 / n2 : 0.0, e0 = p[0], e1 = p[1], e2 = p[2], e3 = p[3];
+  A[0] = s * (e0 * e0 + e1 * e1 - e2 * e2 - e3 * e3);
+  A[1] = s * 2 * (e1 * e2 - e0 * e3);
+  A[2] = s * 2 * (e1 * e3 + e0 * e2);
+  A[3] = s * 2 * (e1 * e2 + e0 * e3);
+  A[4] = s * (e0 * e0 - e1 * e1 + e2 * e2 - e3 * e3);
+  A[5] = s * 2 * (e2 * e3 - e0 * e1);
+  A[6] = s * 2 * (e1 * e3 - e0 * e2);
+  A[7] = s * 2 * (e2 * e3 + e0 * e1);
+  A[8] = s * (e0 * e0 - e1 * e1 - e2 * e2 + e3 * e3);
+}
+
+// World positions of the drawn points (flexible bodies: every node; rigid bodies: the frame
+// origin) at the configuration x + eps dx, linearised in the elastic part: r = R + A (x0 + S q).
+static void draw_points(const fmbd_scene *s, const fmbd_scene_model *md, const int64_t *bodyoff,
+                        const double *x, const double *dx, double eps, double *P) {
+  int64_t k = 0;
+  for (int i = 0; i < s->nbodies; i++) {
+    int64_t off = bodyoff[md->body_id[i]];
+    double R[3], p[4], A[9];
+    for (int c = 0; c < 3; c++) R[c] = x[off + c] + (dx ? eps * dx[off + c] : 0.0);
+    for (int c = 0; c < 4; c++) p[c] = x[off + 3 + c] + (dx ? eps * dx[off + 3 + c] : 0.0);
+    quat_rot(p, A);
+    const fmbd_rflex *r = md->flex[i];
+    if (!r) {
+      memcpy(P + 3 * k++, R, sizeof R);
+      continue;
+    }
+    for (int64_t nd = 0; nd < r->nnodes; nd++) {
+      double u[3];
+      memcpy(u, r->node_xyz + 3 * nd, sizeof u);
+      if (dx) {
+        for (int c = 0; c < 3; c++) {
+          const fmbd_csr *E = r->expand;
+          for (int64_t q = E->indptr[6 * nd + c]; q < E->indptr[6 * nd + c + 1]; q++) {
+            const double *col = r->shapes + E->indices[q];
+            for (int64_t j = 0; j < r->nm; j++)
+              u[c] += eps * E->data[q] * col[r->ndof * j] * dx[off + 7 + j];
+          }
+        }
+      }
+      for (int a = 0; a < 3; a++) {
+        P[3 * k + a] = R[a] + A[3 * a] * u[0] + A[3 * a + 1] * u[1] + A[3 * a + 2] * u[2];
+      }
+      k++;
+    }
+  }
+}
+
+static int plot_modes(const char *prefix, const fmbd_scene *s, const fmbd_scene_model *md,
+                      const int64_t *bodyoff, const double *x, int64_t n, const double *Xf,
+                      int64_t nk, const double *fhz) {
+  int rc = FMBD_OK;
+  int64_t np = 0;
+  for (int i = 0; i < s->nbodies; i++) np += md->flex[i] ? md->flex[i]->nnodes : 1;
+  double *P0 = NULL, *P1 = NULL, *xy = NULL;
+  char *path = NULL;
+  FMBD_GALLOC(P0 = fmbd_malloc(sizeof(double) * (size_t)(3 * np)));
+  FMBD_GALLOC(P1 = fmbd_malloc(sizeof(double) * (size_t)(3 * np)));
+  FMBD_GALLOC(xy = fmbd_malloc(sizeof(double) * (size_t)(4 * np)));
+  FMBD_GALLOC(path = fmbd_malloc(strlen(prefix) + 32));
+  draw_points(s, md, bodyoff, x, NULL, 0.0, P0);
+  // the drawing plane: the two world axes along which the mechanism is largest
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (int64_t k = 0; k < np; k++) {
+    for (int a = 0; a < 3; a++)
+      lo[a] = fmin(lo[a], P0[3 * k + a]), hi[a] = fmax(hi[a], P0[3 * k + a]);
+  }
+  int ax0 = 0, ax1 = 1, small = 2;
+  for (int a = 0; a < 3; a++) {
+    if (hi[a] - lo[a] < hi[small] - lo[small]) small = a;
+  }
+  ax0 = small == 0 ? 1 : 0;
+  ax1 = small == 2 ? 1 : 2;
+  double size = fmax(fmax(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]);
+  static const char *axn[3] = {"x (m)", "y (m)", "z (m)"};
+  for (int64_t m = 0; m < nk && m < 6; m++) {
+    const double *dx = Xf + n * m;
+    // the largest point displacement is drawn as 10 % of the mechanism's size
+    double eps = 1e-6, big = 0.0;
+    draw_points(s, md, bodyoff, x, dx, eps, P1);
+    for (int64_t k = 0; k < np; k++) {
+      double d = 0.0;
+      for (int a = 0; a < 3; a++)
+        d += (P1[3 * k + a] - P0[3 * k + a]) * (P1[3 * k + a] - P0[3 * k + a]);
+      big = fmax(big, sqrt(d) / eps);
+    }
+    double scale = big > 0 ? 0.1 * (size > 0 ? size : 1.0) / big : 0.0;
+    // linear in the elastic part, nonlinear in the rotations: drawn at the scaled amplitude
+    draw_points(s, md, bodyoff, x, dx, scale, P1);
+    for (int64_t k = 0; k < np; k++) {
+      xy[k] = P0[3 * k + ax0];
+      xy[np + k] = P0[3 * k + ax1];
+      xy[2 * np + k] = P1[3 * k + ax0];
+      xy[3 * np + k] = P1[3 * k + ax1];
+    }
+    char title[160];
+    snprintf(title, sizeof title, "global mode %lld: %.6g Hz (amplitude scaled)", (long long)m + 1,
+             fhz[m]);
+    fmbd_svg_plot pl;
+    fmbd_svg_plot_defaults(&pl);
+    pl.title = title;
+    pl.xlabel = axn[ax0];
+    pl.ylabel = axn[ax1];
+    fmbd_svg_series sr[2] = {
+        {"reference", np, xy, xy + np, "#999999", FMBD_SVG_CIRCLE, FMBD_SVG_NOLINE},
+        {"mode", np, xy + 2 * np, xy + 3 * np, "#d62728", FMBD_SVG_CIRCLE, FMBD_SVG_NOLINE}};
+    sprintf(path, "%s-mode%lld.svg", prefix, (long long)m + 1);
+    FMBD_GCALL(fmbd_svg_write(path, &pl, 2, sr));
+  }
+done:
+  fmbd_free(P0);
+  fmbd_free(P1);
+  fmbd_free(xy);
+  fmbd_free(path);
+  return rc;
+}
+
 int main(int argc, char **argv) {
   fmbd_cli_init("gmsolve", argc, argv);
   args a;
@@ -595,6 +725,7 @@ int main(int argc, char **argv) {
     fmbd_log(FMBD_LOG_INFO, "body '%s': GMc basis of %lld columns (%lld dependent removed)",
              s->bodies[i].name, (long long)nc, (long long)(nk - nc));
   }
+  if (a.plot) FMBD_GCALL(plot_modes(a.plot, s, md, bodyoff, x, n, Xf, nk, fhz + f));
   FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
   double t_write = fmbd_wall_s() - t1;
   double max_resid = 0.0;

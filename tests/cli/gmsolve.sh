@@ -98,6 +98,9 @@ with h5py.File("fmax.gm.h5", "r") as h:
     fr = h["global/frequency_hz"][()]
     assert len(fr) >= 1 and fr[-1] <= 1000, fr
 PY
+gmsolve good.yaml -o plot.gm.h5 --modes 2 --plot pl -q || bad "--plot failed"
+{ grep -q '<svg' pl-mode1.svg && grep -q 'global mode 2' pl-mode2.svg && [ ! -e pl-mode3.svg ]; } \
+  || bad "--plot: pl-mode1.svg, pl-mode2.svg expected (and no third)"
 gmsolve -M good.yaml > rules.mk 2> err.txt || bad "-M failed: $(cat err.txt)"
 grep -q '^good\.gm\.h5: good\.yaml' rules.mk && grep -q 'coupler\.cb\.h5' rules.mk || bad "-M rules: $(cat rules.mk)"
 
