@@ -21,8 +21,13 @@
 //   guarantee: residual of every pair and the Sturm (LDL' inertia) count of the eigenvalues
 //   below the last one. Modes x = Z y, M-orthonormal (x'Mx = y'Mr y = 1).
 // - CLASSIFICATION. f rigid-reference (zero-frequency) modes: the eigenvalues below
-//   zero_tol * max_i(Kr_ii / Mr_ii) (zero_tol 1e-8: a zero eigenvalue comes out at round-off,
-//   about eps * that scale times the conditioning of Mr). f is checked against the
+//   zero_tol * max_i(Kr_ii / Mr_ii), zero_tol 1e-11. A zero eigenvalue comes out at round-off,
+//   about eps * that scale times the conditioning of Mr (5e-16 of the scale measured on a
+//   four-bar); the spurious extra "mode" of a singular configuration (a flattened
+//   parallelogram, met to the projection's 1e-12) at 8e-12 of it must count as a zero, so that
+//   the mobility check refuses it; a genuine soft mode must stay above: the first bending mode of
+//   a chain of 16 slender links is 6e-10 of the scale, of 64 such links 2.4e-12 (refused: such a
+//   mechanism cannot be told from a singular one at this precision). f is checked against the
 //   mechanism's mobility computed independently, n_r - rank(Cq restricted to the
 //   coordinates K does not stiffen), the zero modes being exactly the motions without
 //   strain that the constraints allow; a mismatch is an error. The rest are flexible modes.
@@ -43,9 +48,9 @@
 typedef struct fmbd_gm_opts {
   int64_t nmodes;     ///< flexible modes wanted (count mode), default 10
   double lambda_max;  ///< > 0: every flexible mode with w^2 <= lambda_max instead (bound mode)
-  double zero_tol;    ///< zero-mode threshold relative to max(Kr_ii/Mr_ii), default 1e-8
+  double zero_tol;    ///< zero-mode threshold relative to max(Kr_ii/Mr_ii), default 1e-11
   double rank_tol;    ///< pivot threshold of the partitioning and mobility QR, default 1e-10
-  int64_t dense_max;  ///< passed to fmbd_eig (default: fmbd_eig's)
+  int64_t dense_max;  ///< passed to fmbd_eig, default 1000 (see fmbd_gm_defaults)
   fmbd_eig_progress_fn progress;
   void *progress_ctx;
 } fmbd_gm_opts;

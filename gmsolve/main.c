@@ -50,7 +50,7 @@ static const char *usage_text =
     "  --matrices       also write the linearised M, K and the constraint Jacobian used\n"
     "                   (/linear), e.g. for an independent check\n"
     "  --dense-max N    solve the reduced eigenproblem densely (LAPACK) up to order N, by\n"
-    "                   shift-invert Lanczos above (default 400)\n"
+    "                   shift-invert Lanczos above (default 1000)\n"
     "  --plot PREFIX    PREFIX-mode1.svg ... PREFIX-mode6.svg: the first flexible modes drawn\n"
     "                   on the mechanism (flexible bodies' nodes, rigid bodies' frame origins)\n"
     "                   in the plane of its two largest extents\n"
