@@ -40,7 +40,7 @@ scene good.yaml "0.4, 0.1, 0" ""
 # the rocker's frame driven along x, at t = 0.5 s 0.5 m away from where the 0.1 m rocker can reach
 scene far.yaml "0.4, 0.1, 0" ""
 sed -i 's/{name: motor, joint: O, function: {type: linear, rate: 6.283185307179586}}/{name: push, body: rocker, coordinate: x, function: {type: linear, v0: 0.4, rate: 1}}/' far.yaml
-scene notbody.yaml "0.4, 0.1, 0" "" coupler.fe.h5
+scene notbody.yaml "0.4, 0.1, 0" "" good.gm.h5
 scene missing.yaml "0.4, 0.1, 0" "" nosuch.cb.h5
 scene typo.yaml "0.4, 0.1, 0" ", colour: red"
 cat > clamped.yaml <<'YAML'
@@ -109,7 +109,7 @@ gmsolve far.yaml -o far.gm.h5 --modes 2 -q || bad "far.yaml at t = 0 (reachable)
 expect_fail 1 "far\.yaml.*cannot be satisfied at t = 0\.5 s.*far\.yaml:[0-9]+: (joint|driver) '[A-Za-z]+'" out1.gm.h5 -- far.yaml -o out1.gm.h5 --at 0.5
 expect_fail 1 'good\.yaml.*50 flexible modes asked for; the mechanism has 9' out2.gm.h5 -- good.yaml -o out2.gm.h5 --modes 50
 expect_fail 1 'fourbar\.yaml.*no flexible mode.*f = 1' out3.gm.h5 -- "$ROOT/examples/scenes/fourbar.yaml" -o out3.gm.h5
-expect_fail 1 'notbody\.yaml:5:.*coupler\.fe\.h5.*fmbd-fe' out4.gm.h5 -- notbody.yaml -o out4.gm.h5
+expect_fail 1 'notbody\.yaml:5:.*good\.gm\.h5 is a fmbd-gm file' out4.gm.h5 -- notbody.yaml -o out4.gm.h5
 expect_fail 1 'missing\.yaml:5:.*nosuch\.cb\.h5' out5.gm.h5 -- missing.yaml -o out5.gm.h5
 expect_fail 1 "typo\.yaml:5:.*unknown key 'colour'" out6.gm.h5 -- typo.yaml -o out6.gm.h5
 expect_fail 1 'no flexible mode below the bound' out7.gm.h5 -- good.yaml -o out7.gm.h5 --fmax 1
