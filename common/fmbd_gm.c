@@ -504,26 +504,25 @@ void fmbd_gm_participation(const fmbd_csr *M, int64_t nk, const double *X, const
   fmbd_free(Mr);
 }
 
-int fmbd_gm_gmc(int64_t nq, int64_t nk, const double *Q, const double *W, double tol, double *B,
+int fmbd_gm_gmc(int64_t nq, int64_t nk, const double *Q, const fmbd_csr *W, double tol, double *B,
                 int64_t *keep, int64_t *nkeep) {
   int rc = FMBD_OK;
   double *O = NULL, *WO = NULL, *v = NULL, *wv = NULL;
   *nkeep = 0;
+  FMBD_CHECK(!W || (W->nrows == nq && W->ncols == nq), FMBD_ERR_VALUE,
+             "GMc: the metric is %lld x %lld for %lld coordinates", (long long)(W ? W->nrows : 0),
+             (long long)(W ? W->ncols : 0), (long long)nq);
   FMBD_GALLOC(O = fmbd_malloc(sizeof(double) * (size_t)(nq * nk + 1)));   // orthonormal kept
   FMBD_GALLOC(WO = fmbd_malloc(sizeof(double) * (size_t)(nq * nk + 1)));  // W times them
   FMBD_GALLOC(v = fmbd_malloc(sizeof(double) * (size_t)(nq + 1)));
   FMBD_GALLOC(wv = fmbd_malloc(sizeof(double) * (size_t)(nq + 1)));
-#define WMUL(x, y)                                                           \
-  do {                                                                       \
-    for (int64_t i_ = 0; i_ < nq; i_++) {                                    \
-      double s_ = 0.0;                                                       \
-      if (W) {                                                               \
-        for (int64_t j_ = 0; j_ < nq; j_++) s_ += W[i_ + nq * j_] * (x)[j_]; \
-      } else {                                                               \
-        s_ = (x)[i_];                                                        \
-      }                                                                      \
-      (y)[i_] = s_;                                                          \
-    }                                                                        \
+#define WMUL(x, y)                                   \
+  do {                                               \
+    if (W) {                                         \
+      fmbd_csr_matvec(W, (x), (y));                  \
+    } else {                                         \
+      memcpy((y), (x), sizeof(double) * (size_t)nq); \
+    }                                                \
   } while (0)
   double big = 0.0;
   for (int64_t k = 0; k < nk; k++) {

@@ -122,14 +122,15 @@ void fmbd_gm_participation(const fmbd_csr *M, int64_t nk, const double *X, const
 /// @brief The GMc basis of one body: the body's rows Q (nq x nk, the body's elastic
 /// coordinates in the nk flexible modes) with the linearly dependent columns removed. Columns
 /// are taken in mode order by Gram-Schmidt in the metric W (nq x nq symmetric positive
-/// definite, e.g. the body's Mff; NULL = identity): column k is kept when its part
+/// definite, sparse: the body's Mff, or the elastic block of a full FE body's M; NULL =
+/// identity): column k is kept when its part
 /// orthogonal to the kept ones has W-norm > tol times its own W-norm (independence) and its
 /// W-norm is > tol times the largest column's (not round-off of a mode that leaves the body
 /// still). Kept columns are scaled to unit W-norm (Psi_i / sqrt(mbar_i) [C18]).
 /// @param[out] B     nq x nk: the kept columns first (B[i + nq*j], j < *nkeep)
 /// @param[out] keep  (nk) mode index of each kept column
 /// @param[out] nkeep number kept
-int fmbd_gm_gmc(int64_t nq, int64_t nk, const double *Q, const double *W, double tol, double *B,
+int fmbd_gm_gmc(int64_t nq, int64_t nk, const double *Q, const fmbd_csr *W, double tol, double *B,
                 int64_t *keep, int64_t *nkeep);
 
 #endif

@@ -235,7 +235,8 @@ static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
 // --- a global-mode (GMc) basis instead of the file's modes ----------------------------------
 // The body's GMc basis from a gmsolve file (/gmc/<body>: shapes on the FE dofs, Mff, Kff),
 // turned into the body by fmbd_rflex_from_basis with the description of the body's own file
-// (f), which must be the file the basis was made from (its SHA-256).
+// (f: a .rflex.h5, .cb.h5 or .fe.h5), which must be the file the basis was made from (its
+// SHA-256). A full FE body so becomes a modal body with the GMc shapes as its modes.
 static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f, bool stress) {
   int rc = 0;
   const fmbd_scene_body *b = &s->bodies[bi];
@@ -284,16 +285,18 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     SFAIL(s, b->basis_loc, rc, "body '%s': %s:%s: %s", b->name, b->basis, path, msg);
   }
-  if (nc == 0 || r1 != nc || c1 != nc || r2 != nc || c2 != nc || ndof != m->flex[bi]->ndof) {
+  FMBD_GCALL(fmbd_fe_read(f, &desc));
+  if (nc == 0 || r1 != nc || c1 != nc || r2 != nc || c2 != nc || ndof != desc->ndof) {
     SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
           "body '%s': the GMc basis of '%s' in %s has %lld columns on %lld dofs (Mff %lld x %lld, "
           "Kff %lld x %lld); the body has %lld dofs%s",
           b->name, name, b->basis, (long long)nc, (long long)ndof, (long long)r1, (long long)c1,
-          (long long)r2, (long long)c2, (long long)m->flex[bi]->ndof,
+          (long long)r2, (long long)c2, (long long)desc->ndof,
           nc == 0 ? " (an empty basis: the body does not deform in the global modes)" : "");
   }
-  FMBD_GCALL(fmbd_fe_read(f, &desc));
-  fmbd_rflex_basis in = {desc, NULL, NULL, nc, S, ndof, Mff, Kff, stress};
+  // a full FE body's file has its M and K: the projections are made here; a modal body's
+  // description has none: the file's Mff, Kff (gmsolve's projections with the modal matrices)
+  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress};
   rc = fmbd_rflex_from_basis(&in, &r);
   if (rc) SFAIL(s, b->basis_loc, rc, "body '%s': %s: %s", b->name, b->basis, fmbd_err_get()->msg);
   fmbd_rflex_destroy(&m->flex[bi]);
@@ -533,7 +536,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
   } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR);
-    if (!rc) {
+    // with a GMc basis the body is the modal body of that basis (load_gmc, below)
+    if (!rc && !b->basis) {
       FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
       FMBD_GCALL(load_fe(m, s, bi, f));
       FMBD_GCALL(add_input(m, b->file, fmbd_h5_sha256(f)));

@@ -291,47 +291,99 @@ typedef struct body_out {
   int64_t off, nm;  // first coordinate, modal coordinates
 } body_out;
 
+// A dense nq x nq column-major matrix as CSR (the modal mass of a modal body, for fmbd_gm_gmc).
+static int dense_csr(int64_t nq, const double *A, fmbd_csr **out) {
+  FMBD_CALL(fmbd_csr_create(nq, nq, nq * nq, out));
+  fmbd_csr *C = *out;
+  for (int64_t i = 0, p = 0; i < nq; i++) {
+    for (int64_t j = 0; j < nq; j++, p++) {
+      C->indices[p] = j;
+      C->data[p] = A[i + nq * j];
+    }
+    C->indptr[i + 1] = p;
+  }
+  return FMBD_OK;
+}
+
+// The GMs and GMc bases of flexible scene body bi. Its elastic coordinates in the mechanism
+// start at off + 7: the modal coordinates of a modal body (shapes on the FE dofs through the
+// file's modes), or the FE dofs of a full FE body other than its frame node's (fe_col).
 static int write_body(fmbd_h5 *f, const fmbd_scene *s, const fmbd_scene_model *md, int bi,
-                      int64_t off, int64_t n, const double *Xf, int64_t nk, double rank_tol,
-                      const char *sha, int64_t *ncols) {
+                      int64_t off, int64_t nq, int64_t n, const double *Xf, int64_t nk,
+                      double rank_tol, const char *sha, int64_t *ncols) {
   int rc = FMBD_OK;
   const fmbd_rflex *r = md->flex[bi];
+  const fmbd_fe_body *fe = md->fe ? md->fe[bi] : NULL;
+  const int64_t *col = fe ? md->fe_col[bi] : NULL;
   const char *name = s->bodies[bi].name;
-  int64_t nm = r->nm, ndof = r->ndof;
+  int64_t ndof = fe ? fe->ndof : r->ndof;
   double *Q = NULL, *S = NULL, *B = NULL, *Mc = NULL, *Kc = NULL, *W = NULL;
-  int64_t *keep = NULL;
+  int64_t *keep = NULL, *kept = NULL;
+  fmbd_csr *Wm = NULL;
   char path[600];
-  FMBD_GALLOC(Q = fmbd_calloc((size_t)(nm * nk + 1), sizeof(double)));
+  FMBD_GALLOC(Q = fmbd_calloc((size_t)(nq * nk + 1), sizeof(double)));
   FMBD_GALLOC(S = fmbd_calloc((size_t)(ndof * nk + 1), sizeof(double)));
   for (int64_t k = 0; k < nk; k++) {
-    for (int64_t i = 0; i < nm; i++) Q[i + nm * k] = Xf[off + 7 + i + n * k];
+    for (int64_t i = 0; i < nq; i++) Q[i + nq * k] = Xf[off + 7 + i + n * k];
   }
+  // shapes on the FE dofs of elastic-coordinate columns C (nq x nc) into S (ndof x nc)
+#define TO_DOFS(C, nc)                                                                        \
+  do {                                                                                        \
+    if (fe) {                                                                                 \
+      for (int64_t k_ = 0; k_ < (nc); k_++) {                                                 \
+        for (int64_t i_ = 0; i_ < ndof; i_++) {                                               \
+          S[i_ + ndof * k_] = col[i_] >= 0 ? (C)[col[i_] + nq * k_] : 0.0;                    \
+        }                                                                                     \
+      }                                                                                       \
+    } else {                                                                                  \
+      fmbd_dense_gemm('N', 'N', ndof, (nc), nq, 1.0, r->shapes, ndof, (C), nq, 0.0, S, ndof); \
+    }                                                                                         \
+  } while (0)
   // GMs: the elastic blocks of the modes, one set of coordinates shared by all bodies
-  fmbd_dense_gemm('N', 'N', ndof, nk, nm, 1.0, r->shapes, ndof, Q, nm, 0.0, S, ndof);
+  TO_DOFS(Q, nk);
   snprintf(path, sizeof path, "/gms/%s/modal", name);
-  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nm, nk, Q));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nq, nk, Q));
   snprintf(path, sizeof path, "/gms/%s/shapes", name);
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, ndof, nk, S));
   snprintf(path, sizeof path, "/gms/%s", name);
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "file", s->bodies[bi].file));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "file_sha256", sha ? sha : ""));
-  // GMc: the body's own basis, dependent columns removed
-  FMBD_GALLOC(B = fmbd_calloc((size_t)(nm * nk + 1), sizeof(double)));
+  // GMc: the body's own basis, dependent columns removed, in the body's mass metric
+  if (fe) {
+    FMBD_GALLOC(kept = fmbd_calloc((size_t)nq + 1, sizeof(int64_t)));
+    for (int64_t i = 0; i < ndof; i++) {
+      if (col[i] >= 0) kept[col[i]] = i;
+    }
+    FMBD_GCALL(fmbd_csr_submatrix(fe->M, nq, kept, nq, kept, &Wm));
+  } else {
+    FMBD_GCALL(dense_csr(nq, r->Mff, &Wm));
+  }
+  FMBD_GALLOC(B = fmbd_calloc((size_t)(nq * nk + 1), sizeof(double)));
   FMBD_GALLOC(keep = fmbd_calloc((size_t)nk + 1, sizeof(int64_t)));
   int64_t nc = 0;
-  FMBD_GCALL(fmbd_gm_gmc(nm, nk, Q, r->Mff, rank_tol, B, keep, &nc));
+  FMBD_GCALL(fmbd_gm_gmc(nq, nk, Q, Wm, rank_tol, B, keep, &nc));
   *ncols = nc;
+  TO_DOFS(B, nc);
+#undef TO_DOFS
+  // Mff = S'MS, Kff = S'KS: with the FE matrices of a full body, else with the file's modal ones
   FMBD_GALLOC(Mc = fmbd_calloc((size_t)(nc * nc + 1), sizeof(double)));
   FMBD_GALLOC(Kc = fmbd_calloc((size_t)(nc * nc + 1), sizeof(double)));
-  FMBD_GALLOC(W = fmbd_calloc((size_t)(nm * nc + 1), sizeof(double)));
-  fmbd_dense_gemm('N', 'N', nm, nc, nm, 1.0, r->Mff, nm, B, nm, 0.0, W, nm);
-  fmbd_dense_gemm('T', 'N', nc, nc, nm, 1.0, B, nm, W, nm, 0.0, Mc, nc);
-  fmbd_dense_gemm('N', 'N', nm, nc, nm, 1.0, r->Kff, nm, B, nm, 0.0, W, nm);
-  fmbd_dense_gemm('T', 'N', nc, nc, nm, 1.0, B, nm, W, nm, 0.0, Kc, nc);
-  fmbd_dense_gemm('N', 'N', ndof, nc, nm, 1.0, r->shapes, ndof, B, nm, 0.0, S, ndof);
+  if (fe) {
+    FMBD_GALLOC(W = fmbd_calloc((size_t)(ndof * nc + 1), sizeof(double)));
+    fmbd_csr_matmat(fe->M, nc, S, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nc, nc, ndof, 1.0, S, ndof, W, ndof, 0.0, Mc, nc);
+    fmbd_csr_matmat(fe->K, nc, S, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nc, nc, ndof, 1.0, S, ndof, W, ndof, 0.0, Kc, nc);
+  } else {
+    FMBD_GALLOC(W = fmbd_calloc((size_t)(nq * nc + 1), sizeof(double)));
+    fmbd_dense_gemm('N', 'N', nq, nc, nq, 1.0, r->Mff, nq, B, nq, 0.0, W, nq);
+    fmbd_dense_gemm('T', 'N', nc, nc, nq, 1.0, B, nq, W, nq, 0.0, Mc, nc);
+    fmbd_dense_gemm('N', 'N', nq, nc, nq, 1.0, r->Kff, nq, B, nq, 0.0, W, nq);
+    fmbd_dense_gemm('T', 'N', nc, nc, nq, 1.0, B, nq, W, nq, 0.0, Kc, nc);
+  }
   for (int64_t j = 0; j < nc; j++) keep[j] += 1;  // 1-based flexible mode numbers
   snprintf(path, sizeof path, "/gmc/%s/modal", name);
-  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nm, nc, B));
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nq, nc, B));
   snprintf(path, sizeof path, "/gmc/%s/shapes", name);
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, ndof, nc, S));
   snprintf(path, sizeof path, "/gmc/%s/Mff", name);
@@ -361,6 +413,8 @@ done:
   fmbd_free(Kc);
   fmbd_free(W);
   fmbd_free(keep);
+  fmbd_free(kept);
+  fmbd_csr_destroy(&Wm);
   return rc;
 }
 
@@ -393,6 +447,7 @@ static void draw_points(const fmbd_scene *s, const fmbd_scene_model *md, const i
     for (int c = 0; c < 4; c++) p[c] = x[off + 3 + c] + (dx ? eps * dx[off + 3 + c] : 0.0);
     quat_rot(p, A);
     const fmbd_rflex *r = md->flex[i];
+    const fmbd_fe_body *fe = md->fe ? md->fe[i] : NULL;
     if (!r) {
       memcpy(P + 3 * k++, R, sizeof R);
       continue;
@@ -400,7 +455,15 @@ static void draw_points(const fmbd_scene *s, const fmbd_scene_model *md, const i
     for (int64_t nd = 0; nd < r->nnodes; nd++) {
       double u[3];
       memcpy(u, r->node_xyz + 3 * nd, sizeof u);
-      if (dx) {
+      if (dx && fe) {  // a full FE body: its dofs other than the frame node's
+        for (int c = 0; c < 3; c++) {
+          const fmbd_csr *E = fe->expand;
+          for (int64_t q = E->indptr[6 * nd + c]; q < E->indptr[6 * nd + c + 1]; q++) {
+            int64_t j = md->fe_col[i][E->indices[q]];
+            if (j >= 0) u[c] += eps * E->data[q] * dx[off + 7 + j];
+          }
+        }
+      } else if (dx) {
         for (int c = 0; c < 3; c++) {
           const fmbd_csr *E = r->expand;
           for (int64_t q = E->indptr[6 * nd + c]; q < E->indptr[6 * nd + c + 1]; q++) {
@@ -720,7 +783,9 @@ int main(int argc, char **argv) {
       if (!strcmp(md->input_name[k], s->bodies[i].file)) sha = md->input_sha[k];
     }
     int64_t nc = 0;
-    FMBD_GCALL(write_body(out, s, md, i, bodyoff[md->body_id[i]], n, Xf, nk, a.rank_tol, sha, &nc));
+    int b = md->body_id[i];
+    FMBD_GCALL(write_body(out, s, md, i, bodyoff[b], fmbd_mbs_body_nm(mbs, b), n, Xf, nk,
+                          a.rank_tol, sha, &nc));
     gmc_total += nc;
     fmbd_log(FMBD_LOG_INFO, "body '%s': GMc basis of %lld columns (%lld dependent removed)",
              s->bodies[i].name, (long long)nc, (long long)(nk - nc));
