@@ -5,6 +5,7 @@
 // mechanism, find the rigid-reference configuration, linearise, solve the constrained
 // eigenproblem on a null-space basis, write the global modes and the GMs / GMc bases (format
 // fmbd-gm, docs/FORMAT.md). See docs/man/gmsolve.1.
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -76,67 +77,87 @@ typedef struct args {
   int quiet, verbose;
 } args;
 
+enum {
+  OPT_OUTPUT = 1,
+  OPT_MODES,
+  OPT_FMAX,
+  OPT_AT,
+  OPT_RANK_TOL,
+  OPT_DENSE_MAX,
+  OPT_BODY_DIR,
+  OPT_PLOT,
+  OPT_KEEP_DRIVERS,
+  OPT_MATRICES,
+  OPT_RULES
+};
+static const fmbd_cli_option options[] = {{"--output", 'o', true, OPT_OUTPUT},
+                                          {"--modes", 0, true, OPT_MODES},
+                                          {"--fmax", 0, true, OPT_FMAX},
+                                          {"--at", 0, true, OPT_AT},
+                                          {"--rank-tol", 0, true, OPT_RANK_TOL},
+                                          {"--dense-max", 0, true, OPT_DENSE_MAX},
+                                          {"--body-dir", 0, true, OPT_BODY_DIR},
+                                          {"--plot", 0, true, OPT_PLOT},
+                                          {"--keep-drivers", 0, false, OPT_KEEP_DRIVERS},
+                                          {"--matrices", 0, false, OPT_MATRICES},
+                                          {NULL, 'M', false, OPT_RULES},
+                                          {0}};
+
 // 0: go on; -1: done (help/version printed); > 0: exit status (usage error)
 static int parse_args(int argc, char **argv, args *a) {
-  for (int i = 1; i < argc; i++) {
-    const char *arg = argv[i], *val = NULL;
-#define NEED_VALUE()                                                                \
-  do {                                                                              \
-    if (i + 1 >= argc) return fmbd_cli_usage_error("option %s needs a value", arg); \
-    val = argv[++i];                                                                \
-  } while (0)
-    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
-    if (common == FMBD_CLI_DONE) {
-      return -1;
-    } else if (common == FMBD_CLI_TAKEN) {
-      continue;
-    } else if (!strcmp(arg, "-o") || !strcmp(arg, "--output")) {
-      NEED_VALUE();
-      a->output = val;
-    } else if (!strcmp(arg, "--modes")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_int(arg, val, &a->modes)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (a->modes < 1) return fmbd_cli_usage_error("--modes: %ld must be at least 1", a->modes);
-      a->modes_given = true;
-    } else if (!strcmp(arg, "--fmax")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->fmax_hz)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (!(a->fmax_hz > 0.0)) return fmbd_cli_usage_error("--fmax: %s must be > 0 Hz", val);
-    } else if (!strcmp(arg, "--at")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->at)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      a->at_given = true;
-    } else if (!strcmp(arg, "--rank-tol")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->rank_tol)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (!(a->rank_tol > 0.0 && a->rank_tol < 1.0))
-        return fmbd_cli_usage_error("--rank-tol: %s is not in (0, 1)", val);
-    } else if (!strcmp(arg, "--dense-max")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_int(arg, val, &a->dense_max)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (a->dense_max < 0)
-        return fmbd_cli_usage_error("--dense-max: %ld is negative", a->dense_max);
-    } else if (!strcmp(arg, "--plot")) {
-      NEED_VALUE();
-      a->plot = val;
-    } else if (!strcmp(arg, "--body-dir")) {
-      NEED_VALUE();
-      a->body_dir = val;
-    } else if (!strcmp(arg, "--keep-drivers")) {
-      a->keep_drivers = true;
-    } else if (!strcmp(arg, "--matrices")) {
-      a->matrices = true;
-    } else if (!strcmp(arg, "-M")) {
-      a->make_rules = true;
-    } else if (arg[0] == '-' && arg[1] != '\0') {
-      return fmbd_cli_usage_error("unknown option '%s'", arg);
-    } else {
-      if (a->input)
-        return fmbd_cli_usage_error("one SCENE.yaml expected, got '%s' and '%s'", a->input, arg);
-      a->input = arg;
+  fmbd_cli_args p;
+  fmbd_cli_args_init(&p, argc, argv, options, usage_text);
+  for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
+    switch (id) {
+      case FMBD_CLI_EXIT:
+        return p.status ? p.status : -1;
+      case FMBD_CLI_ARG:
+        if (a->input) {
+          return fmbd_cli_usage_error("one SCENE.yaml expected, got '%s' and '%s'", a->input,
+                                      p.value);
+        }
+        a->input = p.value;
+        break;
+      case OPT_OUTPUT:
+        a->output = p.value;
+        break;
+      case OPT_MODES:
+        if (fmbd_cli_long(&p, 1, LONG_MAX, &a->modes)) return p.status;
+        a->modes_given = true;
+        break;
+      case OPT_FMAX:
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &a->fmax_hz)) return p.status;
+        break;
+      case OPT_AT:
+        if (fmbd_cli_double(&p, -INFINITY, INFINITY, 0, &a->at)) return p.status;
+        a->at_given = true;
+        break;
+      case OPT_RANK_TOL:
+        if (fmbd_cli_double(&p, 0, 1, FMBD_CLI_OPEN_LO | FMBD_CLI_OPEN_HI, &a->rank_tol))
+          return p.status;
+        break;
+      case OPT_DENSE_MAX:
+        if (fmbd_cli_long(&p, 0, LONG_MAX, &a->dense_max)) return p.status;
+        break;
+      case OPT_BODY_DIR:
+        a->body_dir = p.value;
+        break;
+      case OPT_PLOT:
+        a->plot = p.value;
+        break;
+      case OPT_KEEP_DRIVERS:
+        a->keep_drivers = true;
+        break;
+      case OPT_MATRICES:
+        a->matrices = true;
+        break;
+      case OPT_RULES:
+        a->make_rules = true;
+        break;
     }
-#undef NEED_VALUE
   }
+  a->quiet = p.quiet;
+  a->verbose = p.verbose;
   if (!a->input) return fmbd_cli_usage_error("no SCENE.yaml given");
   if (a->modes_given && a->fmax_hz > 0.0) {
     return fmbd_cli_usage_error("--modes and --fmax are exclusive");

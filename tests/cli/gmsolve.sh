@@ -117,7 +117,7 @@ expect_fail 1 'no flexible mode below the bound' out7.gm.h5 -- good.yaml -o out7
 # --- usage (exit 2) -------------------------------------------------------------------------------
 expect_fail 2 'unknown option' u1.gm.h5 -- good.yaml -o u1.gm.h5 --bogus
 expect_fail 2 'exclusive' u2.gm.h5 -- good.yaml -o u2.gm.h5 --modes 3 --fmax 100
-expect_fail 2 'at least 1' u3.gm.h5 -- good.yaml -o u3.gm.h5 --modes 0
+expect_fail 2 "option --modes: '0' must be >= 1" u3.gm.h5 -- good.yaml -o u3.gm.h5 --modes 0
 expect_fail 2 'no SCENE' u4.gm.h5 --
 expect_fail 2 'rank-tol' u5.gm.h5 -- good.yaml -o u5.gm.h5 --rank-tol 2
 exit $fail
