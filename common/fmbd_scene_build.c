@@ -294,6 +294,37 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
           (long long)r2, (long long)c2, (long long)desc->ndof,
           nc == 0 ? " (an empty basis: the body does not deform in the global modes)" : "");
   }
+  if (b->modes > 0) {  // the columns of the first `modes` global modes: a prefix (mode order)
+    int64_t ng = -1, *gmode = NULL, keep = 0;
+    snprintf(path, sizeof path, "/gmc/%s/global_mode", name);
+    rc = fmbd_h5_read_i64(g, path, 1, &ng, &gmode);
+    if (rc) {
+      char msg[1100];
+      snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+      SFAIL(s, b->basis_loc, rc, "body '%s': %s:%s: %s", b->name, b->basis, path, msg);
+    }
+    while (keep < ng && keep < nc && gmode[keep] <= b->modes) keep++;
+    int64_t last = ng > 0 ? gmode[ng - 1] : 0;
+    fmbd_free(gmode);
+    if (keep == 0) {
+      SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
+            "body '%s': none of the %lld GMc columns of '%s' in %s comes from the first %lld "
+            "global modes",
+            b->name, (long long)nc, name, b->basis, (long long)b->modes);
+    }
+    if (b->modes > last && last > 0) {
+      fmbd_log(FMBD_LOG_INFO,
+               "body '%s': modes %lld, but %s has the GMc columns of %lld global modes", b->name,
+               (long long)b->modes, b->basis, (long long)last);
+    }
+    for (int64_t j = 0; j < keep; j++) {  // leading keep x keep blocks, in place
+      for (int64_t i = 0; i < keep; i++) {
+        Mff[i + keep * j] = Mff[i + nc * j];
+        Kff[i + keep * j] = Kff[i + nc * j];
+      }
+    }
+    nc = keep;
+  }
   // a full FE body's file has its M and K: the projections are made here; a modal body's
   // description has none: the file's Mff, Kff (gmsolve's projections with the modal matrices)
   fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress};
@@ -599,11 +630,11 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   }
   if (b->basis) FMBD_GCALL(load_gmc(m, s, bi, f, need_stress));
   fmbd_rflex *r = m->flex[bi];
-  if (b->modes > r->nm) {
+  if (!b->basis && b->modes > r->nm) {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name,
           (long long)b->modes, b->basis ? b->basis : b->file, (long long)r->nm);
   }
-  if (b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
+  if (!b->basis && b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
   if (!need_stress && r->stress) {  // nothing asks for stress: do not keep it
     fmbd_free(r->stress);
     r->stress = NULL;

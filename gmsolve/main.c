@@ -47,7 +47,7 @@ static const char *usage_text =
     "                   so that a driven joint's motion is a rigid-reference mode)\n"
     "  --rank-tol E     GMc: a body's mode column is dropped as linearly dependent when its\n"
     "                   part independent of the columns kept before it is below E times its\n"
-    "                   own size (mass norm), default 1e-8\n"
+    "                   own size (mass norm), default 1e-3\n"
     "  --matrices       also write the linearised M, K and the constraint Jacobian used\n"
     "                   (/linear), e.g. for an independent check\n"
     "  --dense-max N    solve the reduced eigenproblem densely (LAPACK) up to order N, by\n"
@@ -576,7 +576,7 @@ int main(int argc, char **argv) {
   args a;
   memset(&a, 0, sizeof a);
   a.modes = 10;
-  a.rank_tol = 1e-8;
+  a.rank_tol = 1e-3;
   {
     fmbd_gm_opts go;
     fmbd_gm_defaults(&go);

@@ -12,8 +12,8 @@
 #                                               m + 6 flexible modes)
 #   GMc  gmsolve on the reference scene, the body's rows of the first m global modes
 #   GMs  written by gmsolve, not read by fmbd-run yet (not run)
-# Reference: each link as a CB body with 20 fixed-interface modes (26 flexible, a converged
-# modal basis). The full model (FM: .fe.h5 beam bodies) cannot be the reference today: with
+# Reference: each link as a CB body with 12 fixed-interface modes (18 of its 60 flexible modes;
+# richer bases make the beam's floating-frame mass matrix indefinite, as below). The full model (FM: .fe.h5 beam bodies) cannot be the reference today: with
 # beam elements its mass matrix in the floating frame is not positive definite (lumped-mass
 # inertia invariants against the consistent mass), and fmbd-run stops (see README.md).
 # Error: eps_RMS of each link's end point over the run (docs/THEORY.md section 7), the largest
@@ -35,10 +35,12 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 L = 0.5
 
 
-def sh(out, *args):
+def sh(out, *args, may_fail=False):
     p = subprocess.run(list(args), cwd=out, capture_output=True, text=True)
-    if p.returncode:
+    if p.returncode and not may_fail:
         sys.exit("failed: %s\n%s" % (" ".join(args), p.stderr))
+    if p.returncode:
+        print("failed: %s: %s" % (" ".join(args), p.stderr.strip().splitlines()[-1]), file=sys.stderr)
     return p
 
 
@@ -88,7 +90,7 @@ def main():
     modes = [int(x) for x in a.modes.split(",")]
     sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--circle", "0.01", "--E", "210e9", "--nu", "0.3",
        "--rho", "7850", "--interface", "end0", "--interface", "end1", "-o", "link.fe.h5", "-q")
-    sh(out, "fe2cb", "link.fe.h5", "--modes", "20", "-o", "ref.cb.h5", "-q")
+    sh(out, "fe2cb", "link.fe.h5", "--modes", "12", "-o", "ref.cb.h5", "-q")
     for m in modes:
         sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(m), "-o", "nm%d.cb.h5" % m, "-q")
         sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", "cb%d.cb.h5" % m, "-q")
@@ -100,21 +102,24 @@ def main():
         ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
         with h5py.File(os.path.join(out, "ref%d.gm.h5" % nb), "r") as f:
             ntot = int(f["global"].attrs["coordinates"])
-        rows.append((nb, "ref (CB 20)", 26, cref, 0.0, ntot))
+        rows.append((nb, "ref (CB 12)", 18, cref, 0.0, ntot))
         for m in modes:
             for meth, body, basis, nflex in (("NM", "nm%d.cb.h5" % m, None, m),
                                              ("CB", "cb%d.cb.h5" % m, None, m + 6),
                                              ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m)):
                 name = "%s%d_%d" % (meth, nb, m)
                 scene(os.path.join(out, name + ".yaml"), nb, a.t_end, body, basis, m)
-                sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q")
+                if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
+                    rows.append((nb, "%s m=%d" % (meth, m), nflex, math.nan, math.nan, 7 * nb + nb * nflex))
+                    continue
                 pos, cpu = result(os.path.join(out, name + ".run.h5"), nb)
                 eps = max(math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref))
                 rows.append((nb, "%s m=%d" % (meth, m), nflex, cpu, eps, 7 * nb + nb * nflex))
     print("| n_b | basis | flexible coordinates per link | coordinates | CPU (s) | eps_RMS of the link ends (m) |")
     print("|---|---|---|---|---|---|")
     for nb, meth, nf, cpu, eps, nt in rows:
-        print("| %d | %s | %d | %d | %.2f | %s |" % (nb, meth, nf, nt, cpu, "-" if meth.startswith("ref") else "%.2e" % eps))
+        shown = "-" if meth.startswith("ref") else ("run failed" if math.isnan(eps) else "%.2e" % eps)
+        print("| %d | %s | %d | %d | %s | %s |" % (nb, meth, nf, nt, "-" if math.isnan(cpu) else "%.2f" % cpu, shown))
 
 
 if __name__ == "__main__":
