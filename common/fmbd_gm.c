@@ -555,7 +555,7 @@ int fmbd_gm_gmc(int64_t nq, int64_t nk, const double *Q, const fmbd_csr *W, doub
     for (int64_t i = 0; i < nq; i++) {
       O[i + nq * nkp] = v[i] / n1;
       WO[i + nq * nkp] = wv[i] / n1;
-      B[i + nq * nkp] = q[i] / n0;
+      B[i + nq * nkp] = v[i] / n1;  // orthonormal in W: the same span, Mff = I
     }
     keep[nkp++] = k;
   }
