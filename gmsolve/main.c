@@ -811,8 +811,8 @@ int main(int argc, char **argv) {
     fmbd_log(FMBD_LOG_INFO, "body '%s': GMc basis of %lld columns (%lld dependent removed)",
              s->bodies[i].name, (long long)nc, (long long)(nk - nc));
   }
-  if (a.plot) FMBD_GCALL(plot_modes(a.plot, s, md, bodyoff, x, n, Xf, nk, fhz + f));
   FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
+  if (a.plot) FMBD_GCALL(plot_modes(a.plot, s, md, bodyoff, x, n, Xf, nk, fhz + f));
   double t_write = fmbd_wall_s() - t1;
   double max_resid = 0.0;
   for (int64_t k = f; k < ne; k++) max_resid = fmax(max_resid, res.resid[k]);
