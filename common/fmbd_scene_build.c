@@ -25,6 +25,16 @@
 static void fe_node_modes(const fmbd_scene_model *m, int bi, int64_t node, int64_t n, double *T,
                           double *R);
 
+// the initial state of a scene body
+static fmbd_mbs_state0 body_state0(const fmbd_scene_body *b) {
+  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
+  memcpy(s0.position, b->position, sizeof s0.position);
+  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
+  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
+  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  return s0;
+}
+
 // --- keeping the first n modes of a modal body ----------------------------------------------
 static int truncate_modes(fmbd_rflex *r, int64_t n) {
   int64_t nm = r->nm;
@@ -374,11 +384,7 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
       }
     }
   }
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  memcpy(s0.position, b->position, sizeof s0.position);
-  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_fe(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
   fmbd_log(FMBD_LOG_INFO,
@@ -540,11 +546,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
                           .damping_ratio = b->damping_ratio};
   memcpy(d.first_moment, r->first_moment, sizeof d.first_moment);
   memcpy(d.second_moment, r->second_moment, sizeof d.second_moment);
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  memcpy(s0.position, b->position, sizeof s0.position);
-  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_flex(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
 done:
@@ -578,11 +580,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
   for (int i = 0; i < nb; i++) {
     const fmbd_scene_body *b = &s->bodies[i];
     if (b->kind == FMBD_SCENE_RIGID) {
-      fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-      memcpy(s0.position, b->position, sizeof s0.position);
-      memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-      memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-      memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+      fmbd_mbs_state0 s0 = body_state0(b);
       rc = fmbd_mbs_add_rigid(m->mbs, b->name, b->mass, b->com, b->inertia, &s0, &m->body_id[i]);
       if (rc) SFAIL(s, b->loc, rc, "body '%s': %s", b->name, fmbd_err_get()->msg);
     } else {
