@@ -149,37 +149,18 @@ static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *
   return FMBD_OK;
 }
 
-// --- secondary reduction ------------------------------------------------------------------
-int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+// --- a body from its shapes: the one place of the nodal motion and the invariants ---------
+// r already holds nm, ndof, nnodes and shapes (ndof x nm); Mff, Kff (nm x nm, column-major)
+// and eig (nm Ritz eigenvalues, > 0) are copied. Everything else is derived here: the
+// description, the nodal and interface motion through /expand, the FFRF invariants
+// (docs/THEORY.md section 9) and the optional modal stress.
+static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
+                        const double *eig, bool stress) {
   int rc = FMBD_OK;
-  fmbd_rflex *r = NULL;
-  double *U = NULL, *Wa = NULL, *Ub = NULL;
-  const fmbd_fe_body *b = in->body;
-  int64_t ns = in->ns, nb = in->nb, nd = in->nd, nm = in->nm;
-  *out = NULL;
-  // --- check inputs ---
-  FMBD_CHECK(b && b->expand, FMBD_ERR_VALUE, "the body description has no /expand");
-  // ns + nb < ndof: the rest are held dofs (fe2cb --method nm --hold), zero in every mode
-  FMBD_CHECK(ns + nb <= b->ndof, FMBD_ERR_VALUE,
-             "%lld interior + %lld boundary dofs, but the body has %lld dofs", (long long)ns,
-             (long long)nb, (long long)b->ndof);
-  FMBD_CHECK(nm >= 0 && in->ldxi >= nd + nb && (nd == 0 || in->ldphi >= ns), FMBD_ERR_VALUE,
-             "inconsistent sizes of the reduced modes");
-  FMBD_CHECK(b->expand->nrows == 6 * b->nnodes && b->expand->ncols == b->ndof, FMBD_ERR_VALUE,
-             "/expand is %lld x %lld, expected %lld x %lld", (long long)b->expand->nrows,
-             (long long)b->expand->ncols, (long long)(6 * b->nnodes), (long long)b->ndof);
-  for (int64_t k = 0; k < nm; k++) {
-    FMBD_CHECK(in->chibar[k] > 0, FMBD_ERR_VALUE, "flexible mode %lld has eigenvalue %g",
-               (long long)k + 1, in->chibar[k]);
-  }
-  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
-  int64_t ndof = b->ndof, nn = b->nnodes;
-  r->nm = nm;
-  r->ndof = ndof;
-  r->nnodes = nn;
+  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL;
+  int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
   FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
   FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
-  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
   FMBD_GALLOC(r->node_xyz = xcalloc((size_t)(3 * nn), sizeof(double)));
   FMBD_GALLOC(r->node_mass = xcalloc((size_t)nn, sizeof(double)));
   FMBD_GALLOC(r->dofs = xcalloc((size_t)(2 * ndof), sizeof(int64_t)));
@@ -190,30 +171,8 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   memcpy(r->dofs, b->dofs, sizeof(int64_t) * (size_t)(2 * ndof));
   FMBD_GCALL(fmbd_csr_duplicate(b->expand, &r->expand));
   for (int64_t k = 0; k < nm; k++) {
-    r->eigenvalue[k] = in->chibar[k];
-    r->frequency_hz[k] = sqrt(in->chibar[k]) / (2 * M_PI);
-  }
-  // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
-  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
-  if (nd > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
-  }
-  if (nb > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
-  }
-  for (int64_t k = 0; k < nm; k++) {
-    for (int64_t i = 0; i < ns; i++) {
-      int64_t row = in->interior_dofs[i];
-      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
-                  (long long)row);
-      r->shapes[row + ndof * k] = Wa[i + ns * k];
-    }
-    for (int64_t j = 0; j < nb; j++) {
-      int64_t row = in->boundary_dofs[j];
-      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "boundary dof %lld out of range",
-                  (long long)row);
-      r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
-    }
+    r->eigenvalue[k] = eig[k];
+    r->frequency_hz[k] = sqrt(fmax(eig[k], 0.0)) / (2 * M_PI);
   }
   // --- nodal motion: U = expand * shapes, (6 nn) x nm ---
   FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
@@ -260,10 +219,8 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   FMBD_GALLOC(r->SS = xcalloc((size_t)(9 * nm * nm), sizeof(double)));
   FMBD_GALLOC(r->Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
   FMBD_GALLOC(r->Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
-  for (int64_t k = 0; k < nm; k++) {
-    r->Mff[k + nm * k] = 1.0;
-    r->Kff[k + nm * k] = in->chibar[k];
-  }
+  memcpy(r->Mff, Mff, sizeof(double) * (size_t)(nm * nm));
+  memcpy(r->Kff, Kff, sizeof(double) * (size_t)(nm * nm));
   if (nm > 0) {
     // Ub: component b of the nodal motion (nn x nm per b); Wa = M_n Ua, the mass-weighted
     // motion, with M_n the body's nodal mass: the scalar consistent mass of the solid elements
@@ -271,8 +228,6 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
     // solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
     //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    fmbd_free(Wa);  // held the interior shapes above
-    Wa = NULL;
     FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int64_t k = 0; k < nm; k++) {
@@ -298,7 +253,6 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
         for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
       }
     }
-    double *Sab = NULL;
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
@@ -311,19 +265,169 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
         }
       }
     }
-    fmbd_free(Sab);
   }
   // --- modal stress ---
-  if (in->stress && nm > 0) {
+  if (stress && nm > 0) {
     FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
     FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, r->stress));
   }
-  *out = r;
-  r = NULL;
 done:
   fmbd_free(U);
   fmbd_free(Wa);
   fmbd_free(Ub);
+  fmbd_free(Sab);
+  return rc;
+}
+
+// the description checks shared by both producers
+static int check_body(const fmbd_fe_body *b) {
+  FMBD_CHECK(b && b->expand, FMBD_ERR_VALUE, "the body description has no /expand");
+  FMBD_CHECK(b->expand->nrows == 6 * b->nnodes && b->expand->ncols == b->ndof, FMBD_ERR_VALUE,
+             "/expand is %lld x %lld, expected %lld x %lld", (long long)b->expand->nrows,
+             (long long)b->expand->ncols, (long long)(6 * b->nnodes), (long long)b->ndof);
+  return FMBD_OK;
+}
+
+// --- secondary reduction ------------------------------------------------------------------
+int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+  int rc = FMBD_OK;
+  fmbd_rflex *r = NULL;
+  double *Wa = NULL, *Mff = NULL, *Kff = NULL;
+  const fmbd_fe_body *b = in->body;
+  int64_t ns = in->ns, nb = in->nb, nd = in->nd, nm = in->nm;
+  *out = NULL;
+  // --- check inputs ---
+  FMBD_CALL(check_body(b));
+  // ns + nb < ndof: the rest are held dofs (fe2cb --method nm --hold), zero in every mode
+  FMBD_CHECK(ns + nb <= b->ndof, FMBD_ERR_VALUE,
+             "%lld interior + %lld boundary dofs, but the body has %lld dofs", (long long)ns,
+             (long long)nb, (long long)b->ndof);
+  FMBD_CHECK(nm >= 0 && in->ldxi >= nd + nb && (nd == 0 || in->ldphi >= ns), FMBD_ERR_VALUE,
+             "inconsistent sizes of the reduced modes");
+  for (int64_t k = 0; k < nm; k++) {
+    FMBD_CHECK(in->chibar[k] > 0, FMBD_ERR_VALUE, "flexible mode %lld has eigenvalue %g",
+               (long long)k + 1, in->chibar[k]);
+  }
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
+  int64_t ndof = b->ndof;
+  r->nm = nm;
+  r->ndof = ndof;
+  r->nnodes = b->nnodes;
+  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
+  // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
+  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  if (nd > 0) {
+    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
+  }
+  if (nb > 0) {
+    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
+  }
+  for (int64_t k = 0; k < nm; k++) {
+    for (int64_t i = 0; i < ns; i++) {
+      int64_t row = in->interior_dofs[i];
+      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
+                  (long long)row);
+      r->shapes[row + ndof * k] = Wa[i + ns * k];
+    }
+    for (int64_t j = 0; j < nb; j++) {
+      int64_t row = in->boundary_dofs[j];
+      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "boundary dof %lld out of range",
+                  (long long)row);
+      r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
+    }
+  }
+  // mass-normalised modes of the reduced problem: Mff = I, Kff = diag(chibar)
+  FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  for (int64_t k = 0; k < nm; k++) {
+    Mff[k + nm * k] = 1.0;
+    Kff[k + nm * k] = in->chibar[k];
+  }
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, in->chibar, in->stress));
+  *out = r;
+  r = NULL;
+done:
+  fmbd_free(Wa);
+  fmbd_free(Mff);
+  fmbd_free(Kff);
+  fmbd_rflex_destroy(&r);
+  return rc;
+}
+
+// --- any basis of displacement fields ---------------------------------------------------------
+int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out) {
+  int rc = FMBD_OK;
+  fmbd_rflex *r = NULL;
+  double *Mff = NULL, *Kff = NULL, *W = NULL, *A = NULL, *B = NULL, *eig = NULL;
+  const fmbd_fe_body *b = in->body;
+  int64_t nm = in->nm;
+  *out = NULL;
+  FMBD_CALL(check_body(b));
+  int64_t ndof = b->ndof;
+  FMBD_CHECK(nm >= 0 && in->lds >= ndof && in->S, FMBD_ERR_VALUE,
+             "a basis of %lld shapes with leading dimension %lld for a body of %lld dofs",
+             (long long)nm, (long long)in->lds, (long long)ndof);
+  bool sparse = in->M && in->K;
+  FMBD_CHECK(sparse || (in->Mff && in->Kff), FMBD_ERR_VALUE,
+             "a basis needs the body's M and K, or its projections Mff and Kff");
+  if (sparse) {
+    FMBD_CHECK(in->M->nrows == ndof && in->M->ncols == ndof && in->K->nrows == ndof &&
+                   in->K->ncols == ndof,
+               FMBD_ERR_VALUE, "M or K is not %lld x %lld", (long long)ndof, (long long)ndof);
+  }
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
+  r->nm = nm;
+  r->ndof = ndof;
+  r->nnodes = b->nnodes;
+  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
+  for (int64_t k = 0; k < nm; k++) {
+    memcpy(r->shapes + ndof * k, in->S + in->lds * k, sizeof(double) * (size_t)ndof);
+  }
+  FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  if (sparse) {  // Mff = S' M S, Kff = S' K S
+    FMBD_GALLOC(W = xcalloc((size_t)(ndof * nm), sizeof(double)));
+    fmbd_csr_matmat(in->M, nm, r->shapes, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nm, nm, ndof, 1.0, r->shapes, ndof, W, ndof, 0.0, Mff, nm);
+    fmbd_csr_matmat(in->K, nm, r->shapes, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nm, nm, ndof, 1.0, r->shapes, ndof, W, ndof, 0.0, Kff, nm);
+  } else {
+    memcpy(Mff, in->Mff, sizeof(double) * (size_t)(nm * nm));
+    memcpy(Kff, in->Kff, sizeof(double) * (size_t)(nm * nm));
+  }
+  for (int64_t l = 0; l < nm; l++) {  // exact symmetry (round-off of the products)
+    for (int64_t k = 0; k < l; k++) {
+      double m = 0.5 * (Mff[k + nm * l] + Mff[l + nm * k]);
+      double kk = 0.5 * (Kff[k + nm * l] + Kff[l + nm * k]);
+      Mff[k + nm * l] = Mff[l + nm * k] = m;
+      Kff[k + nm * l] = Kff[l + nm * k] = kk;
+    }
+  }
+  // the body's eigenvalues in this basis (Ritz values of Kff x = w Mff x) for /modes/eigenvalue;
+  // a dependent basis makes Mff singular: refused
+  FMBD_GALLOC(A = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(B = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(eig = xcalloc((size_t)nm, sizeof(double)));
+  memcpy(A, Kff, sizeof(double) * (size_t)(nm * nm));
+  memcpy(B, Mff, sizeof(double) * (size_t)(nm * nm));
+  rc = fmbd_dense_sygv(nm, A, B, eig);
+  if (rc == FMBD_ERR_SINGULAR) {
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "the %lld shapes of the basis are linearly dependent (S'MS is not positive "
+               "definite)",
+               (long long)nm);
+  }
+  FMBD_GCALL(rc);
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, eig, in->stress));
+  *out = r;
+  r = NULL;
+done:
+  fmbd_free(Mff);
+  fmbd_free(Kff);
+  fmbd_free(W);
+  fmbd_free(A);
+  fmbd_free(B);
+  fmbd_free(eig);
   fmbd_rflex_destroy(&r);
   return rc;
 }

@@ -126,6 +126,29 @@ typedef struct fmbd_rflex_input {
 ///         fmbd_fe_nodal_stress
 int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out);
 
+/// Any basis of FE displacement fields of a body (all borrowed; column-major).
+typedef struct fmbd_rflex_basis {
+  const fmbd_fe_body *body;  ///< description: nodes, node_mass, dofs, expand, interfaces, /body
+                             ///< (elements and material for stress)
+  const fmbd_csr *M, *K;     ///< the body's FE mass and stiffness (ndof x ndof), or NULL
+  int64_t nm;                ///< shapes in the basis
+  const double *S;           ///< ndof x nm shapes on the body's dofs (rigid motion excluded)
+  int64_t lds;               ///< leading dimension of S (>= ndof)
+  const double *Mff, *Kff;   ///< nm x nm: S'MS and S'KS when M, K are NULL (the caller knows
+                             ///< them, e.g. from the modal body the shapes are combinations of)
+  bool stress;               ///< compute /modes/stress
+} fmbd_rflex_basis;
+
+/// @brief The body fmbd-run integrates for ANY basis S of displacement fields (a global-mode
+/// GMc basis, ...): Mff = S'MS, Kff = S'KS (not necessarily diagonal), the nodal and
+/// interface motion and the FFRF invariants through the same function fmbd_rflex_build uses;
+/// /modes/eigenvalue gets the Ritz values of Kff x = w Mff x (the body's eigenvalues in the
+/// basis, ascending), frequency_hz their sqrt / 2 pi.
+/// @param[out] out caller releases with fmbd_rflex_destroy
+/// @return FMBD_OK, FMBD_ERR_VALUE (sizes; dependent shapes: S'MS not positive definite),
+///         FMBD_ERR_NOMEM, errors of fmbd_fe_nodal_stress
+int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out);
+
 /// @brief True when fmbd_rflex_build evaluates the invariants S1, XS, SS with the body's
 /// scalar consistent mass (a solid body, tet4/tet10, meshed with consistent mass: the mass the
 /// modes come from), false when with the lumped nodal masses (lumped-mass bodies, beams).

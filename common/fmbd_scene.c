@@ -672,7 +672,7 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   static const char *const keys[] = {
       "name",  "type",          "mass", "com",      "inertia",     "geometry", "file",
       "modes", "damping_ratio", "make", "position", "orientation", "velocity", "angular_velocity",
-      NULL};
+      "basis", "basis_body",    NULL};
   TRY(check_map(c, n, what, keys));
   const char *type = "rigid";
   if ((x = get(c, n, "type"))) TRY(as_str(c, x, "body type", &type));
@@ -680,7 +680,8 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   for (int i = 0; i < 9; i++) b->rotation[i] = (i % 4 == 0);
   if (!strcmp(type, "rigid")) {
     b->kind = FMBD_SCENE_RIGID;
-    static const char *const flexkeys[] = {"file", "modes", "damping_ratio", "make", NULL};
+    static const char *const flexkeys[] = {"file",       "modes", "damping_ratio", "make", "basis",
+                                           "basis_body", NULL};
     for (int i = 0; flexkeys[i]; i++) {
       if ((x = get(c, n, flexkeys[i]))) {
         return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)",
@@ -734,6 +735,24 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       snprintf(b->file, len, "%s", f);
     } else {
       snprintf(b->file, len, "%s/%s", bdir, f);
+    }
+    if ((x = get(c, n, "basis"))) {  // a global-mode (GMc) basis from gmsolve
+      b->basis_loc = loc_of(x);
+      TRY(as_str(c, x, "basis", &f));
+      len = strlen(bdir) + strlen(f) + 2;
+      b->basis = fmbd_malloc(len);
+      if (!b->basis) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+      if (f[0] == '/' || !strcmp(bdir, ".")) {
+        snprintf(b->basis, len, "%s", f);
+      } else {
+        snprintf(b->basis, len, "%s/%s", bdir, f);
+      }
+    }
+    if ((x = get(c, n, "basis_body"))) {
+      if (!b->basis) return fail_at(c, x, "%s: 'basis_body' needs 'basis'", what);
+      TRY(as_str(c, x, "basis_body", &f));
+      b->basis_body = fmbd_strdup(f);
+      if (!b->basis_body) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
     }
     if ((x = get(c, n, "modes"))) TRY(as_int(c, x, "modes", 1, &b->modes));
     if ((x = get(c, n, "damping_ratio"))) {
@@ -1299,6 +1318,8 @@ void fmbd_scene_destroy(fmbd_scene **sp) {
     fmbd_scene_body *b = &s->bodies[i];
     fmbd_free(b->name);
     fmbd_free(b->file);
+    fmbd_free(b->basis);
+    fmbd_free(b->basis_body);
     fmbd_free(b->chain.geometry);
     fmbd_free(b->chain.mesh2fe_args);
     fmbd_free(b->chain.fe);

@@ -13,6 +13,7 @@
 #include "fmbd_cb.h"
 #include "fmbd_eig.h"
 #include "fmbd_err.h"
+#include "fmbd_gm.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
 
@@ -241,6 +242,119 @@ static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
   return 0;
 }
 
+// --- a global-mode (GMc) basis instead of the file's modes ----------------------------------
+// The body's GMc basis from a gmsolve file (/gmc/<body>: shapes on the FE dofs, Mff, Kff),
+// turned into the body by fmbd_rflex_from_basis with the description of the body's own file
+// (f: a .rflex.h5, .cb.h5 or .fe.h5), which must be the file the basis was made from (its
+// SHA-256). A full FE body so becomes a modal body with the GMc shapes as its modes.
+static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f, bool stress) {
+  int rc = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  const char *name = b->basis_body ? b->basis_body : b->name;
+  fmbd_h5 *g = NULL;
+  fmbd_fe_body *desc = NULL;
+  fmbd_rflex *r = NULL;
+  double *S = NULL, *Mff = NULL, *Kff = NULL;
+  char *sha = NULL, path[600];
+  fmbd_err_clear();
+  rc = fmbd_h5_open(b->basis, &g);
+  if (!rc) rc = fmbd_h5_check_format(g, FMBD_GM_FORMAT, FMBD_GM_FORMAT_MAJOR);
+  if (rc) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    SFAIL(s, b->basis_loc, rc, "body '%s': basis %s: %s", b->name, b->basis, msg);
+  }
+  snprintf(path, sizeof path, "/gmc/%s", name);
+  if (!fmbd_h5_exists(g, path)) {
+    SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+          "body '%s': %s has no GMc basis of a body '%s' (name it with basis_body)", b->name,
+          b->basis, name);
+  }
+  if (fmbd_h5_has_attr(g, path, "file_sha256")) {
+    FMBD_GCALL(fmbd_h5_read_attr_str(g, path, "file_sha256", &sha));
+    if (sha[0] && strcmp(sha, fmbd_h5_sha256(f))) {
+      SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+            "body '%s': the basis in %s was made from another version of %s (SHA-256 differs): "
+            "run gmsolve again",
+            b->name, b->basis, b->file);
+    }
+  }
+  int64_t ndof = -1, nc = -1, r1 = -1, c1 = -1, r2 = -1, c2 = -1;
+  snprintf(path, sizeof path, "/gmc/%s/shapes", name);
+  rc = fmbd_h5_read_f64_cm(g, path, &ndof, &nc, &S);
+  if (!rc) {
+    snprintf(path, sizeof path, "/gmc/%s/Mff", name);
+    rc = fmbd_h5_read_f64_cm(g, path, &r1, &c1, &Mff);
+  }
+  if (!rc) {
+    snprintf(path, sizeof path, "/gmc/%s/Kff", name);
+    rc = fmbd_h5_read_f64_cm(g, path, &r2, &c2, &Kff);
+  }
+  if (rc) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    SFAIL(s, b->basis_loc, rc, "body '%s': %s:%s: %s", b->name, b->basis, path, msg);
+  }
+  FMBD_GCALL(fmbd_fe_read(f, &desc));
+  if (nc == 0 || r1 != nc || c1 != nc || r2 != nc || c2 != nc || ndof != desc->ndof) {
+    SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+          "body '%s': the GMc basis of '%s' in %s has %lld columns on %lld dofs (Mff %lld x %lld, "
+          "Kff %lld x %lld); the body has %lld dofs%s",
+          b->name, name, b->basis, (long long)nc, (long long)ndof, (long long)r1, (long long)c1,
+          (long long)r2, (long long)c2, (long long)desc->ndof,
+          nc == 0 ? " (an empty basis: the body does not deform in the global modes)" : "");
+  }
+  if (b->modes > 0) {  // the columns of the first `modes` global modes: a prefix (mode order)
+    int64_t ng = -1, *gmode = NULL, keep = 0;
+    snprintf(path, sizeof path, "/gmc/%s/global_mode", name);
+    rc = fmbd_h5_read_i64(g, path, 1, &ng, &gmode);
+    if (rc) {
+      char msg[1100];
+      snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+      SFAIL(s, b->basis_loc, rc, "body '%s': %s:%s: %s", b->name, b->basis, path, msg);
+    }
+    while (keep < ng && keep < nc && gmode[keep] <= b->modes) keep++;
+    int64_t last = ng > 0 ? gmode[ng - 1] : 0;
+    fmbd_free(gmode);
+    if (keep == 0) {
+      SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
+            "body '%s': none of the %lld GMc columns of '%s' in %s comes from the first %lld "
+            "global modes",
+            b->name, (long long)nc, name, b->basis, (long long)b->modes);
+    }
+    if (b->modes > last && last > 0) {
+      fmbd_log(FMBD_LOG_INFO,
+               "body '%s': modes %lld, but %s has the GMc columns of %lld global modes", b->name,
+               (long long)b->modes, b->basis, (long long)last);
+    }
+    for (int64_t j = 0; j < keep; j++) {  // leading keep x keep blocks, in place
+      for (int64_t i = 0; i < keep; i++) {
+        Mff[i + keep * j] = Mff[i + nc * j];
+        Kff[i + keep * j] = Kff[i + nc * j];
+      }
+    }
+    nc = keep;
+  }
+  // a full FE body's file has its M and K: the projections are made here; a modal body's
+  // description has none: the file's Mff, Kff (gmsolve's projections with the modal matrices)
+  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress};
+  rc = fmbd_rflex_from_basis(&in, &r);
+  if (rc) SFAIL(s, b->basis_loc, rc, "body '%s': %s: %s", b->name, b->basis, fmbd_err_get()->msg);
+  fmbd_rflex_destroy(&m->flex[bi]);
+  m->flex[bi] = r;
+  r = NULL;
+  FMBD_GCALL(add_input(m, b->basis, fmbd_h5_sha256(g)));
+done:
+  fmbd_h5_close(&g);
+  fmbd_fe_body_destroy(&desc);
+  fmbd_rflex_destroy(&r);
+  fmbd_free(S);
+  fmbd_free(Mff);
+  fmbd_free(Kff);
+  fmbd_free(sha);
+  return rc;
+}
+
 // --- full FE bodies (docs/THEORY.md section 4b) ---------------------------------------------
 // The scalar nodal mass of the invariants: the consistent mass of the solid elements (the mass
 // the FE matrices hold, fmbd_rflex_consistent_invariants) or the lumped nodal masses.
@@ -459,7 +573,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
   } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR);
-    if (!rc) {
+    // with a GMc basis the body is the modal body of that basis (load_gmc, below)
+    if (!rc && !b->basis) {
       FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
       FMBD_GCALL(load_fe(m, s, bi, f));
       FMBD_GCALL(add_input(m, b->file, fmbd_h5_sha256(f)));
@@ -519,12 +634,13 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     }
     fmbd_free(made);
   }
+  if (b->basis) FMBD_GCALL(load_gmc(m, s, bi, f, need_stress));
   fmbd_rflex *r = m->flex[bi];
-  if (b->modes > r->nm) {
+  if (!b->basis && b->modes > r->nm) {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name,
-          (long long)b->modes, b->file, (long long)r->nm);
+          (long long)b->modes, b->basis ? b->basis : b->file, (long long)r->nm);
   }
-  if (b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
+  if (!b->basis && b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
   if (!need_stress && r->stress) {  // nothing asks for stress: do not keep it
     fmbd_free(r->stress);
     r->stress = NULL;

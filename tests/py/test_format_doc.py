@@ -23,7 +23,8 @@ BIN = os.path.join(ROOT, BUILD, "bin")
 TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_format_doc")
 # collections whose member names are the user's: the placeholder FORMAT.md uses for a member
 COLLECTIONS = {"interfaces": "<name>", "clamped": "<name>", "groups": "<name>", "outputs": "NAME",
-               "reactions": "JOINT", "reference": "NAME", "body": "NAME", "frames": "K"}
+               "reactions": "JOINT", "reference": "NAME", "body": "NAME", "frames": "K", "gms": "<body>",
+               "gmc": "<body>"}
 CSR_MEMBERS = ("data", "indices", "indptr")
 
 
@@ -50,12 +51,13 @@ def main():
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "-o", "ref.run.h5", "-q")
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "--reference", "ref.run.h5", "-o", "run.h5",
         "--xdmf", "-q")
+    run("gmsolve", scene, "--body-dir", ".", "--modes", "4", "--matrices", "-o", "quadpend.gm.h5", "-q")
 
     doc = open(os.path.join(ROOT, "docs", "FORMAT.md")).read()
     paths = set(re.findall(r"`(/[^`\s]*)`", doc))
     words = set(re.findall(r"`([^`\s/]+)`", doc))
     missing = []
-    for name in ("rod.fe.h5", "rod.cb.h5", "rod.rflex.h5", "run.h5"):
+    for name in ("rod.fe.h5", "rod.cb.h5", "rod.rflex.h5", "run.h5", "quadpend.gm.h5"):
         with h5py.File(os.path.join(TMP, name), "r") as f:
             objects = ["/"]
             f.visit(lambda n: objects.append("/" + n))
