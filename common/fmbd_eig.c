@@ -568,11 +568,11 @@ static int64_t auto_ncv(int64_t n, int64_t nreq) {
   return ncv;
 }
 
-// block size of a Lanczos pass (0: ARPACK, single vector). Auto (o->block == 0): blocks of 32
+// block size of a Lanczos pass (0: ARPACK, single vector). Auto (o->block == 0): blocks of 16
 // from 60 wanted pairs on (bench/README.md, fe2cb section: below that ARPACK's fewer solves win)
 static int64_t block_size(const fmbd_eig_opts *o, int64_t n, int64_t nreq, int64_t ncv) {
   int64_t p = o->block;
-  if (p == 0) p = nreq >= 60 ? 32 : 1;
+  if (p == 0) p = nreq >= 60 ? 16 : 1;
   if (p <= 1) return 0;
   int64_t mmax = ncv > nreq + 6 * p ? ncv : nreq + 6 * p;  // as in block_run
   return mmax + p <= n ? p : 0;  // nearly all of a small problem: ARPACK

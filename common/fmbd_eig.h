@@ -55,7 +55,7 @@ typedef struct fmbd_eig_opts {
   int64_t dense_max;  ///< solve densely with LAPACK up to this order. Default 400
   int64_t block;      ///< Lanczos block size: 1 = ARPACK (single vector), >= 2 = block
                       ///< Krylov-Schur with blocks of that many vectors, 0 = automatic (blocks
-                      ///< of 32 from 60 wanted pairs on). Default 0, or the environment
+                      ///< of 16 from 60 wanted pairs on). Default 0, or the environment
                       ///< variable FMBD_EIG_BLOCK when set
   const double *v0;   ///< (n) start vector of the first Lanczos pass, borrowed, or NULL
                       ///< (default): ARPACK's random start / a fixed pseudo-random block. A
