@@ -575,7 +575,7 @@ static int64_t block_size(const fmbd_eig_opts *o, int64_t n, int64_t nreq, int64
   if (p == 0) p = nreq >= 60 ? 16 : 1;
   if (p <= 1) return 0;
   int64_t mmax = ncv > nreq + 6 * p ? ncv : nreq + 6 * p;  // as in block_run
-  return mmax + p <= n ? p : 0;  // nearly all of a small problem: ARPACK
+  return mmax + p <= n ? p : 0;                            // nearly all of a small problem: ARPACK
 }
 
 // max_i K_ii / M_ii over dofs with mass: the upper end of the spectrum, a scale

@@ -150,8 +150,8 @@ int main(void) {
     fmbd_eig_result r;
     int rc = fmbd_eig_solve(K, M, NULL, &o, &r);
     EXPECT(rc == 0 && r.nev == 24 && r.sturm_count == 24 && r.block == blk,
-           "block %lld: rc %d nev %lld count %lld block %lld", (long long)blk, rc,
-           (long long)r.nev, (long long)r.sturm_count, (long long)r.block);
+           "block %lld: rc %d nev %lld count %lld block %lld", (long long)blk, rc, (long long)r.nev,
+           (long long)r.sturm_count, (long long)r.block);
     for (int64_t k = 0; rc == 0 && k < r.nev; k++) {
       EXPECT(fabs(r.lambda[k] - ex[k]) <= etol * ex[k], "block %lld mode %lld: %.15g vs %.15g",
              (long long)blk, (long long)k + 1, r.lambda[k], ex[k]);
@@ -197,8 +197,8 @@ int main(void) {
     rc = fmbd_eig_solve(K1, M1, NULL, &o, &r);
     EXPECT(rc == 0 && r.dense && r.nev == 12, "dense: rc %d", rc);
     for (int64_t k = 0; rc == 0 && k < r.nev; k++) {
-      EXPECT(r.resid[k] > 0.0 && r.resid[k] <= 1e-10, "dense residual %lld: %.3g",
-             (long long)k + 1, r.resid[k]);
+      EXPECT(r.resid[k] > 0.0 && r.resid[k] <= 1e-10, "dense residual %lld: %.3g", (long long)k + 1,
+             r.resid[k]);
     }
     fmbd_eig_result_free(&r);
     fmbd_csr_destroy(&K1);
