@@ -249,7 +249,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     char msg[1100], where[600];
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     snprintf(where, sizeof where, "%s", fmbd_err_get()->where);
-    SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
+    SFAIL(s, b->file_loc, rc, "body '%s': %s%s%s: %s", b->name, b->file, where[0] ? ":" : "", where,
+          msg);
   }
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
   if (!strcmp(format, FMBD_RFLEX_FORMAT)) {

@@ -7,6 +7,8 @@ PKGS=(gcc g++ make pkg-config
       libsuitesparse-dev libcgal-dev libyaml-dev
       python3-h5py python3-numpy python3-scipy python3-matplotlib calculix-ccx valgrind
       clang-format bsdutils util-linux man-db groff-base)
+# `make fuzz` only (not make check): clang and its libFuzzer runtime
+if [ "${1:-}" = --fuzz ]; then PKGS=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${PKGS[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
