@@ -330,7 +330,8 @@ static void warn_changed_inputs(fmbd_h5 *f) {
   }
   for (int i = 0; i < n; i++) {
     char path[4096], now[65];
-    if (!names[i][0] || !strcmp(names[i], "-") || names[i][0] == '<') continue;
+    if (!names[i][0] || !strcmp(names[i], "-") || names[i][0] == '<' || names[i][0] == '(')
+      continue;  // standard input: "(stdin)" (older files "-", "<stdin>")
     if (find_input(f->name, names[i], path, sizeof path) != 0) {
       fmbd_log(FMBD_LOG_DEBUG, "%s: input %s is not at hand: not compared", f->name, names[i]);
       continue;
