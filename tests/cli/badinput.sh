@@ -139,5 +139,20 @@ expect fmbd-run 1 "noelem\.rflex\.h5 has no /modes/stress" o.run.h5 -- b.yaml -o
 sed "s/rod.rflex.h5/noelem.cb.h5/" run.yaml >b.yaml
 fmbd-run b.yaml -o o.run.h5 -q 2>stderr.txt || bad "noelem.cb.h5 without stress outputs: $(cat stderr.txt)"
 
+# --- provenance: an input remade since a file was made is named (docs/FORMAT.md) -------------
+fmbd-run run.yaml -o o.run.h5 2>stderr.txt || bad "run before the change: $(cat stderr.txt)"
+grep -q warning stderr.txt && bad "a warning with unchanged inputs: $(cat stderr.txt)"
+mesh2fe "$ROOT/examples/geometry/rod.geo" --order 1 --size 0.025 --interface end0 --interface end1 \
+  -o rod.fe.h5 -q || bad "mesh2fe again"
+fmbd-run run.yaml -o o.run.h5 2>stderr.txt || bad "run after the change: $(cat stderr.txt)"
+grep -q "^fmbd-run: warning: rod\.rflex\.h5: its input rod\.fe\.h5 changed since it was made (SHA-256 .*): remake rod\.rflex\.h5" \
+  stderr.txt || bad "fmbd-run: no changed-input warning: $(cat stderr.txt)"
+fe2cb rod.fe.h5 -o rod.cb.h5 --modes 4 2>stderr.txt || bad "fe2cb again"
+grep -q warning stderr.txt && bad "fe2cb: a warning on a fresh fe file: $(cat stderr.txt)"
+cp rod.fe.h5 keep.fe.h5 && mv text.fe.h5 rod.fe.h5  # the cb file's fe file replaced
+cbcheck rod.cb.h5 -o o.rflex.h5 2>stderr.txt >/dev/null
+grep -q "^cbcheck: warning: rod\.cb\.h5: its input rod\.fe\.h5 changed since it was made" stderr.txt ||
+  bad "cbcheck: no changed-input warning: $(cat stderr.txt)"
+
 [ $fail -eq 0 ] && echo "badinput: all cases as expected"
 exit $fail
