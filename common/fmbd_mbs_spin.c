@@ -12,7 +12,8 @@
 // once, at the first accepted step, from the linearised equations (fmbd_mbs_linearise): for each
 // flexible body, its block of M and K on the null space of the constraint rows that involve it,
 // the other bodies held where they are; the lowest eigenvalue above round-off of the rigid
-// motions left free. A warning, once per body, when |Omega|^2 > SPIN_RATIO lambda.
+// motions left free. A warning, once per body, when |Omega|^2 > SPIN_RATIO lambda. Modal bodies
+// of at most SPIN_MAX_N coordinates only (not full FE bodies: their dense block would be huge).
 #include <math.h>
 #include <string.h>
 
@@ -23,6 +24,7 @@
 #include "fmbd_mbs_impl.h"
 
 #define SPIN_RATIO 0.01
+#define SPIN_MAX_N 1000  // bodies of more coordinates (7 + modes) are not checked
 
 // Lowest elastic eigenvalue of body ib held by its constraint rows (INFINITY: none).
 static double held_lambda(const fmbd_mbs_linear *L, int64_t off, int64_t nb) {
@@ -95,7 +97,7 @@ void mbs_spin_check(fmbd_mbs *m) {
     bool any = false;
     for (int i = 0; i < m->nb; i++) {
       m->b[i].spin_lam = INFINITY;
-      any |= m->b[i].nm > 0;
+      any |= m->b[i].nm > 0 && !m->b[i].fe && m->b[i].n <= SPIN_MAX_N;
     }
     if (!any) return;
     fmbd_mbs_linear L;
@@ -105,7 +107,9 @@ void mbs_spin_check(fmbd_mbs *m) {
       return;
     }
     for (int i = 0; i < m->nb; i++) {
-      if (m->b[i].nm > 0) m->b[i].spin_lam = held_lambda(&L, m->b[i].off, m->b[i].n);
+      // modal bodies only: a full FE body's dense block would be (7 + its FE dofs)^2
+      if (m->b[i].nm > 0 && !m->b[i].fe && m->b[i].n <= SPIN_MAX_N)
+        m->b[i].spin_lam = held_lambda(&L, m->b[i].off, m->b[i].n);
       fmbd_log(FMBD_LOG_DEBUG, "body '%s': lowest elastic eigenvalue as held %.6g rad^2/s^2",
                m->b[i].name, m->b[i].spin_lam);
     }
