@@ -95,8 +95,8 @@ expect fmbd-run 1 "newer\.rflex\.h5.*9\.0" o.run.h5 -- b.yaml -o o.run.h5
 # a file of another kind where one is expected
 expect fe2cb 1 "rod\.cb\.h5.*fmbd-cb.*expected fmbd-fe" o.cb.h5 -- rod.cb.h5 -o o.cb.h5
 expect cbcheck 1 "rod\.fe\.h5.*fmbd-fe.*expected fmbd-cb" o.rflex.h5 -- rod.fe.h5 -o o.rflex.h5
-sed "s/rod.rflex.h5/rod.fe.h5/" run.yaml >b.yaml
-expect fmbd-run 1 "rod\.fe\.h5 is a fmbd-fe file" o.run.h5 -- b.yaml -o o.run.h5
+sed "s/rod.rflex.h5/ref.run.h5/" run.yaml >b.yaml
+expect fmbd-run 1 "ref\.run\.h5 is a fmbd-run file" o.run.h5 -- b.yaml -o o.run.h5
 for c in trunc foreign; do
   r=$c.run.h5; [ $c = foreign ] && r=foreign.fe.h5
   expect fmbd-run 1 "$r" o.run.h5 -- run.yaml -o o.run.h5 --reference $r
@@ -131,10 +131,10 @@ import h5py, sys
 with h5py.File('noelem.rflex.h5') as f: sys.exit('modes/stress' in f)
 " || bad "noelem.rflex.h5 has a /modes/stress"
 sed "s/rod.rflex.h5/noelem.cb.h5/; s/quantities: \[position\]/quantities: [von_mises]/" run.yaml >b.yaml
-expect fmbd-run 1 "body 'rod': noelem\.cb\.h5:/mesh/elements: modal stress asked for a body without solid elements" \
+expect fmbd-run 1 "output 'tip' asks for stress or strain, but noelem\.cb\.h5 has no modal stress \(it is recovered from solid elements" \
   o.run.h5 -- b.yaml -o o.run.h5
 sed "s/rod.rflex.h5/noelem.rflex.h5/; s/quantities: \[position\]/quantities: [von_mises]/" run.yaml >b.yaml
-expect fmbd-run 1 "noelem\.rflex\.h5 has no /modes/stress" o.run.h5 -- b.yaml -o o.run.h5
+expect fmbd-run 1 "noelem\.rflex\.h5 has no modal stress \(no /modes/stress" o.run.h5 -- b.yaml -o o.run.h5
 # the cb body without stress outputs still runs (the elements are needed for stress only)
 sed "s/rod.rflex.h5/noelem.cb.h5/" run.yaml >b.yaml
 fmbd-run b.yaml -o o.run.h5 -q 2>stderr.txt || bad "noelem.cb.h5 without stress outputs: $(cat stderr.txt)"
