@@ -18,7 +18,7 @@
 // converges linearly, not quadratically, and the step is the same (the residual is complete).
 // So no finite-difference check of d r / d x is asserted here: it would test a matrix the
 // code does not claim. The drivers' time derivatives (Phi_t = -f'(t), Phi_tt = -f''(t) in the
-// velocity and acceleration equations) are checked in t509-mbs-fn.
+// velocity and acceleration equations) are checked in t510-mbs-fn.
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,4 +1,4 @@
-// tests/unit/t509-mbs-fn.c: the time derivatives of the drivers' and loads' functions
+// tests/unit/t510-mbs-fn.c: the time derivatives of the drivers' and loads' functions
 // (fmbd_mbs_fn_eval's dfdt and d2fdt2, which the drivers' velocity and acceleration equations
 // use) against central finite differences of the returned values, for every kind: constant,
 // linear, ramp (linear and smooth), sine, table; at points inside each piece and, for the
