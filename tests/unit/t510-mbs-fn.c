@@ -24,8 +24,8 @@ static void check_fn(const char *name, const fmbd_mbs_fn *f, double t) {
   double fd2 = (fmbd_mbs_fn_eval(f, t + h2, NULL, NULL) - 2 * fmbd_mbs_fn_eval(f, t, NULL, NULL) +
                 fmbd_mbs_fn_eval(f, t - h2, NULL, NULL)) /
                (h2 * h2);
-  EXPECT(fabs(d - fd1) <= 2e-5 * fmax(1, fabs(fd1)), "%s at t = %g: dfdt %.9g, finite difference %.9g",
-         name, t, d, fd1);
+  EXPECT(fabs(d - fd1) <= 2e-5 * fmax(1, fabs(fd1)),
+         "%s at t = %g: dfdt %.9g, finite difference %.9g", name, t, d, fd1);
   EXPECT(fabs(dd - fd2) <= 5e-3 * fmax(1, fabs(fd2)),
          "%s at t = %g: d2fdt2 %.9g, finite difference %.9g", name, t, dd, fd2);
 }
@@ -38,8 +38,8 @@ static void check_right(const char *name, const fmbd_mbs_fn *f, double t0) {
   double f0 = fmbd_mbs_fn_eval(f, t0, NULL, NULL), f1 = fmbd_mbs_fn_eval(f, t0 + h, NULL, NULL),
          f2 = fmbd_mbs_fn_eval(f, t0 + 2 * h, NULL, NULL);
   double fd = (-3 * f0 + 4 * f1 - f2) / (2 * h);
-  EXPECT(fabs(d - fd) <= 1e-4 * fmax(1, fabs(fd)), "%s: right-hand dfdt at the kink t = %g: %.9g, %.9g",
-         name, t0, d, fd);
+  EXPECT(fabs(d - fd) <= 1e-4 * fmax(1, fabs(fd)),
+         "%s: right-hand dfdt at the kink t = %g: %.9g, %.9g", name, t0, d, fd);
 }
 
 int main(void) {
@@ -74,7 +74,8 @@ int main(void) {
   double v = fmbd_mbs_fn_eval(&s, 0.0, &d, &dd);
   EXPECT(fabs(v - (0.5 + 2.0 * sin(0.7))) < 1e-15, "sine value %.17g", v);
   EXPECT(fabs(d - 2.0 * 2 * M_PI * 3.0 * cos(0.7)) < 1e-12, "sine derivative %.17g", d);
-  EXPECT(fabs(dd + 2.0 * pow(2 * M_PI * 3.0, 2) * sin(0.7)) < 1e-10, "sine second derivative %.17g", dd);
+  EXPECT(fabs(dd + 2.0 * pow(2 * M_PI * 3.0, 2) * sin(0.7)) < 1e-10, "sine second derivative %.17g",
+         dd);
   v = fmbd_mbs_fn_eval(&rs, 1.0, &d, &dd);
   EXPECT(fabs(v - 2.5) < 1e-15 && fabs(d - 4.5) < 1e-12 && fabs(dd) < 1e-12,
          "smooth ramp at its middle: %.17g %.17g %.17g (2.5, 1.5 x 3 / 1, 0)", v, d, dd);
