@@ -367,6 +367,15 @@ int fmbd_check_rflex(fmbd_check *c, const fmbd_est_modes *m, const double *Xi, i
     ldx = nd + cb->nb;
     FMBD_GCALL(rc);
   }
+  if (stress && c->desc->ntet == 0) {
+    // modal stress is recovered from solid elements only: without them it would be all zero
+    // (a beam body, or a file whose /mesh/elements was lost); none is written, and an output
+    // asking for stress is then refused by fmbd-run
+    stress = false;
+    fmbd_log(c->desc->nbeam > 0 ? FMBD_LOG_INFO : FMBD_LOG_WARN,
+             "%s: no solid elements (/mesh/elements/tet4 or tet10)%s: no modal stress written",
+             fmbd_h5_name(c->cbf), c->desc->nbeam > 0 ? ", beams only" : "");
+  }
   fmbd_rflex_input mi = {c->desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd,  cb->Phi,
                          cb->ns,  cb->Psi, *nkept, chif,         Xif,          ldx, stress};
   rc = fmbd_rflex_build(&mi, rf);

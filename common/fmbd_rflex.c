@@ -267,7 +267,9 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     }
   }
   // --- modal stress ---
-  if (stress && nm > 0) {
+  // from the solid elements only: without any (beams, springs, a lost /mesh/elements) it would
+  // be zero everywhere, so none is made (r->stress = NULL; callers say so)
+  if (stress && nm > 0 && b->ntet > 0) {
     FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
     FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, r->stress));
   }

@@ -593,7 +593,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     char msg[1100], where[600];
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     snprintf(where, sizeof where, "%s", fmbd_err_get()->where);
-    SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
+    SFAIL(s, b->file_loc, rc, "body '%s': %s%s%s: %s", b->name, b->file, where[0] ? ":" : "", where,
+          msg);
   }
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
   if (!strcmp(format, FMBD_RFLEX_FORMAT)) {
@@ -785,11 +786,12 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
       const fmbd_rflex *r = m->flex[op->body];
       if (!r->stress) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE,
-              "%s asks for stress or strain, but %s has no /modes/stress (%s)", what,
+              "%s asks for stress or strain, but %s has no modal stress (%s)", what,
               s->bodies[op->body].file,
               !strcmp(m->file_kind[op->body], FMBD_CB_FORMAT)
-                  ? "a cb file never has it; use the .rflex.h5 of cbcheck"
-                  : "cbcheck writes it when the fe file is at hand");
+                  ? "it is recovered from solid elements, and its /mesh/elements has no tet4 or "
+                    "tet10"
+                  : "no /modes/stress: cbcheck writes it for bodies with solid elements");
       }
       if ((op->quantities & FMBD_OUT_STRAIN) && !(m->E[op->body] > 0)) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for strain, but %s has no /material E and nu",
