@@ -6,6 +6,8 @@
 #                   VALGRIND=1: the unit tests under valgrind memcheck)
 #   make demo       the main job end to end (examples/)
 #   make bench      benchmarks under bench/ (minutes; see bench/README.md)
+#   make reports    error-against-run-time reports of the papers' benchmarks (examples/report.mk;
+#                   also report-quadpend, report-slidercrank, report-spatial-slidercrank)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make format     reformat the C/C++ sources with .clang-format (make check checks it)
 #   make info       resolved flags;  V=1 full command lines
@@ -105,7 +107,7 @@ $(BUILD)/tools/%: $(BUILD)/tests/tools/%.o $(LIB)
 	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $< $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
 
 # --- targets ------------------------------------------------------------------------------
-.PHONY: all deps check check-build demo bench install uninstall clean info format
+.PHONY: all deps check check-build demo bench install uninstall clean info format reports
 deps:
 	@bash scripts/install-deps.sh
 
@@ -118,6 +120,10 @@ check: deps
 demo: deps
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory -f examples/demo.mk BUILD=$(BUILD) PYTHON=$(PYTHON)
+
+reports report-quadpend report-slidercrank report-spatial-slidercrank: deps
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -f examples/report.mk BUILD=$(BUILD) PYTHON=$(PYTHON) $@
 
 bench: deps
 	@$(MAKE) --no-print-directory all $(TOOLS)
