@@ -7,6 +7,7 @@
 // (estimates, selection), fmbd_svg (plots). What stays here: the options, the report table, the
 // CSV file and the plots.
 // See docs/man/cbcheck.1.
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -98,6 +99,33 @@ typedef struct args {
   int quiet, verbose;
 } args;
 
+enum {
+  OPT_OUTPUT = 1,
+  OPT_FE,
+  OPT_HOLD,
+  OPT_CSV,
+  OPT_PLOT,
+  OPT_TOL,
+  OPT_RANGE,
+  OPT_INIT,
+  OPT_MAX_MODES,
+  OPT_ND,
+  OPT_ESTIMATOR,
+  OPT_EXACT,
+  OPT_PLAIN,
+  OPT_NO_STRESS,
+  OPT_FOR_SCENE
+};
+static const fmbd_cli_option options[] = {
+    {NULL, 'o', true, OPT_OUTPUT},           {"--fe", 0, true, OPT_FE},
+    {"--hold", 0, true, OPT_HOLD},           {"--csv", 0, true, OPT_CSV},
+    {"--plot", 0, true, OPT_PLOT},           {"--tol", 0, true, OPT_TOL},
+    {"--range", 0, true, OPT_RANGE},         {"--init", 0, true, OPT_INIT},
+    {"--max-modes", 0, true, OPT_MAX_MODES}, {"--nd", 0, true, OPT_ND},
+    {"--estimator", 0, true, OPT_ESTIMATOR}, {"--exact", 0, false, OPT_EXACT},
+    {"--plain", 0, false, OPT_PLAIN},        {"--no-stress", 0, false, OPT_NO_STRESS},
+    {"--for-scene", 0, true, OPT_FOR_SCENE}, {0}};
+
 static int parse_args(int argc, char **argv, args *a, bool *done) {
   *done = false;
   a->init = 5;
@@ -106,99 +134,86 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
   a->nd = -1;
   a->stress = true;
   a->which = FMBD_EST_UPPER;
-  for (int i = 1; i < argc; i++) {
-    const char *arg = argv[i];
-    const char *val = NULL;
-#define NEED_VALUE()                                               \
-  do {                                                             \
-    if (i + 1 >= argc) {                                           \
-      return fmbd_cli_usage_error("option %s needs a value", arg); \
-    }                                                              \
-    val = argv[++i];                                               \
-  } while (0)
-    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
-    if (common == FMBD_CLI_DONE) {
-      *done = true;
-      return 0;
-    } else if (common == FMBD_CLI_TAKEN) {
-      continue;
-    } else if (!strcmp(arg, "-o")) {
-      NEED_VALUE();
-      a->output = val;
-    } else if (!strcmp(arg, "--fe")) {
-      NEED_VALUE();
-      a->fe = val;
-    } else if (!strcmp(arg, "--hold")) {
-      NEED_VALUE();
-      if (a->nhold >= 64) {
-        return fmbd_cli_usage_error("--hold: at most 64 interfaces");
-      }
-      a->hold[a->nhold++] = val;
-    } else if (!strcmp(arg, "--for-scene")) {
-      NEED_VALUE();
-      a->for_scene = val;
-    } else if (!strcmp(arg, "--csv")) {
-      NEED_VALUE();
-      a->csv = val;
-    } else if (!strcmp(arg, "--plot")) {
-      NEED_VALUE();
-      a->plot = val;
-    } else if (!strcmp(arg, "--tol")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->tol)) {
-        return fmbd_cli_finish(FMBD_ERR_USAGE);
-      }
-      a->has_tol = true;
-    } else if (!strcmp(arg, "--range") || !strcmp(arg, "--init") || !strcmp(arg, "--max-modes") ||
-               !strcmp(arg, "--nd")) {
-      NEED_VALUE();
-      long v;
-      if (fmbd_cli_parse_int(arg, val, &v)) {
-        return fmbd_cli_finish(FMBD_ERR_USAGE);
-      }
-      if (!strcmp(arg, "--range")) {
-        if (v < 1) {
-          return fmbd_cli_usage_error("--range: %s must be >= 1", val);
+  fmbd_cli_args p;
+  fmbd_cli_args_init(&p, argc, argv, options, usage_text);
+  for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
+    const char *val = p.value;
+    switch (id) {
+      case FMBD_CLI_EXIT:
+        *done = p.status == 0;
+        return p.status;
+      case FMBD_CLI_ARG:
+        if (a->input) {
+          return fmbd_cli_usage_error("one BODY.cb.h5 expected, got '%s' and '%s'", a->input, val);
         }
-        a->range = v;
-      } else if (!strcmp(arg, "--nd")) {
-        if (v < 0) {
-          return fmbd_cli_usage_error("--nd: %s must be >= 0", val);
+        a->input = val;
+        break;
+      case OPT_OUTPUT:
+        a->output = val;
+        break;
+      case OPT_FE:
+        a->fe = val;
+        break;
+      case OPT_HOLD:
+        if (a->nhold >= 64) {
+          return fmbd_cli_usage_error("--hold: at most 64 interfaces");
         }
-        a->nd = v;
-      } else if (!strcmp(arg, "--init")) {
-        if (v < 0) {
-          return fmbd_cli_usage_error("--init: %s must be >= 0", val);
+        a->hold[a->nhold++] = val;
+        break;
+      case OPT_FOR_SCENE:
+        a->for_scene = val;
+        break;
+      case OPT_CSV:
+        a->csv = val;
+        break;
+      case OPT_PLOT:
+        a->plot = val;
+        break;
+      case OPT_TOL:  // its floor is checked below, with the file named
+        if (fmbd_cli_double(&p, -INFINITY, INFINITY, 0, &a->tol)) {
+          return p.status;
         }
-        a->init = v;
-      } else {
-        if (v < 1) {
-          return fmbd_cli_usage_error("--max-modes: %s must be >= 1", val);
+        a->has_tol = true;
+        break;
+      case OPT_RANGE:
+        if (fmbd_cli_long(&p, 1, LONG_MAX, &a->range)) {
+          return p.status;
         }
-        a->max_modes = v;
-      }
-    } else if (!strcmp(arg, "--estimator")) {
-      NEED_VALUE();
-      if (fmbd_est_which_parse(val, &a->which)) {
-        return fmbd_cli_usage_error("--estimator: '%s' is not upper, upper-next, second or lower",
-                                    val);
-      }
-    } else if (!strcmp(arg, "--exact")) {
-      a->exact = true;
-    } else if (!strcmp(arg, "--plain")) {
-      a->plain = true;
-    } else if (!strcmp(arg, "--no-stress")) {
-      a->stress = false;
-    } else if (arg[0] == '-' && arg[1] != '\0') {
-      return fmbd_cli_usage_error("unknown option '%s'", arg);
-    } else {
-      if (a->input) {
-        return fmbd_cli_usage_error("one BODY.cb.h5 expected, got '%s' and '%s'", a->input, arg);
-      }
-      a->input = arg;
+        break;
+      case OPT_ND:
+        if (fmbd_cli_long(&p, 0, LONG_MAX, &a->nd)) {
+          return p.status;
+        }
+        break;
+      case OPT_INIT:
+        if (fmbd_cli_long(&p, 0, LONG_MAX, &a->init)) {
+          return p.status;
+        }
+        break;
+      case OPT_MAX_MODES:
+        if (fmbd_cli_long(&p, 1, LONG_MAX, &a->max_modes)) {
+          return p.status;
+        }
+        break;
+      case OPT_ESTIMATOR:
+        if (fmbd_est_which_parse(val, &a->which)) {
+          return fmbd_cli_usage_error("--estimator: '%s' is not upper, upper-next, second or lower",
+                                      val);
+        }
+        break;
+      case OPT_EXACT:
+        a->exact = true;
+        break;
+      case OPT_PLAIN:
+        a->plain = true;
+        break;
+      case OPT_NO_STRESS:
+        a->stress = false;
+        break;
     }
-#undef NEED_VALUE
   }
+  a->quiet = p.quiet;
+  a->verbose = p.verbose;
   if (!a->input) {
     return fmbd_cli_usage_error("no BODY.cb.h5 given");
   }

@@ -3,6 +3,7 @@
 #include "fmbd_cli.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -318,4 +319,149 @@ int fmbd_cli_common_option(const char *arg, const char *help_text, int *quiet, i
     return FMBD_CLI_OTHER;
   }
   return FMBD_CLI_TAKEN;
+}
+
+// --- the option parser ------------------------------------------------------------------------
+void fmbd_cli_args_init(fmbd_cli_args *p, int argc, char **argv, const fmbd_cli_option *options,
+                        const char *help_text) {
+  memset(p, 0, sizeof *p);
+  p->argc = argc;
+  p->argv = argv;
+  p->i = 1;
+  p->options = options;
+  p->help_text = help_text;
+}
+
+static int cli_stop(fmbd_cli_args *p, int status) {
+  p->status = status;
+  return FMBD_CLI_EXIT;
+}
+
+int fmbd_cli_next(fmbd_cli_args *p) {
+  p->value = NULL;
+  p->opt = NULL;
+  if (p->i >= p->argc) return FMBD_CLI_END;
+  const char *arg = p->argv[p->i++];
+  if (p->only_args || arg[0] != '-' || arg[1] == '\0') {
+    p->value = arg;
+    return FMBD_CLI_ARG;
+  }
+  if (!strcmp(arg, "--")) {
+    p->only_args = true;
+    return fmbd_cli_next(p);
+  }
+  int common = fmbd_cli_common_option(arg, p->help_text, &p->quiet, &p->verbose);
+  if (common == FMBD_CLI_DONE) return cli_stop(p, 0);
+  if (common == FMBD_CLI_TAKEN) return fmbd_cli_next(p);
+  const fmbd_cli_option *o = NULL;
+  const char *inline_value = NULL;
+  if (arg[1] == '-') {  // --name or --name=value
+    const char *eq = strchr(arg, '=');
+    size_t n = eq ? (size_t)(eq - arg) : strlen(arg);
+    if (n >= sizeof p->name) n = sizeof p->name - 1;
+    memcpy(p->name, arg, n);
+    p->name[n] = '\0';
+    for (const fmbd_cli_option *q = p->options; q && (q->name || q->letter); q++) {
+      if (q->name && !strcmp(q->name, p->name)) o = q;
+    }
+    if (eq) inline_value = eq + 1;
+  } else {  // -x, or -xVALUE for an option with a value
+    for (const fmbd_cli_option *q = p->options; q && (q->name || q->letter); q++) {
+      if (q->letter == arg[1]) o = q;
+    }
+    if (o && arg[2] != '\0') {
+      if (!o->value) o = NULL;  // "-Mx": not an option of ours
+      inline_value = arg + 2;
+    }
+    snprintf(p->name, sizeof p->name, "-%c", arg[1]);
+  }
+  if (!o) return cli_stop(p, fmbd_cli_usage_error("unknown option '%s'", arg));
+  p->opt = p->name;
+  if (!o->value) {
+    if (inline_value) {
+      return cli_stop(p, fmbd_cli_usage_error("option %s takes no value ('%s')", p->name, arg));
+    }
+    return o->id;
+  }
+  if (inline_value) {
+    p->value = inline_value;
+  } else if (p->i < p->argc) {
+    p->value = p->argv[p->i++];
+  } else {
+    return cli_stop(p, fmbd_cli_usage_error("option %s needs a value", p->name));
+  }
+  return o->id;
+}
+
+// "%g" of a bound, "inf" for an infinite one.
+static void fmt_bound(char *buf, size_t n, double v) {
+  if (isinf(v)) {
+    snprintf(buf, n, "%sinf", v < 0 ? "-" : "");
+  } else {
+    snprintf(buf, n, "%.17g", v);
+    double back = strtod(buf, NULL);
+    for (int prec = 1; prec < 17; prec++) {  // the shortest text that reads back as v
+      snprintf(buf, n, "%.*g", prec, v);
+      if (strtod(buf, NULL) == back) break;
+    }
+  }
+}
+
+// The usage error of a value outside [lo, hi] (bounds: FMBD_CLI_OPEN_*).
+static int range_error(fmbd_cli_args *p, double lo, double hi, unsigned bounds) {
+  char a[40], b[40];
+  fmt_bound(a, sizeof a, lo);
+  fmt_bound(b, sizeof b, hi);
+  bool open_lo = bounds & FMBD_CLI_OPEN_LO, open_hi = bounds & FMBD_CLI_OPEN_HI;
+  if (isinf(hi)) {
+    p->status = fmbd_cli_usage_error("option %s: '%s' must be %s %s", p->opt, p->value,
+                                     open_lo ? ">" : ">=", a);
+  } else if (isinf(lo)) {
+    p->status = fmbd_cli_usage_error("option %s: '%s' must be %s %s", p->opt, p->value,
+                                     open_hi ? "<" : "<=", b);
+  } else {
+    p->status = fmbd_cli_usage_error("option %s: '%s' is outside %c%s, %s%c", p->opt, p->value,
+                                     open_lo ? '(' : '[', a, b, open_hi ? ')' : ']');
+  }
+  return p->status;
+}
+
+int fmbd_cli_double(fmbd_cli_args *p, double lo, double hi, unsigned bounds, double *out) {
+  const char *opt = p->opt ? p->opt : "?";
+  if (fmbd_cli_parse_double(opt, p->value, out)) {
+    p->status = fmbd_cli_usage_error("%s", fmbd_err_get()->msg);
+    return p->status;
+  }
+  double v = *out;
+  bool ok = (bounds & FMBD_CLI_OPEN_LO ? v > lo : v >= lo) &&
+            (bounds & FMBD_CLI_OPEN_HI ? v < hi : v <= hi);
+  return ok ? 0 : range_error(p, lo, hi, bounds);
+}
+
+int fmbd_cli_long(fmbd_cli_args *p, long lo, long hi, long *out) {
+  const char *opt = p->opt ? p->opt : "?";
+  if (fmbd_cli_parse_int(opt, p->value, out)) {
+    p->status = fmbd_cli_usage_error("%s", fmbd_err_get()->msg);
+    return p->status;
+  }
+  if (*out >= lo && *out <= hi) return 0;
+  return range_error(p, lo == LONG_MIN ? -INFINITY : (double)lo,
+                     hi == LONG_MAX ? INFINITY : (double)hi, 0);
+}
+
+int fmbd_cli_numbers(const char *opt, const char *text, int n, char sep, double *v) {
+  const char *s = text;
+  for (int i = 0; i < n; i++) {
+    char *end;
+    errno = 0;
+    v[i] = strtod(s, &end);
+    bool last = i == n - 1;
+    if (end == s || errno == ERANGE || !isfinite(v[i]) || (!last && *end != sep) ||
+        (last && *end)) {
+      return fmbd_cli_usage_error("option %s: '%s' is not a list of %d numbers separated by '%c'",
+                                  opt, text, n, sep);
+    }
+    s = end + 1;
+  }
+  return 0;
 }

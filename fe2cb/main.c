@@ -3,6 +3,7 @@
 //
 // A thin command line over common/fmbd_cb (docs/THEORY.md section 1): read the body, partition,
 // reduce, write. See docs/man/fe2cb.1.
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -75,58 +76,62 @@ static int split_groups(args *a, const char *text) {
   return 0;
 }
 
+enum { OPT_OUTPUT = 1, OPT_MODES, OPT_FMAX, OPT_METHOD, OPT_BOUNDARY, OPT_HOLD, OPT_NO_STURM };
+static const fmbd_cli_option options[] = {
+    {"--output", 'o', true, OPT_OUTPUT},    {"--modes", 0, true, OPT_MODES},
+    {"--fmax", 0, true, OPT_FMAX},          {"--method", 0, true, OPT_METHOD},
+    {"--boundary", 0, true, OPT_BOUNDARY},  {"--hold", 0, false, OPT_HOLD},
+    {"--no-sturm", 0, false, OPT_NO_STURM}, {0}};
+
 // 0: go on; -1: done (help/version printed); > 0: exit status (usage error)
 static int parse_args(int argc, char **argv, args *a) {
-  for (int i = 1; i < argc; i++) {
-    const char *arg = argv[i], *val = NULL;
-#define NEED_VALUE()                                                                \
-  do {                                                                              \
-    if (i + 1 >= argc) return fmbd_cli_usage_error("option %s needs a value", arg); \
-    val = argv[++i];                                                                \
-  } while (0)
-    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
-    if (common == FMBD_CLI_DONE) {
-      return -1;
-    } else if (common == FMBD_CLI_TAKEN) {
-      continue;
-    } else if (!strcmp(arg, "-o") || !strcmp(arg, "--output")) {
-      NEED_VALUE();
-      a->output = val;
-    } else if (!strcmp(arg, "--modes")) {
-      NEED_VALUE();
-      long n = 0;
-      if (fmbd_cli_parse_int(arg, val, &n)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (n < 0) return fmbd_cli_usage_error("--modes: %ld is negative", n);
-      a->cb.nmodes = n;
-      a->modes_given = true;
-    } else if (!strcmp(arg, "--fmax")) {
-      NEED_VALUE();
-      if (fmbd_cli_parse_double(arg, val, &a->cb.fmax_hz)) return fmbd_cli_finish(FMBD_ERR_USAGE);
-      if (!(a->cb.fmax_hz > 0.0)) return fmbd_cli_usage_error("--fmax: %s must be > 0 Hz", val);
-    } else if (!strcmp(arg, "--method")) {
-      NEED_VALUE();
-      if (strcmp(val, "cb") && strcmp(val, "nm")) {
-        return fmbd_cli_usage_error("--method: '%s' is not cb or nm", val);
+  fmbd_cli_args p;
+  fmbd_cli_args_init(&p, argc, argv, options, usage_text);
+  for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
+    const char *val = p.value;
+    switch (id) {
+      case FMBD_CLI_EXIT:
+        return p.status ? p.status : -1;
+      case FMBD_CLI_ARG:
+        if (a->input)
+          return fmbd_cli_usage_error("one BODY.fe.h5 expected, got '%s' and '%s'", a->input, val);
+        a->input = val;
+        break;
+      case OPT_OUTPUT:
+        a->output = val;
+        break;
+      case OPT_MODES: {
+        long n = 0;
+        if (fmbd_cli_long(&p, 0, LONG_MAX, &n)) return p.status;
+        a->cb.nmodes = n;
+        a->modes_given = true;
+        break;
       }
-      a->method = val;
-      a->cb.nm = !strcmp(val, "nm");
-    } else if (!strcmp(arg, "--boundary")) {
-      NEED_VALUE();
-      int st = split_groups(a, val);
-      if (st) return st;
-    } else if (!strcmp(arg, "--hold")) {
-      a->cb.hold = true;
-    } else if (!strcmp(arg, "--no-sturm")) {
-      a->cb.eig.sturm = false;
-    } else if (arg[0] == '-' && arg[1] != '\0') {
-      return fmbd_cli_usage_error("unknown option '%s'", arg);
-    } else {
-      if (a->input)
-        return fmbd_cli_usage_error("one BODY.fe.h5 expected, got '%s' and '%s'", a->input, arg);
-      a->input = arg;
+      case OPT_FMAX:
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &a->cb.fmax_hz)) return p.status;
+        break;
+      case OPT_METHOD:
+        if (strcmp(val, "cb") && strcmp(val, "nm")) {
+          return fmbd_cli_usage_error("--method: '%s' is not cb or nm", val);
+        }
+        a->method = val;
+        a->cb.nm = !strcmp(val, "nm");
+        break;
+      case OPT_BOUNDARY: {
+        int st = split_groups(a, val);
+        if (st) return st;
+        break;
+      }
+      case OPT_HOLD:
+        a->cb.hold = true;
+        break;
+      case OPT_NO_STURM:
+        a->cb.eig.sturm = false;
+        break;
     }
-#undef NEED_VALUE
   }
+  a->quiet = p.quiet;
+  a->verbose = p.verbose;
   if (!a->input) return fmbd_cli_usage_error("no BODY.fe.h5 given");
   if (a->modes_given && a->cb.fmax_hz > 0.0) {
     return fmbd_cli_usage_error("--modes and --fmax are exclusive");

@@ -7,7 +7,6 @@
 // it is renamed to RUN.h5 only when the run is complete. An interrupted run (SIGINT,
 // SIGTERM, SIGHUP, Newton failure) keeps RUN.h5.part, a valid prefix with /stats complete = 0, and
 // exits 1: make never sees a target it could trust.
-#include <getopt.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -419,31 +418,28 @@ done:
   return rc;
 }
 
-static void usage(void) {
-  printf(
-      "Usage: fmbd-run SCENE [-o RUN.h5] [--reference REF.run.h5] [--plot PREFIX] [-M] [-q] [-v]\n"
-      "Simulate the mechanism of a scene file (YAML, docs/SCENE.md): rigid and reduced flexible\n"
-      "bodies (.rflex.h5, .cb.h5) in the floating frame of reference, joints, drivers, loads,\n"
-      "gravity; index-3 generalized-alpha with step-size control. Writes the run file\n"
-      "(format fmbd-run, docs/FORMAT.md) as the run goes.\n\n"
-      "  -o, --output RUN.h5     the run file (default: SCENE with .run.h5, or standard output\n"
-      "                          when it is not a terminal; '-' = standard output)\n"
-      "      --reference REF     RMS error of every point output against the run file REF\n"
-      "                          (docs/THEORY.md section 7), written to /reference and printed\n"
-      "      --plot PREFIX       SVG plots PREFIX<output>-position.svg and -trajectory.svg\n"
-      "      --t-end T           end the run at T seconds instead of the scene's t_end\n"
-      "      --body-dir DIR      body files (and the fe/cb files of -M rules) in DIR instead of\n"
-      "                          the scene's folder (the geometry stays beside the scene)\n"
-      "  -M                      print the make rules of the files the scene needs and exit\n"
-      "  -q, --quiet             errors only\n"
-      "  -v, --verbose           progress and details (-vv: debug)\n"
-      "  -h, --help              this help\n"
-      "  -V, --version           the version\n\n"
-      "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step) "
-      "keeps\n"
-      "its valid prefix in RUN.h5.part with /stats attribute complete = 0, and exits 1.\n\n%s",
-      fmbd_cli_exit_help());
-}
+static const char *usage_text =
+    "Usage: fmbd-run SCENE [-o RUN.h5] [--reference REF.run.h5] [--plot PREFIX] [-M] [-q] [-v]\n"
+    "Simulate the mechanism of a scene file (YAML, docs/SCENE.md): rigid and reduced flexible\n"
+    "bodies (.rflex.h5, .cb.h5) in the floating frame of reference, joints, drivers, loads,\n"
+    "gravity; index-3 generalized-alpha with step-size control. Writes the run file\n"
+    "(format fmbd-run, docs/FORMAT.md) as the run goes.\n\n"
+    "  -o, --output RUN.h5     the run file (default: SCENE with .run.h5, or standard output\n"
+    "                          when it is not a terminal; '-' = standard output)\n"
+    "      --reference REF     RMS error of every point output against the run file REF\n"
+    "                          (docs/THEORY.md section 7), written to /reference and printed\n"
+    "      --plot PREFIX       SVG plots PREFIX<output>-position.svg and -trajectory.svg\n"
+    "      --t-end T           end the run at T seconds instead of the scene's t_end\n"
+    "      --body-dir DIR      body files (and the fe/cb files of -M rules) in DIR instead of\n"
+    "                          the scene's folder (the geometry stays beside the scene)\n"
+    "  -M                      print the make rules of the files the scene needs and exit\n"
+    "  -q, --quiet             errors only\n"
+    "  -v, --verbose           progress and details (-vv: debug)\n"
+    "  -h, --help              this help\n"
+    "  -V, --version           the version\n\n"
+    "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step) "
+    "keeps\n"
+    "its valid prefix in RUN.h5.part with /stats attribute complete = 0, and exits 1.\n\n";
 
 int main(int argc, char **argv) {
   fmbd_cli_init("fmbd-run", argc, argv);
@@ -455,66 +451,55 @@ int main(int argc, char **argv) {
   fmbd_scene *s = NULL;
   fmbd_scene_model *m = NULL;
   run r = {0};
-  static const struct option longopts[] = {
-      {"output", required_argument, NULL, 'o'},   {"reference", required_argument, NULL, 'r'},
-      {"plot", required_argument, NULL, 'p'},     {"t-end", required_argument, NULL, 't'},
-      {"body-dir", required_argument, NULL, 'b'}, {"quiet", no_argument, NULL, 'q'},
-      {"verbose", no_argument, NULL, 'v'},        {"help", no_argument, NULL, 'h'},
-      {"version", no_argument, NULL, 'V'},        {NULL, 0, NULL, 0}};
-  int c;
-  opterr = 0;
-  while ((c = getopt_long(argc, argv, ":o:MqvhV", longopts, NULL)) != -1) {
-    switch (c) {
-      case 'o':
-        opt_o = optarg;
-        break;
-      case 'r':
-        ref = optarg;
-        break;
-      case 'p':
-        plot = optarg;
-        break;
-      case 'b':
-        body_dir = optarg;
-        break;
-      case 't':
-        rc = fmbd_cli_parse_double("--t-end", optarg, &t_end);
-        if (rc) goto done;
-        if (!(t_end > 0)) {
-          rc = fmbd_cli_usage_error("--t-end must be positive");
+  enum { OPT_OUTPUT = 1, OPT_REFERENCE, OPT_PLOT, OPT_T_END, OPT_BODY_DIR, OPT_RULES };
+  static const fmbd_cli_option options[] = {{"--output", 'o', true, OPT_OUTPUT},
+                                            {"--reference", 0, true, OPT_REFERENCE},
+                                            {"--plot", 0, true, OPT_PLOT},
+                                            {"--t-end", 0, true, OPT_T_END},
+                                            {"--body-dir", 0, true, OPT_BODY_DIR},
+                                            {NULL, 'M', false, OPT_RULES},
+                                            {0}};
+  const char *scene_file = NULL;
+  fmbd_cli_args p;
+  fmbd_cli_args_init(&p, argc, argv, options, usage_text);
+  for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
+    switch (id) {
+      case FMBD_CLI_EXIT:
+        return fmbd_cli_finish(p.status);
+      case FMBD_CLI_ARG:
+        if (scene_file) {
+          rc = fmbd_cli_usage_error("one scene file, not '%s' and '%s'", scene_file, p.value);
           goto out;
         }
+        scene_file = p.value;
         break;
-      case 'M':
+      case OPT_OUTPUT:
+        opt_o = p.value;
+        break;
+      case OPT_REFERENCE:
+        ref = p.value;
+        break;
+      case OPT_PLOT:
+        plot = p.value;
+        break;
+      case OPT_BODY_DIR:
+        body_dir = p.value;
+        break;
+      case OPT_T_END:
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &t_end)) return fmbd_cli_finish(2);
+        break;
+      case OPT_RULES:
         make_rules = true;
         break;
-      case 'q':
-        quiet++;
-        break;
-      case 'v':
-        verbose++;
-        break;
-      case 'h':
-        usage();
-        return 0;
-      case 'V':
-        printf("fmbd-run %s\n", fmbd_version());
-        return 0;
-      case ':':
-        rc = fmbd_cli_usage_error("option '%s' needs an argument", argv[optind - 1]);
-        goto out;
-      default:
-        rc = fmbd_cli_usage_error("unknown option '%s'", argv[optind - 1]);
-        goto out;
     }
   }
+  quiet = p.quiet;
+  verbose = p.verbose;
   fmbd_cli_set_verbosity(quiet, verbose);
-  if (optind != argc - 1) {
-    rc = fmbd_cli_usage_error(optind >= argc ? "no scene file given" : "one scene file, not %d",
-                              argc - optind);
+  if (!scene_file) {
+    rc = fmbd_cli_usage_error("no scene file given");
     goto out;
   }
-  const char *scene_file = argv[optind];
   FMBD_GCALL(fmbd_scene_read_dir(scene_file, body_dir, &s));
   if (t_end > 0) s->solver.t_end = t_end;
 

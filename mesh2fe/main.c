@@ -80,24 +80,6 @@ static int cgal_mesher(int64_t nv, const double *xyz, int64_t nf, const int64_t 
   return fmbd_err_set(code, __FILE__, __LINE__, __func__, "%s", msg);
 }
 
-// --- option parsing helpers
-// -----------------------------------------------------------------------
-
-// parse exactly n comma-separated numbers
-static int parse_list(const char *opt, const char *text, int n, double *v) {
-  const char *p = text;
-  for (int i = 0; i < n; i++) {
-    char *end;
-    v[i] = strtod(p, &end);
-    if (end == p || !isfinite(v[i]) || (i < n - 1 && *end != ',') || (i == n - 1 && *end)) {
-      return fmbd_cli_usage_error("%s: '%s' is not a list of %d numbers separated by commas", opt,
-                                  text, n);
-    }
-    p = end + 1;
-  }
-  return 0;
-}
-
 typedef struct box_group {
   char *name;
   double lo[3], hi[3];
@@ -139,7 +121,7 @@ static int parse_interface(args *a, const char *text) {
   char *at = strrchr(s, '@');
   if (at) {
     *at = '\0';
-    if (parse_list("--interface", at + 1, 3, spec.point)) {
+    if (fmbd_cli_numbers("--interface", at + 1, 3, ',', spec.point)) {
       fmbd_free(s);
       return 2;
     }
@@ -194,7 +176,7 @@ static int parse_box(args *a, const char *text) {
     return fmbd_cli_usage_error("--group %s: NAME:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX expected", text);
   }
   double v[6];
-  if (parse_list("--group", colon + 1, 6, v)) {
+  if (fmbd_cli_numbers("--group", colon + 1, 6, ',', v)) {
     return 2;
   }
   for (int k = 0; k < 3; k++) {
@@ -221,142 +203,151 @@ static int parse_box(args *a, const char *text) {
   return 0;
 }
 
-// Returns 0 (go on; *done when --help/--version was printed), 2 (usage error, reported), or
-// a negative FMBD_ERR_* code with the error record set.
+enum {
+  OPT_OUTPUT = 1,
+  OPT_ORDER,
+  OPT_SIZE,
+  OPT_E,
+  OPT_NU,
+  OPT_RHO,
+  OPT_MASS,
+  OPT_INTERFACE,
+  OPT_CLAMP,
+  OPT_GROUP,
+  OPT_SECTION,
+  OPT_CIRCLE,
+  OPT_BEAM_ORIENTATION
+};
+static const fmbd_cli_option options[] = {{"--output", 'o', true, OPT_OUTPUT},
+                                          {"--order", 0, true, OPT_ORDER},
+                                          {"--size", 0, true, OPT_SIZE},
+                                          {"--E", 0, true, OPT_E},
+                                          {"--nu", 0, true, OPT_NU},
+                                          {"--rho", 0, true, OPT_RHO},
+                                          {"--mass", 0, true, OPT_MASS},
+                                          {"--interface", 0, true, OPT_INTERFACE},
+                                          {"--clamp", 0, true, OPT_CLAMP},
+                                          {"--group", 0, true, OPT_GROUP},
+                                          {"--section", 0, true, OPT_SECTION},
+                                          {"--circle", 0, true, OPT_CIRCLE},
+                                          {"--beam-orientation", 0, true, OPT_BEAM_ORIENTATION},
+                                          {0}};
+
+// Returns 0 (go on; *done when --help/--version was printed) or 2 (usage error, reported).
 static int parse_args(int argc, char **argv, args *a, bool *done) {
   static double section[4];
   bool have_section = false, have_circle = false;
-  for (int i = 1; i < argc; i++) {
-    const char *arg = argv[i];
-    // --opt=value is accepted as well as --opt value
-    char name[64];
-    const char *val = NULL;
-    const char *eq = (arg[0] == '-' && arg[1] == '-') ? strchr(arg, '=') : NULL;
-    if (eq && (size_t)(eq - arg) < sizeof name) {
-      memcpy(name, arg, (size_t)(eq - arg));
-      name[eq - arg] = '\0';
-      val = eq + 1;
-      arg = name;
-    }
-#define NEED_VALUE()                                                 \
-  do {                                                               \
-    if (!val) {                                                      \
-      if (i + 1 >= argc) {                                           \
-        return fmbd_cli_usage_error("option %s needs a value", arg); \
-      }                                                              \
-      val = argv[++i];                                               \
-    }                                                                \
-  } while (0)
-    int common = fmbd_cli_common_option(arg, usage_text, &a->quiet, &a->verbose);
-    if (common == FMBD_CLI_DONE) {
-      *done = true;
-      return 0;
-    } else if (common == FMBD_CLI_TAKEN) {
-      continue;
-    } else if (!strcmp(arg, "-o") || !strcmp(arg, "--output")) {
-      NEED_VALUE();
-      a->output = val;
-    } else if (!strcmp(arg, "--order")) {
-      NEED_VALUE();
-      long o;
-      FMBD_CALL(fmbd_cli_parse_int(arg, val, &o));
-      if (o != 1 && o != 2) {
-        return fmbd_cli_usage_error("--order: %ld is not 1 or 2", o);
-      }
-      a->mesh.order = (int)o;
-    } else if (!strcmp(arg, "--size")) {
-      NEED_VALUE();
-      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->mesh.size));
-      if (!(a->mesh.size > 0)) {
-        return fmbd_cli_usage_error("--size: %s is not a positive length", val);
-      }
-    } else if (!strcmp(arg, "--E")) {
-      NEED_VALUE();
-      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->fe.E));
-      if (!(a->fe.E > 0)) {
-        return fmbd_cli_usage_error("--E: Young's modulus %s must be > 0", val);
-      }
-    } else if (!strcmp(arg, "--nu")) {
-      NEED_VALUE();
-      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->fe.nu));
-      if (!(a->fe.nu > -1.0 && a->fe.nu < 0.5)) {
-        return fmbd_cli_usage_error("--nu: Poisson's ratio %s is outside (-1, 0.5)", val);
-      }
-    } else if (!strcmp(arg, "--rho")) {
-      NEED_VALUE();
-      FMBD_CALL(fmbd_cli_parse_double(arg, val, &a->fe.rho));
-      if (!(a->fe.rho > 0)) {
-        return fmbd_cli_usage_error("--rho: density %s must be > 0", val);
-      }
-    } else if (!strcmp(arg, "--mass")) {
-      NEED_VALUE();
-      if (!strcmp(val, "consistent")) {
-        a->fe.mass = FMBD_FE_MASS_CONSISTENT;
-      } else if (!strcmp(val, "lumped")) {
-        a->fe.mass = FMBD_FE_MASS_LUMPED;
-      } else {
-        return fmbd_cli_usage_error("--mass: '%s' is not consistent or lumped", val);
-      }
-    } else if (!strcmp(arg, "--interface")) {
-      NEED_VALUE();
-      int st = parse_interface(a, val);
-      if (st) {
-        return st;
-      }
-    } else if (!strcmp(arg, "--clamp")) {
-      NEED_VALUE();
-      const char **c = fmbd_realloc(a->clamps, (size_t)(a->nclamp + 1) * sizeof *c);
-      if (!c) {
-        return fmbd_cli_usage_error("out of memory");
-      }
-      a->clamps = c;
-      a->clamps[a->nclamp++] = val;
-    } else if (!strcmp(arg, "--group")) {
-      NEED_VALUE();
-      int st = parse_box(a, val);
-      if (st) {
-        return st;
-      }
-    } else if (!strcmp(arg, "--section")) {
-      NEED_VALUE();
-      if (parse_list(arg, val, 4, section)) {
-        return 2;
-      }
-      for (int k = 0; k < 4; k++) {
-        if (!(section[k] > 0)) {
-          return fmbd_cli_usage_error("--section: %s: A, Iy, Iz and J must all be > 0", val);
+  fmbd_cli_args p;
+  fmbd_cli_args_init(&p, argc, argv, options, usage_text);
+  for (int id; (id = fmbd_cli_next(&p)) != FMBD_CLI_END;) {
+    const char *val = p.value, *arg = p.opt;
+    switch (id) {
+      case FMBD_CLI_EXIT:
+        *done = p.status == 0;
+        return p.status;
+      case FMBD_CLI_ARG:
+        if (a->input) {
+          return fmbd_cli_usage_error("one GEOMETRY expected, got '%s' and '%s'", a->input, val);
         }
+        a->input = val;
+        break;
+      case OPT_OUTPUT:
+        a->output = val;
+        break;
+      case OPT_ORDER: {
+        long o;
+        if (fmbd_cli_long(&p, 1, 2, &o)) {
+          return p.status;
+        }
+        a->mesh.order = (int)o;
+        break;
       }
-      have_section = true;
-    } else if (!strcmp(arg, "--circle")) {
-      NEED_VALUE();
-      double r;
-      FMBD_CALL(fmbd_cli_parse_double(arg, val, &r));
-      if (!(r > 0)) {
-        return fmbd_cli_usage_error("--circle: radius %s must be > 0", val);
+      case OPT_SIZE:
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &a->mesh.size)) {
+          return p.status;
+        }
+        break;
+      case OPT_E:
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &a->fe.E)) {
+          return p.status;
+        }
+        break;
+      case OPT_NU:
+        if (fmbd_cli_double(&p, -1, 0.5, FMBD_CLI_OPEN_LO | FMBD_CLI_OPEN_HI, &a->fe.nu)) {
+          return p.status;
+        }
+        break;
+      case OPT_RHO:
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &a->fe.rho)) {
+          return p.status;
+        }
+        break;
+      case OPT_MASS:
+        if (!strcmp(val, "consistent")) {
+          a->fe.mass = FMBD_FE_MASS_CONSISTENT;
+        } else if (!strcmp(val, "lumped")) {
+          a->fe.mass = FMBD_FE_MASS_LUMPED;
+        } else {
+          return fmbd_cli_usage_error("--mass: '%s' is not consistent or lumped", val);
+        }
+        break;
+      case OPT_INTERFACE: {
+        int st = parse_interface(a, val);
+        if (st) {
+          return st;
+        }
+        break;
       }
-      section[0] = M_PI * r * r;
-      section[1] = section[2] = M_PI * r * r * r * r / 4.0;
-      section[3] = M_PI * r * r * r * r / 2.0;
-      have_circle = true;
-    } else if (!strcmp(arg, "--beam-orientation")) {
-      NEED_VALUE();
-      if (parse_list(arg, val, 3, a->fe.orientation)) {
-        return 2;
+      case OPT_CLAMP: {
+        const char **c = fmbd_realloc(a->clamps, (size_t)(a->nclamp + 1) * sizeof *c);
+        if (!c) {
+          return fmbd_cli_usage_error("out of memory");
+        }
+        a->clamps = c;
+        a->clamps[a->nclamp++] = val;
+        break;
       }
-      if (a->fe.orientation[0] == 0 && a->fe.orientation[1] == 0 && a->fe.orientation[2] == 0) {
-        return fmbd_cli_usage_error("--beam-orientation: the zero vector has no direction");
+      case OPT_GROUP: {
+        int st = parse_box(a, val);
+        if (st) {
+          return st;
+        }
+        break;
       }
-    } else if (arg[0] == '-' && arg[1] != '\0') {
-      return fmbd_cli_usage_error("unknown option '%s'", argv[i]);
-    } else {
-      if (a->input) {
-        return fmbd_cli_usage_error("one GEOMETRY expected, got '%s' and '%s'", a->input, arg);
+      case OPT_SECTION:
+        if (fmbd_cli_numbers(arg, val, 4, ',', section)) {
+          return 2;
+        }
+        for (int k = 0; k < 4; k++) {
+          if (!(section[k] > 0)) {
+            return fmbd_cli_usage_error("--section: %s: A, Iy, Iz and J must all be > 0", val);
+          }
+        }
+        have_section = true;
+        break;
+      case OPT_CIRCLE: {
+        double r;
+        if (fmbd_cli_double(&p, 0, INFINITY, FMBD_CLI_OPEN_LO, &r)) {
+          return p.status;
+        }
+        section[0] = M_PI * r * r;
+        section[1] = section[2] = M_PI * r * r * r * r / 4.0;
+        section[3] = M_PI * r * r * r * r / 2.0;
+        have_circle = true;
+        break;
       }
-      a->input = arg;
+      case OPT_BEAM_ORIENTATION:
+        if (fmbd_cli_numbers(arg, val, 3, ',', a->fe.orientation)) {
+          return 2;
+        }
+        if (a->fe.orientation[0] == 0 && a->fe.orientation[1] == 0 && a->fe.orientation[2] == 0) {
+          return fmbd_cli_usage_error("--beam-orientation: the zero vector has no direction");
+        }
+        break;
     }
-#undef NEED_VALUE
   }
+  a->quiet = p.quiet;
+  a->verbose = p.verbose;
   if (have_section && have_circle) {
     return fmbd_cli_usage_error("--section and --circle are exclusive");
   }

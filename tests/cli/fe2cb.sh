@@ -110,7 +110,7 @@ expect_fail 1 'good\.fe\.h5.*--boundary nosuch' out10.cb.h5 -- good.fe.h5 -o out
 # --- usage (exit 2) -------------------------------------------------------------------------------
 expect_fail 2 'unknown option' u1.cb.h5 -- good.fe.h5 -o u1.cb.h5 --bogus
 expect_fail 2 'exclusive' u2.cb.h5 -- good.fe.h5 -o u2.cb.h5 --modes 3 --fmax 100
-expect_fail 2 'negative' u3.cb.h5 -- good.fe.h5 -o u3.cb.h5 --modes -1
+expect_fail 2 '--modes: .-1. must be >= 0' u3.cb.h5 -- good.fe.h5 -o u3.cb.h5 --modes -1
 expect_fail 2 'no BODY' u4.cb.h5 --
 expect_fail 2 'cb or nm' u5.cb.h5 -- good.fe.h5 -o u5.cb.h5 --method xx
 expect_fail 2 '--hold needs' u6.cb.h5 -- good.fe.h5 -o u6.cb.h5 --hold

@@ -1,6 +1,7 @@
 // tests/unit/t120-cli.c: output names, option parsing, command-line quoting, error reports
 // SPDX-License-Identifier: MIT
 #include <fcntl.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -229,6 +230,132 @@ static void test_reports(void) {
          "exit statuses");
 }
 
+// --- the option parser ------------------------------------------------------------------------
+enum { O_OUT = 1, O_TOL, O_FLAG, O_LIST };
+static const fmbd_cli_option OPTS[] = {{"--output", 'o', true, O_OUT},
+                                       {"--tol", 0, true, O_TOL},
+                                       {"--flag", 'f', false, O_FLAG},
+                                       {"--list", 0, true, O_LIST},
+                                       {0}};
+typedef struct parse_case {
+  int argc;
+  char **argv;
+  char got[512];  // "id:value|..." of every item, "EXIT<status>" at a stop
+  fmbd_cli_args p;
+} parse_case;
+static int run_parser(void *arg) {
+  parse_case *c = arg;
+  fmbd_cli_args_init(&c->p, c->argc, c->argv, OPTS, "help text of t120\n");
+  c->got[0] = '\0';
+  size_t n = 0;
+  for (int id; (id = fmbd_cli_next(&c->p)) != FMBD_CLI_END;) {
+    if (id == FMBD_CLI_EXIT) {
+      n += (size_t)snprintf(c->got + n, sizeof c->got - n, "EXIT%d", c->p.status);
+      break;
+    }
+    n += (size_t)snprintf(c->got + n, sizeof c->got - n, "%d:%s:%s|", id, c->p.opt ? c->p.opt : "",
+                          c->p.value ? c->p.value : "");
+  }
+  return 0;
+}
+static const char *parse_line(parse_case *c, const char *line, const char **err) {
+  static char buf[512];
+  static char *argv[32];
+  snprintf(buf, sizeof buf, "t120 %s", line);
+  c->argc = 0;
+  for (char *s = buf, *save = NULL, *t; (t = strtok_r(s, " ", &save)); s = NULL)
+    argv[c->argc++] = t;
+  argv[c->argc] = NULL;
+  c->argv = argv;
+  int st;
+  *err = capture_stderr(run_parser, c, &st);
+  return c->got;
+}
+
+static void test_parser(void) {
+  parse_case c;
+  const char *e, *g;
+  // forms of values: --opt v, --opt=v, -o v, -ov; flags; arguments anywhere; "-" and "--"
+  g = parse_line(&c, "a --tol 1e-3 --tol=2 -o x -oy --flag -f - b -- --tol", &e);
+  EXPECT(!strcmp(g,
+                 "-1::a|2:--tol:1e-3|2:--tol:2|1:-o:x|1:-o:y|3:--flag:|3:-f:|-1::-|-1::b|"
+                 "-1::--tol|") &&
+             !*e,
+         "forms: '%s' '%s'", g, e);
+  // the common options: counted; --help prints the text and the exit statuses, status 0
+  g = parse_line(&c, "-q -v -vv x", &e);
+  EXPECT(!strcmp(g, "-1::x|") && c.p.quiet == 1 && c.p.verbose == 3, "counts: '%s' q %d v %d", g,
+         c.p.quiet, c.p.verbose);
+  fflush(stdout);
+  // usage errors: exit status 2, the program, the option, and the way to help
+  static const struct {
+    const char *line, *msg;
+  } bad[] = {{"--bogus", "t120: error: unknown option '--bogus'\nTry 't120 --help'.\n"},
+             {"-x", "t120: error: unknown option '-x'\n"},
+             {"-fz", "t120: error: unknown option '-fz'\n"},
+             {"--tol", "t120: error: option --tol needs a value\n"},
+             {"--flag=1", "t120: error: option --flag takes no value ('--flag=1')\n"},
+             {"--tolerance 1", "t120: error: unknown option '--tolerance'\n"}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    g = parse_line(&c, bad[i].line, &e);
+    EXPECT(!strcmp(g, "EXIT2") && !strncmp(e, bad[i].msg, strlen(bad[i].msg)), "'%s': '%s' '%s'",
+           bad[i].line, g, e);
+  }
+}
+
+static int number_case(void *arg) {
+  fmbd_cli_args *p = arg;
+  double d = 0;
+  return fmbd_cli_double(p, 0, 1, FMBD_CLI_OPEN_LO, &d);
+}
+static int long_case(void *arg) {
+  fmbd_cli_args *p = arg;
+  long l = 0;
+  return fmbd_cli_long(p, 1, LONG_MAX, &l);
+}
+static int list_case(void *arg) {
+  double v[2];
+  return fmbd_cli_numbers("--window", arg, 2, ':', v);
+}
+
+static void test_numbers(void) {
+  fmbd_cli_args p = {.opt = "--tol"};
+  int st;
+  const char *e;
+  static const struct {
+    const char *text, *msg;  // msg NULL: accepted
+  } dc[] = {{"1", NULL},
+            {"0.5", NULL},
+            {"0", "option --tol: '0' is outside (0, 1]"},
+            {"1.5", "option --tol: '1.5' is outside (0, 1]"},
+            {"nan", "option --tol: 'nan' is not a finite number"},
+            {"1x", "option --tol: '1x' is not a finite number"}};
+  for (size_t i = 0; i < sizeof dc / sizeof dc[0]; i++) {
+    p.value = dc[i].text;
+    e = capture_stderr(number_case, &p, &st);
+    if (dc[i].msg) {
+      EXPECT(st == 2 && p.status == 2 && strstr(e, dc[i].msg), "'%s': %d '%s'", dc[i].text, st, e);
+    } else {
+      EXPECT(st == 0 && !*e, "'%s': %d '%s'", dc[i].text, st, e);
+    }
+  }
+  p.opt = "--modes";
+  p.value = "0";
+  e = capture_stderr(long_case, &p, &st);
+  EXPECT(st == 2 && strstr(e, "option --modes: '0' must be >= 1"), "long: %d '%s'", st, e);
+  p.value = "7";
+  e = capture_stderr(long_case, &p, &st);
+  EXPECT(st == 0 && !*e, "long 7: %d '%s'", st, e);
+  e = capture_stderr(list_case, "0.5:2", &st);
+  EXPECT(st == 0 && !*e, "list: %d '%s'", st, e);
+  e = capture_stderr(list_case, "0.5,2", &st);
+  EXPECT(
+      st == 2 && strstr(e, "option --window: '0.5,2' is not a list of 2 numbers separated by ':'"),
+      "list: %d '%s'", st, e);
+  e = capture_stderr(list_case, "0.5:2:3", &st);
+  EXPECT(st == 2, "list of 3: %d '%s'", st, e);
+}
+
 int main(void) {
   unsetenv("FMBD_LOG");
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
@@ -241,6 +368,8 @@ int main(void) {
   test_parse();
   test_command_line();
   test_reports();
+  test_parser();
+  test_numbers();
   fmbd_cli_finish(0);
   // the shared options: counted, and anything else left to the program
   {

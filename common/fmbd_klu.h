@@ -1,0 +1,51 @@
+// common/fmbd_klu.h: sparse LU of a square unsymmetric matrix through KLU (SuiteSparse klu_l_*)
+// SPDX-License-Identifier: MIT
+//
+// The matrix is given in compressed columns (Ap[n + 1], Ai[nnz] with sorted row indices in each
+// column, values Ax[nnz]). An fmbd_klu object holds a copy of the pattern and KLU's symbolic
+// analysis of it (BTF + AMD ordering, done once by fmbd_klu_analyze), and the numeric factor
+// of the values given to the last fmbd_klu_factor. That factor is reused across calls where
+// possible: fmbd_klu_factor refactors with the previous pivot order (klu_l_refactor) and
+// falls back to a full factorisation with fresh partial pivoting (klu_l_factor) when the
+// refactor fails or KLU's reciprocal condition estimate drops below rcond_min (default 1e-13).
+// KLU allocates with malloc, outside fmbd_malloc (the allocation countdown of the tests does
+// not reach it); it never prints.
+#ifndef FMBD_KLU_H
+#define FMBD_KLU_H
+
+#include <stdint.h>
+
+typedef struct fmbd_klu fmbd_klu;
+
+/// @brief Copy the pattern and run KLU's symbolic analysis.
+/// @param[in] n order; Ap (n + 1) column pointers; Ai (Ap[n]) row indices; borrowed
+/// @param[out] out caller destroys with fmbd_klu_destroy
+/// @return FMBD_OK, FMBD_ERR_NOMEM, FMBD_ERR_EXTERNAL (the analysis failed)
+int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu **out);
+
+/// @brief Numeric factorisation of the values Ax (Ap[n] entries in the analysed pattern):
+/// a refactor with the old pivoting when a factor exists and stays well conditioned, else a
+/// full factorisation. Ax is read only during the call.
+/// @return FMBD_OK; FMBD_ERR_SINGULAR (a structurally or numerically zero pivot: the column
+/// is fmbd_klu_singular_col; the message is KLU's, a caller names the unknown); NOMEM
+int fmbd_klu_factor(fmbd_klu *F, const double *Ax);
+
+/// @brief Solve A x = b in place (b: n values) with the current factor.
+/// @return FMBD_OK, FMBD_ERR_VALUE (no factor), FMBD_ERR_EXTERNAL
+int fmbd_klu_solve(fmbd_klu *F, double *b);
+
+/// @brief KLU's reciprocal condition estimate of the current factor (klu_l_rcond; 0 before a
+/// factorisation).
+double fmbd_klu_rcond(fmbd_klu *F);
+
+/// @brief The column at which the last failed factorisation met a zero pivot (0-based, in the
+/// caller's numbering), or -1.
+int64_t fmbd_klu_singular_col(const fmbd_klu *F);
+
+/// @brief Forget the numeric factor (the next fmbd_klu_factor factors afresh).
+void fmbd_klu_drop_factor(fmbd_klu *F);
+
+/// @brief Release everything; *F = NULL. NULL and *F == NULL are fine.
+void fmbd_klu_destroy(fmbd_klu **F);
+
+#endif

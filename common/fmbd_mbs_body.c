@@ -1,0 +1,292 @@
+// common/fmbd_mbs_body.c: the equations of motion of one floating-frame body (fmbd_mbs.h, EQUATIONS)
+// SPDX-License-Identifier: MIT
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+#include "fmbd_mbs_impl.h"
+
+// ============================================================================================
+// body equations (fmbd_mbs.h, EQUATIONS)
+// ============================================================================================
+
+// y = alpha A x, A m x n column-major: column-wise axpy loops that the compiler vectorises;
+// BLAS dgemv was slower here (OpenBLAS threads and packs even these small products)
+static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
+                   double *restrict y) {
+  for (int i = 0; i < m; i++) y[i] = 0;
+  for (int j = 0; j < n; j++) {
+    double xj = alpha * x[j];
+    if (xj == 0) continue;
+    const double *restrict a = A + (size_t)m * j;
+    for (int i = 0; i < m; i++) y[i] += xj * a[i];
+  }
+}
+// mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
+// + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
+// column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
+// xdd may be NULL (zero accelerations).
+void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
+                      const double *xddg, double *r, double *B, double cm, double cc, double ck) {
+  mbody *b = &m->b[ib];
+  const int nm = b->nm, n6 = 6 + nm, n = b->n;
+  const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
+  const double *p = x + 3, *q = x + 7, *pd = xd + 3, *qd = xd + 7;
+  double *A = b->A, *G = b->G;
+  quat_to_A(p, A);
+  quat_G(p, G);
+  b->pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+  double w[3], wd[3] = {0, 0, 0};
+  for (int a = 0; a < 3; a++) {
+    w[a] =
+        2 * (G[4 * a] * pd[0] + G[4 * a + 1] * pd[1] + G[4 * a + 2] * pd[2] + G[4 * a + 3] * pd[3]);
+    if (xdd) {
+      const double *pdd = xdd + 3;
+      wd[a] = 2 * (G[4 * a] * pdd[0] + G[4 * a + 1] * pdd[1] + G[4 * a + 2] * pdd[2] +
+                   G[4 * a + 3] * pdd[3]);
+    }
+  }
+  memcpy(b->wb, w, sizeof w);
+  // --- inertia at q: c, J, H_k, Mwf, H ---
+  double *c = b->c, *J = b->J, *I = b->I, H[9] = {0};
+  memcpy(c, b->c0, sizeof b->c);
+  memcpy(J, b->J0, sizeof b->J);
+  double s1qd[3] = {0, 0, 0};
+  if (nm > 0) {
+    double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
+    matvec(9 * nm, nm, b->SS, q, 1.0, P);
+    for (int k = 0; k < nm; k++) {
+      const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
+      double *Hk = b->Hk + 9 * k;
+      for (int a = 0; a < 3; a++) {
+        c[a] += b->S1[a + 3 * k] * q[k];
+        s1qd[a] += b->S1[a + 3 * k] * qd[k];
+        for (int bb = 0; bb < 3; bb++) {
+          // J_ab += q_k (XS_abk + XS_bak) + q_k P_k,ab; H_k,ab = XS_bak + P_k,ab
+          J[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[a + 3 * bb]);
+          Hk[a + 3 * bb] = X[bb + 3 * a] + Pk[a + 3 * bb];
+        }
+      }
+      double *Mw = b->Mwf + 3 * k;
+      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
+      for (int i = 0; i < 9; i++) H[i] += qd[k] * Hk[i];
+    }
+    // symmetrise J (round-off)
+    for (int a = 0; a < 3; a++) {
+      for (int bb = a + 1; bb < 3; bb++) {
+        double s = 0.5 * (J[3 * a + bb] + J[3 * bb + a]);
+        J[3 * a + bb] = J[3 * bb + a] = s;
+      }
+    }
+  }
+  double trJ = J[0] + J[4] + J[8];
+  for (int i = 0; i < 9; i++) I[i] = -J[i];
+  I[0] += trJ, I[4] += trJ, I[8] += trJ;
+  double trH = H[0] + H[4] + H[8];
+  // --- Mb (n6 x n6, column-major) in bwork ---
+  double *Mb = m->bwork, *Cb = m->bwork + (size_t)n6 * n6, *rb = m->bwork + 2 * (size_t)n6 * n6;
+#define MB(i, j) Mb[(i) + (size_t)n6 * (j)]
+#define CB(i, j) Cb[(i) + (size_t)n6 * (j)]
+  memset(Mb, 0, sizeof(double) * (size_t)n6 * n6);
+  double Sc[9], Ac[9];
+  skew3(c, Sc);
+  mm3(A, Sc, Ac);  // A c~
+  for (int a = 0; a < 3; a++) {
+    MB(a, a) = b->m;
+    for (int bb = 0; bb < 3; bb++) {
+      MB(a, 3 + bb) = -Ac[3 * a + bb];
+      MB(3 + bb, a) = -Ac[3 * a + bb];
+      MB(3 + a, 3 + bb) = I[3 * a + bb];
+    }
+  }
+  for (int k = 0; k < nm; k++) {
+    double as[3];
+    mv3(A, b->S1 + 3 * k, as);
+    for (int a = 0; a < 3; a++) {
+      MB(a, 6 + k) = MB(6 + k, a) = as[a];
+      MB(3 + a, 6 + k) = MB(6 + k, 3 + a) = b->Mwf[a + 3 * k];
+    }
+    for (int l = 0; l < nm; l++) MB(6 + k, 6 + l) = b->Mff[k + (size_t)nm * l];
+  }
+  // --- quadratic velocity vector v and forces f: rb = v - f (+ K q + D q') ---
+  double t1[3], t2[3], Iw[3];
+  cross3(w, c, t1);
+  cross3(w, t1, t2);  // w x (w x c)
+  double t3[3];
+  cross3(w, s1qd, t3);
+  for (int a = 0; a < 3; a++) t2[a] += 2 * t3[a];
+  mv3(A, t2, rb);
+  mv3(I, w, Iw);
+  cross3(w, Iw, rb + 3);
+  double Hw[3];  // (H w)_a = sum_b H[a + 3b] w_b
+  for (int a = 0; a < 3; a++) Hw[a] = H[a] * w[0] + H[a + 3] * w[1] + H[a + 6] * w[2];
+  for (int a = 0; a < 3; a++) rb[3 + a] += 2 * (trH * w[a] - Hw[a]);
+  double ww = dot3(w, w);
+  double *cor = b->cor;  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
+  if (nm > 0) {
+    matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
+  }
+  for (int k = 0; k < nm; k++) {
+    const double *Hk = b->Hk + 9 * k;
+    double wHw = 0;
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) wHw += w[a] * Hk[a + 3 * bb] * w[bb];
+    }
+    double v = wHw - ww * (Hk[0] + Hk[4] + Hk[8]);
+    v += 2 * dot3(w, cor + 3 * k);
+    if (b->kdiag) {
+      v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+    } else {
+      for (int l = 0; l < nm; l++)
+        v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
+    }
+    rb[6 + k] = v;
+  }
+  // gravity
+  double gl[3];
+  mtv3(A, m->g, gl);
+  double cg[3];
+  cross3(c, gl, cg);
+  for (int a = 0; a < 3; a++) rb[a] -= b->m * m->g[a], rb[3 + a] -= cg[a];
+  for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(b->S1 + 3 * k, gl);
+  // loads
+  for (int il = 0; il < m->nl; il++) {
+    const mload *L = &m->l[il];
+    const mpoint *P = &m->p[L->pt];
+    if (P->body != ib) continue;
+    double fv = fmbd_mbs_fn_eval(&L->f, t, NULL, NULL);
+    double Fw[3], Fl[3];
+    if (L->body_frame) {
+      for (int a = 0; a < 3; a++) Fl[a] = fv * L->dir[a];
+      mv3(A, Fl, Fw);
+    } else {
+      for (int a = 0; a < 3; a++) Fw[a] = fv * L->dir[a];
+      mtv3(A, Fw, Fl);
+    }
+    if (L->kind == FMBD_MBS_FORCE) {
+      double u[3];
+      memcpy(u, P->x0, sizeof u);
+      for (int k = 0; k < nm; k++) {
+        for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * q[k];
+      }
+      double nn[3];
+      cross3(u, Fl, nn);
+      for (int a = 0; a < 3; a++) rb[a] -= Fw[a], rb[3 + a] -= nn[a];
+      for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(P->T + 3 * k, Fl);
+    } else {
+      for (int a = 0; a < 3; a++) rb[3 + a] -= Fl[a];
+      for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(P->Rr + 3 * k, Fl);
+    }
+  }
+  // rb += Mb acc_b
+  if (xdd) {
+    for (int j = 0; j < n6; j++) {
+      double aj = j < 3 ? xdd[j] : (j < 6 ? wd[j - 3] : xdd[7 + (j - 6)]);
+      if (aj == 0) continue;
+      const double *col = Mb + (size_t)n6 * j;
+      for (int i = 0; i < n6; i++) rb[i] += col[i] * aj;
+    }
+  }
+  // r = T' rb
+  r[0] = rb[0], r[1] = rb[1], r[2] = rb[2];
+  for (int c4 = 0; c4 < 4; c4++)
+    r[3 + c4] = 2 * (G[c4] * rb[3] + G[4 + c4] * rb[4] + G[8 + c4] * rb[5]);
+  for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];
+  // mass mu p p' on the Euler parameters (see fmbd_mbs.h): G p = 0, so the physical
+  // equations are unchanged; the normalisation multiplier absorbs mu p (p . p'')
+  const double mu = PMASS * b->snorm;
+  if (xdd) {
+    const double *pdd = xdd + 3;
+    double ppdd = p[0] * pdd[0] + p[1] * pdd[1] + p[2] * pdd[2] + p[3] * pdd[3];
+    for (int c4 = 0; c4 < 4; c4++) r[3 + c4] += mu * p[c4] * ppdd;
+  }
+  if (!B) return;
+  // --- velocity tangent Cb (d v / d [R', wb, q']) ---
+  memset(Cb, 0, sizeof(double) * (size_t)n6 * n6);
+  if (cc != 0) {
+    double S1[9], S2[9], S3[9], M1[9];
+    double wc[3];
+    cross3(w, c, wc);
+    skew3(wc, S1);
+    double Sw[9];
+    skew3(w, Sw);
+    mm3(Sw, Sc, S2);
+    skew3(s1qd, S3);
+    for (int i = 0; i < 9; i++) M1[i] = -(S1[i] + S2[i] + 2 * S3[i]);
+    double AM[9];
+    mm3(A, M1, AM);
+    double IwS[9], SwI[9];
+    skew3(Iw, IwS);
+    mm3(Sw, I, SwI);
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        CB(a, 3 + bb) = AM[3 * a + bb];
+        CB(3 + a, 3 + bb) =
+            SwI[3 * a + bb] - IwS[3 * a + bb] + 2 * ((a == bb ? trH : 0) - H[a + 3 * bb]);
+      }
+    }
+    for (int k = 0; k < nm; k++) {
+      const double *Hk = b->Hk + 9 * k;
+      double ws[3], aws[3];
+      cross3(w, b->S1 + 3 * k, ws);
+      mv3(A, ws, aws);
+      double trk = Hk[0] + Hk[4] + Hk[8];
+      double hkw[3], hktw[3];
+      for (int a = 0; a < 3; a++) {
+        hkw[a] = Hk[a] * w[0] + Hk[a + 3] * w[1] + Hk[a + 6] * w[2];
+        hktw[a] = Hk[3 * a] * w[0] + Hk[3 * a + 1] * w[1] + Hk[3 * a + 2] * w[2];
+      }
+      const double *cor = b->cor + 3 * k;
+      for (int l = 0; l < nm; l++) {
+        const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
+        CB(6 + k, 6 + l) = 2 * dot3(w, sx) + b->Dff[k + (size_t)nm * l];
+      }
+      for (int a = 0; a < 3; a++) {
+        CB(a, 6 + k) = 2 * aws[a];
+        CB(3 + a, 6 + k) = 2 * (trk * w[a] - hkw[a]);
+        CB(6 + k, 3 + a) = hkw[a] + hktw[a] - 2 * trk * w[a] + 2 * cor[a];
+      }
+    }
+  }
+  // Z = cm Mb + cc Cb (into Mb)
+  for (size_t i = 0; i < (size_t)n6 * n6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+  // B = T' Z T
+  // rows/cols map: x index i -> b index (R: i; p: via 2G; q: i - 1)
+  // first Y = Z T (n6 x n), stored in Cb
+  double *Y = Cb;
+  for (int j = 0; j < n; j++) {
+    double *yc = Y + (size_t)n6 * j;
+    if (j < 3 || j >= 7) {
+      int jb = j < 3 ? j : j - 1;
+      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)n6);
+    } else {
+      int c4 = j - 3;
+      double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
+      const double *z3 = Mb + (size_t)n6 * 3, *z4 = Mb + (size_t)n6 * 4, *z5 = Mb + (size_t)n6 * 5;
+      for (int i = 0; i < n6; i++) yc[i] = z3[i] * g0 + z4[i] * g1 + z5[i] * g2;
+    }
+  }
+  for (int j = 0; j < n; j++) {
+    const double *yc = Y + (size_t)n6 * j;
+    double *bc = B + (size_t)n * j;
+    bc[0] = yc[0], bc[1] = yc[1], bc[2] = yc[2];
+    for (int c4 = 0; c4 < 4; c4++)
+      bc[3 + c4] = 2 * (G[c4] * yc[3] + G[4 + c4] * yc[4] + G[8 + c4] * yc[5]);
+    for (int k = 0; k < nm; k++) bc[7 + k] = yc[6 + k];
+  }
+  for (int i = 0; i < 4; i++) {
+    for (int j = 0; j < 4; j++) B[(3 + i) + (size_t)n * (3 + j)] += cm * mu * p[i] * p[j];
+  }
+  if (ck != 0) {
+    for (int k = 0; k < nm; k++) {
+      for (int l = 0; l < nm; l++)
+        B[(7 + k) + (size_t)n * (7 + l)] += ck * b->Kff[k + (size_t)nm * l];
+    }
+  }
+#undef MB
+#undef CB
+}

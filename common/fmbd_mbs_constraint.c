@@ -1,0 +1,313 @@
+// common/fmbd_mbs_constraint.c: joint, driver and normalisation equations and their Jacobians
+// SPDX-License-Identifier: MIT
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+#include "fmbd_mbs_impl.h"
+
+// ============================================================================================
+// constraints
+// ============================================================================================
+
+// -2/|p| A v~ G (3x4 row-major) into out
+static void dA_dp(const mbody *b, const double *A, const double *G, double pn, const double *v,
+                  double *out) {
+  double S[9], AS[9];
+  skew3(v, S);
+  mm3(A, S, AS);
+  double f = -2.0 / pn;
+  for (int i = 0; i < 3; i++) {
+    for (int c = 0; c < 4; c++) {
+      out[4 * i + c] = f * (AS[3 * i] * G[c] + AS[3 * i + 1] * G[4 + c] + AS[3 * i + 2] * G[8 + c]);
+    }
+  }
+  (void)b;
+}
+
+// e: nv local direction vectors (3 each)
+static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, const double *xg,
+                      side *s) {
+  const mpoint *P = &m->p[pt];
+  s->body = P->body;
+  if (P->body < 0) {
+    s->n = 0;
+    memcpy(s->r, P->x0, sizeof s->r);
+    for (int i = 0; i < nv; i++) memcpy(s->g[i], e[i], sizeof s->g[i]);
+    return;
+  }
+  const mbody *b = &m->b[P->body];
+  const int nm = b->nm, n = b->n;
+  s->n = n;
+  const double *x = xg + b->off, *p = x + 3, *q = x + 7;
+  double A[9], G[12], pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+  quat_to_A(p, A);
+  quat_G(p, G);
+  double u[3];
+  memcpy(u, P->x0, sizeof u);
+  double th[3] = {0, 0, 0};
+  for (int k = 0; k < nm; k++) {
+    for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * q[k], th[a] += P->Rr[a + 3 * k] * q[k];
+  }
+  double Au[3];
+  mv3(A, u, Au);
+  for (int a = 0; a < 3; a++) s->r[a] = x[a] + Au[a];
+  double D[12];
+  memset(s->dr, 0, sizeof(double) * 3 * (size_t)n);
+  for (int a = 0; a < 3; a++) s->dr[a + 3 * a] = 1;
+  dA_dp(b, A, G, pn, u, D);
+  for (int a = 0; a < 3; a++) {
+    for (int c4 = 0; c4 < 4; c4++) s->dr[a + 3 * (3 + c4)] = D[4 * a + c4];
+  }
+  for (int k = 0; k < nm; k++) mv3(A, P->T + 3 * k, s->dr + 3 * (7 + k));
+  for (int i = 0; i < nv; i++) {
+    double wv[3], tc[3];
+    cross3(th, e[i], tc);
+    for (int a = 0; a < 3; a++) wv[a] = e[i][a] + tc[a];
+    mv3(A, wv, s->g[i]);
+    double *dg = s->dg[i];
+    memset(dg, 0, sizeof(double) * 3 * (size_t)n);
+    dA_dp(b, A, G, pn, wv, D);
+    for (int a = 0; a < 3; a++) {
+      for (int c4 = 0; c4 < 4; c4++) dg[a + 3 * (3 + c4)] = D[4 * a + c4];
+    }
+    for (int k = 0; k < nm; k++) {
+      double rc[3];
+      cross3(P->Rr + 3 * k, e[i], rc);
+      mv3(A, rc, dg + 3 * (7 + k));
+    }
+  }
+}
+
+// jac[0..n1) += sum_a v_a d[a + 3 i]  (v' d for a 3 x n derivative)
+static void vtd(const double *v, const double *d, int n, double f, double *jac) {
+  for (int i = 0; i < n; i++)
+    jac[i] += f * (v[0] * d[3 * i] + v[1] * d[3 * i + 1] + v[2] * d[3 * i + 2]);
+}
+
+// equation primitives; jac has s1->n + s2->n entries (side 1 first)
+static double eq_pos(const side *s1, const side *s2, int a, double *jac) {
+  if (jac) {
+    memset(jac, 0, sizeof(double) * (size_t)(s1->n + s2->n));
+    for (int i = 0; i < s1->n; i++) jac[i] = s1->dr[a + 3 * i];
+    for (int i = 0; i < s2->n; i++) jac[s1->n + i] = -s2->dr[a + 3 * i];
+  }
+  return s1->r[a] - s2->r[a];
+}
+static double eq_dot(const side *s1, int i1, const side *s2, int i2, double *jac) {
+  if (jac) {
+    memset(jac, 0, sizeof(double) * (size_t)(s1->n + s2->n));
+    vtd(s2->g[i2], s1->dg[i1], s1->n, 1, jac);
+    vtd(s1->g[i1], s2->dg[i2], s2->n, 1, jac + s1->n);
+  }
+  return dot3(s1->g[i1], s2->g[i2]);
+}
+// (r2 - r1) . g1[i1]
+static double eq_dd(const side *s1, int i1, const side *s2, double *jac) {
+  double d[3] = {s2->r[0] - s1->r[0], s2->r[1] - s1->r[1], s2->r[2] - s1->r[2]};
+  if (jac) {
+    memset(jac, 0, sizeof(double) * (size_t)(s1->n + s2->n));
+    vtd(d, s1->dg[i1], s1->n, 1, jac);
+    vtd(s1->g[i1], s1->dr, s1->n, -1, jac);
+    vtd(s1->g[i1], s2->dr, s2->n, 1, jac + s1->n);
+  }
+  return dot3(d, s1->g[i1]);
+}
+
+// the meaning of joint equation k (0-based)
+static const char *joint_eq_meaning(int kind, int k) {
+  static const char *sph[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2"};
+  static const char *rev[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2", "axis z1 . x2",
+                              "axis z1 . y2"};
+  static const char *uni[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2", "cross axes a1 . a2"};
+  static const char *cyl[] = {"axis z1 . x2", "axis z1 . y2", "offset d . x1", "offset d . y1"};
+  static const char *pri[] = {"axis z1 . x2", "axis z1 . y2", "offset d . x1", "offset d . y1",
+                              "twist x1 . y2"};
+  static const char *fix[] = {"x of r1 - r2", "y of r1 - r2", "z of r1 - r2",
+                              "z1 . x2",      "z1 . y2",      "x1 . y2"};
+  switch (kind) {
+    case FMBD_MBS_SPHERICAL:
+      return k < 3 ? sph[k] : "?";
+    case FMBD_MBS_REVOLUTE:
+      return k < 5 ? rev[k] : "?";
+    case FMBD_MBS_UNIVERSAL:
+      return k < 4 ? uni[k] : "?";
+    case FMBD_MBS_CYLINDRICAL:
+      return k < 4 ? cyl[k] : "?";
+    case FMBD_MBS_PRISMATIC:
+      return k < 5 ? pri[k] : "?";
+    case FMBD_MBS_FIXED:
+      return k < 6 ? fix[k] : "?";
+    default:
+      return "?";
+  }
+}
+
+void mbs_eq_describe(const fmbd_mbs *m, const meq *e, char *buf, size_t len) {
+  if (e->kind == EQ_JOINT) {
+    const mjoint *j = &m->j[e->owner];
+    snprintf(buf, len, "joint '%s' equation %d (%s %s)", j->name, e->sub + 1,
+             mbs_joint_kind_name(j->kind), joint_eq_meaning(j->kind, e->sub));
+  } else if (e->kind == EQ_DRIVER) {
+    const mdriver *d = &m->d[e->owner];
+    if (d->joint >= 0) {
+      snprintf(buf, len, "driver '%s' (coordinate of joint '%s')", d->name, m->j[d->joint].name);
+    } else {
+      snprintf(buf, len, "driver '%s' (coordinate %d of body '%s')", d->name, d->coord,
+               m->b[d->body].name);
+    }
+  } else {
+    snprintf(buf, len, "Euler-parameter normalisation of body '%s'", m->b[e->owner].name);
+  }
+}
+
+static void side_bind(fmbd_mbs *m, side *s, int which) {
+  double *w = m->wk + (size_t)which * 15 * (size_t)m->maxn;
+  s->dr = w;
+  for (int i = 0; i < 4; i++) s->dg[i] = w + (size_t)(3 + 3 * i) * (size_t)m->maxn;
+}
+
+// the joint's two sides
+void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2) {
+  side_bind(m, s1, 0);
+  side_bind(m, s2, 1);
+  double e2[4][3];
+  memcpy(e2, j->e[1], sizeof(double) * 9);
+  memcpy(e2[3], j->a2, sizeof(double) * 3);
+  side_eval(m, j->pt[0], (const double(*)[3])j->e[0], 3, x, s1);
+  side_eval(m, j->pt[1], (const double(*)[3])e2, j->kind == FMBD_MBS_UNIVERSAL ? 4 : 3, x, s2);
+}
+
+// joint coordinate (revolute angle or slide) and its jacobian (may be NULL)
+double mbs_joint_coord(const mjoint *j, const side *s1, const side *s2, double *jac) {
+  if (j->kind == FMBD_MBS_REVOLUTE) {
+    // theta = atan2(y1 . x2, x1 . x2)
+    double sn = dot3(s1->g[1], s2->g[0]), cs = dot3(s1->g[0], s2->g[0]);
+    double th = atan2(sn, cs);
+    if (jac) {
+      int nt = s1->n + s2->n;
+      memset(jac, 0, sizeof(double) * (size_t)nt);
+      double r2 = sn * sn + cs * cs;
+      double fs = cs / r2, fc = -sn / r2;
+      vtd(s2->g[0], s1->dg[1], s1->n, fs, jac);
+      vtd(s1->g[1], s2->dg[0], s2->n, fs, jac + s1->n);
+      vtd(s2->g[0], s1->dg[0], s1->n, fc, jac);
+      vtd(s1->g[0], s2->dg[0], s2->n, fc, jac + s1->n);
+    }
+    return th;
+  }
+  return eq_dd(s1, 2, s2, jac);
+}
+
+// Evaluate every equation (value and, with want_jac, jacobian) at (x, t).
+void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac) {
+  side s1, s2;
+  int64_t e = 0;
+  for (int ij = 0; ij < m->nj; ij++) {
+    const mjoint *j = &m->j[ij];
+    mbs_joint_sides(m, j, x, &s1, &s2);
+    for (int k = 0; k < j->neq; k++, e++) {
+      meq *q = &m->eq[e];
+      double *jac = want_jac ? q->jac : NULL;
+      double v = 0;
+      switch (j->kind) {
+        case FMBD_MBS_SPHERICAL:
+          v = eq_pos(&s1, &s2, k, jac);
+          break;
+        case FMBD_MBS_REVOLUTE:
+          v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, k - 3, jac);
+          break;
+        case FMBD_MBS_UNIVERSAL:
+          v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, 3, jac);
+          break;
+        case FMBD_MBS_CYLINDRICAL:
+        case FMBD_MBS_PRISMATIC:
+          if (k < 2)
+            v = eq_dot(&s1, 2, &s2, k, jac);
+          else if (k < 4)
+            v = eq_dd(&s1, k - 2, &s2, jac);
+          else
+            v = eq_dot(&s1, 0, &s2, 1, jac);
+          break;
+        case FMBD_MBS_FIXED:
+          if (k < 3)
+            v = eq_pos(&s1, &s2, k, jac);
+          else if (k < 5)
+            v = eq_dot(&s1, 2, &s2, k - 3, jac);
+          else
+            v = eq_dot(&s1, 0, &s2, 1, jac);
+          break;
+        default:
+          break;
+      }
+      q->phi = v;
+    }
+  }
+  for (int id = 0; id < m->nd; id++, e++) {
+    const mdriver *d = &m->d[id];
+    meq *q = &m->eq[e];
+    double f = fmbd_mbs_fn_eval(&d->f, t, NULL, NULL);
+    if (d->joint >= 0) {
+      const mjoint *j = &m->j[d->joint];
+      mbs_joint_sides(m, j, x, &s1, &s2);
+      double v = mbs_joint_coord(j, &s1, &s2, want_jac ? q->jac : NULL);
+      q->phi = j->kind == FMBD_MBS_REVOLUTE ? remainder(v - f, 2 * M_PI) : v - f;
+    } else {
+      const mbody *b = &m->b[d->body];
+      int c = d->coord < 3 ? d->coord : 7 + (d->coord - 3);
+      q->phi = x[b->off + c] - f;
+      if (want_jac) {
+        memset(q->jac, 0, sizeof(double) * (size_t)q->nj);
+        q->jac[c] = 1;
+      }
+    }
+  }
+  for (int ib = 0; ib < m->nb; ib++, e++) {
+    const mbody *b = &m->b[ib];
+    meq *q = &m->eq[e];
+    const double *p = x + b->off + 3;
+    q->phi = 0.5 * b->snorm * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3] - 1);
+    if (want_jac) {
+      memset(q->jac, 0, sizeof(double) * (size_t)q->nj);
+      for (int c = 0; c < 4; c++) q->jac[3 + c] = b->snorm * p[c];
+    }
+  }
+}
+
+// time derivatives of the prescribed part: Phi_t and Phi_tt of each equation
+void mbs_eq_time_derivs(const fmbd_mbs *m, double t, int64_t e, double *ft, double *ftt) {
+  const meq *q = &m->eq[e];
+  *ft = 0, *ftt = 0;
+  if (q->kind == EQ_DRIVER) {
+    double d1, d2;
+    fmbd_mbs_fn_eval(&m->d[q->owner].f, t, &d1, &d2);
+    *ft = -d1, *ftt = -d2;
+  }
+}
+
+// jac . v over the equation's bodies
+double mbs_eq_jv(const fmbd_mbs *m, const meq *q, const double *v) {
+  double s = 0;
+  int o = 0;
+  for (int k = 0; k < 2; k++) {
+    if (q->b[k] < 0) continue;
+    const mbody *b = &m->b[q->b[k]];
+    for (int i = 0; i < b->n; i++) s += q->jac[o + i] * v[b->off + i];
+    o += b->n;
+  }
+  return s;
+}
+// v[cols] += f * jac
+void mbs_eq_jtv(const fmbd_mbs *m, const meq *q, double f, double *v) {
+  int o = 0;
+  for (int k = 0; k < 2; k++) {
+    if (q->b[k] < 0) continue;
+    const mbody *b = &m->b[q->b[k]];
+    for (int i = 0; i < b->n; i++) v[b->off + i] += f * q->jac[o + i];
+    o += b->n;
+  }
+}

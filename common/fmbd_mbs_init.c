@@ -1,0 +1,611 @@
+// common/fmbd_mbs_init.c: fmbd_mbs_init: redundant constraints, consistent initial conditions
+// SPDX-License-Identifier: MIT
+#include <lapacke.h>
+#include <math.h>
+#undef I  // <complex.h> through lapacke.h
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+#include "fmbd_mbs_impl.h"
+
+// ============================================================================================
+// initialisation
+// ============================================================================================
+double mbs_eq_scaled(const fmbd_mbs *m, const meq *q) {
+  return fabs(q->phi) / q->sc;
+}
+
+// largest scaled residual among kept equations (index in *worst)
+static double worst_eq(const fmbd_mbs *m, int64_t *worst) {
+  double mx = 0;
+  *worst = -1;
+  for (int64_t e = 0; e < m->neq; e++) {
+    if (!m->eq[e].kept) continue;
+    double v = mbs_eq_scaled(m, &m->eq[e]);
+    if (!(v <= mx)) {
+      mx = v, *worst = e;
+      if (!isfinite(v)) break;
+    }
+  }
+  return mx;
+}
+
+// Whether the joints form a forest (no closed loop, no two joints between the same bodies, ground
+// one node) and every driver drives a joint coordinate. Then no equation can depend on the
+// others: each joint's equations act on its child body, which no other joint moves relative to
+// its parent, and a joint's own equations are independent by construction; a joint coordinate
+// of a tree is free. find_redundant's dense O(n nc^2) work is then skipped (a 400-link chain
+// spent 17 s there). A driver of a body coordinate can be dependent (a dead point): checked.
+static int find_root(int *up, int i) {
+  while (up[i] != i) i = up[i] = up[up[i]];
+  return i;
+}
+
+static bool joints_form_free_tree(const fmbd_mbs *m) {
+  for (int i = 0; i < m->nd; i++) {
+    if (m->d[i].joint < 0) return false;
+  }
+  int *up = fmbd_malloc(sizeof(int) * (size_t)(m->nb + 1));
+  if (!up) return false;  // the full check then runs
+  for (int i = 0; i <= m->nb; i++) up[i] = i;
+  bool tree = true;
+  for (int k = 0; k < m->nj && tree; k++) {
+    int a = m->j[k].body[0] >= 0 ? m->j[k].body[0] : m->nb;
+    int b = m->j[k].body[1] >= 0 ? m->j[k].body[1] : m->nb;
+    int ra = find_root(up, a), rb = find_root(up, b);
+    if (ra == rb) tree = false;
+    up[ra] = rb;
+  }
+  fmbd_free(up);
+  return tree;
+}
+
+// Redundant equations: QR with column pivoting of the normalised Jacobian rows for the rank,
+// then a greedy in-order selection (Gram-Schmidt, twice) so that the equations declared
+// redundant are the later ones (the joint closing a loop); if the two disagree, the
+// pivoted QR's choice is taken.
+static int find_redundant(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  int64_t n = m->n, nc = 0;
+  double *C = NULL, *Q = NULL, *tau = NULL;
+  lapack_int *jp = NULL;
+  int64_t *ix = NULL;
+  bool *sel = NULL;
+  for (int64_t e = 0; e < m->neq; e++) {
+    if (m->eq[e].kind != EQ_NORM) nc++;
+  }
+  if (nc == 0) return FMBD_OK;
+  FMBD_GALLOC(C = fmbd_calloc((size_t)(n * nc), sizeof(double)));
+  FMBD_GALLOC(Q = fmbd_calloc((size_t)(n * nc), sizeof(double)));
+  FMBD_GALLOC(ix = fmbd_malloc(sizeof(int64_t) * (size_t)nc));
+  FMBD_GALLOC(sel = fmbd_calloc((size_t)nc, sizeof(bool)));
+  FMBD_GALLOC(jp = fmbd_calloc((size_t)nc, sizeof(lapack_int)));
+  FMBD_GALLOC(tau = fmbd_calloc((size_t)(nc < n ? nc : n) + 1, sizeof(double)));
+  int64_t k = 0;
+  for (int64_t e = 0; e < m->neq; e++) {
+    meq *q = &m->eq[e];
+    if (q->kind == EQ_NORM) continue;
+    ix[k] = e;
+    double *col = C + n * k;
+    mbs_eq_jtv(m, q, 1.0, col);
+    // the Euler-parameter direction is handled by the normalisations: project it out
+    for (int ib = 0; ib < m->nb; ib++) {
+      const double *p = m->x + m->b[ib].off + 3;
+      double *c = col + m->b[ib].off + 3;
+      double pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3], cp = 0;
+      for (int i = 0; i < 4; i++) cp += c[i] * p[i];
+      for (int i = 0; i < 4; i++) c[i] -= cp / pp * p[i];
+    }
+    double nrm = 0;
+    for (int64_t i = 0; i < n; i++) nrm += col[i] * col[i];
+    nrm = sqrt(nrm);
+    if (nrm > 0) {
+      for (int64_t i = 0; i < n; i++) col[i] /= nrm;
+    }
+    k++;
+  }
+  memcpy(Q, C, sizeof(double) * (size_t)(n * nc));
+  lapack_int info =
+      LAPACKE_dgeqp3(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)nc, Q, (lapack_int)n, jp, tau);
+  FMBD_GCHECK(info == 0, FMBD_ERR_EXTERNAL, "LAPACK dgeqp3 failed (info %d)", (int)info);
+  const double tol = 1e-8;
+  int64_t kmax = nc < n ? nc : n, rank = 0;
+  double r0 = fabs(Q[0]);
+  for (int64_t i = 0; i < kmax; i++) {
+    if (r0 > 0 && fabs(Q[i + n * i]) > tol * fmax(r0, 1.0)) rank++;
+  }
+  // greedy in order: basis in Q (reused)
+  int64_t nsel = 0;
+  for (int64_t c = 0; c < nc; c++) {
+    double *v = C + n * c;
+    for (int pass = 0; pass < 2; pass++) {
+      for (int64_t j = 0; j < nsel; j++) {
+        const double *b = Q + n * j;
+        double d = 0;
+        for (int64_t i = 0; i < n; i++) d += b[i] * v[i];
+        for (int64_t i = 0; i < n; i++) v[i] -= d * b[i];
+      }
+    }
+    double nrm = 0;
+    for (int64_t i = 0; i < n; i++) nrm += v[i] * v[i];
+    nrm = sqrt(nrm);
+    if (nrm > tol && nsel < n) {
+      double *b = Q + n * nsel;
+      for (int64_t i = 0; i < n; i++) b[i] = v[i] / nrm;
+      nsel++;
+      sel[c] = true;
+    }
+  }
+  if (nsel != rank) {
+    fmbd_log(FMBD_LOG_DEBUG,
+             "redundancy: greedy rank %lld, pivoted QR rank %lld; using the pivoted QR",
+             (long long)nsel, (long long)rank);
+    for (int64_t c = 0; c < nc; c++) sel[c] = false;
+    for (int64_t i = 0; i < rank; i++) sel[jp[i] - 1] = true;
+  }
+  // a driver is never dropped: dependent on the joints it is either at a singular position of
+  // the mechanism (a slider-crank's dead point) or fights them (a driven pivot of a chain
+  // locked to ground); dropped, the run would go on far from the motion it prescribes
+  for (int64_t c = 0; c < nc; c++) {
+    const meq *q = &m->eq[ix[c]];
+    if (sel[c] || q->kind != EQ_DRIVER) continue;
+    char buf[512];
+    mbs_eq_describe(m, q, buf, sizeof buf);
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "t = %.6g s: the %s depends on the joint equations (the mechanism is at a singular "
+               "position for it, or the driver fights the joints): it cannot be followed and is "
+               "not dropped",
+               m->t, buf);
+  }
+  for (int64_t c = 0; c < nc; c++) {
+    if (sel[c]) continue;
+    meq *q = &m->eq[ix[c]];
+    q->kept = false;
+    char buf[512];
+    mbs_eq_describe(m, q, buf, sizeof buf);
+    FMBD_GALLOC(q->text = fmbd_strdup(buf));
+    m->nred++;
+  }
+  if (m->nred > 0) {
+    FMBD_GALLOC(m->red = fmbd_malloc(sizeof(int) * (size_t)m->nred));
+    int r = 0;
+    for (int64_t c = 0; c < nc; c++) {
+      if (!sel[c]) m->red[r++] = (int)ix[c];
+    }
+    for (int i = 0; i < m->nred; i++) {
+      fmbd_log(FMBD_LOG_WARN, "redundant constraint removed: %s", m->eq[m->red[i]].text);
+    }
+  }
+done:
+  fmbd_free(C), fmbd_free(Q), fmbd_free(tau), fmbd_free(jp), fmbd_free(ix), fmbd_free(sel);
+  return rc;
+}
+
+// second time derivative of the kept constraints along x' (without the Phi_x x'' part):
+// gam_e = (Phi_x x')_x x' + Phi_tt, by a central difference of Phi_x x' along x'.
+static void constraint_gamma(fmbd_mbs *m, double *gam) {
+  double vmax = 0;
+  for (int64_t i = 0; i < m->n; i++) vmax = fmax(vmax, fabs(m->xd[i]) / m->nscale[i]);
+  for (int64_t e = 0; e < m->neq; e++) {
+    const meq *q = &m->eq[e];
+    if (!q->kept) continue;
+    double ft, ftt;
+    mbs_eq_time_derivs(m, m->t, e, &ft, &ftt);
+    gam[q->row] = ftt;
+  }
+  if (vmax > 0) {
+    double eps = 1e-5 / vmax;
+    double *xs = m->xn;  // scratch
+    memcpy(xs, m->x, sizeof(double) * (size_t)m->n);
+    for (int sgn = -1; sgn <= 1; sgn += 2) {
+      double *xe = m->xdn;  // scratch
+      for (int64_t i = 0; i < m->n; i++) xe[i] = xs[i] + sgn * eps * m->xd[i];
+      mbs_eval_constraints(m, xe, m->t, true);
+      for (int64_t e = 0; e < m->neq; e++) {
+        const meq *q = &m->eq[e];
+        if (q->kept) gam[q->row] += sgn * mbs_eq_jv(m, q, m->xd) / (2 * eps);
+      }
+    }
+    mbs_eval_constraints(m, m->x, m->t, true);
+  }
+}
+
+void mbs_update_scales(fmbd_mbs *m) {
+  for (int64_t i = 0; i < m->n; i++) {
+    double v = fabs(m->x[i]);
+    if (v > m->scale[i]) m->scale[i] = v;
+    v = fabs(m->xdd[i]);
+    if (v > m->ascale[i]) m->ascale[i] = v;
+  }
+  // modal coordinates of a body share one scale, the largest modal amplitude seen on the body
+  // (mass-normalised coordinates are comparable): errors of weak high modes count against
+  // the body's deformation, not against their own tiny amplitude; likewise for accelerations
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    double qm = 0, am = 0;
+    for (int k = 0; k < b->nm; k++) {
+      qm = fmax(qm, m->scale[b->off + 7 + k]);
+      am = fmax(am, m->ascale[b->off + 7 + k]);
+    }
+    for (int k = 0; k < b->nm; k++) {
+      int64_t i = b->off + 7 + k;
+      m->scale[i] = qm, m->ascale[i] = am;
+      m->nscale[i] = fmax(qm, 1e-3 * m->Lref * sqrt(b->m));
+    }
+  }
+}
+
+// --- the phases of fmbd_mbs_init ------------------------------------------------------------
+// settings: check them, keep a copy, and the generalized-alpha parameters (fmbd_mbs.h)
+static int init_settings(fmbd_mbs *m, const fmbd_mbs_settings *s) {
+  FMBD_CHECK(s->rho_inf >= 0 && s->rho_inf <= 1, FMBD_ERR_VALUE, "rho_inf %g outside [0, 1]",
+             s->rho_inf);
+  if (s->rho_inf > 0.99) {
+    // measured (docs/STABILITY.md): a free spinning flexible rod, 1 s at a fixed 2e-4 s step,
+    // about doubles its energy at rho_inf = 1, gains 3 % at 0.999, less than 1e-7 at 0.99
+    fmbd_log(FMBD_LOG_WARN,
+             "rho_inf %g > 0.99 leaves the index-3 scheme without damping of the constraint "
+             "forces and the highest modes: energy can grow (it doubled in 1 s on a spinning rod "
+             "at rho_inf = 1; docs/STABILITY.md); 0.9 (the default) to 0.99 is safe",
+             s->rho_inf);
+  }
+  FMBD_CHECK(isfinite(s->t_end) && s->t_end > 0, FMBD_ERR_VALUE, "t_end %g must be positive",
+             s->t_end);
+  FMBD_CHECK(!s->fixed || (s->step > 0 && isfinite(s->step)), FMBD_ERR_VALUE,
+             "fixed step %g must be positive", s->step);
+  FMBD_CHECK(s->fixed || (s->first_step > 0 && s->min_step > 0 && s->max_step >= s->min_step &&
+                          s->first_step >= s->min_step && s->tolerance > 0),
+             FMBD_ERR_VALUE,
+             "step settings: need 0 < min_step <= first_step, min_step <= max_step, tolerance > 0");
+  FMBD_CHECK(s->newton_tol > 0 && s->newton_max >= 1, FMBD_ERR_VALUE,
+             "Newton settings: tolerance > 0, iterations >= 1");
+  FMBD_CHECK(s->output_every >= 0, FMBD_ERR_VALUE, "output_every %g must be >= 0", s->output_every);
+  m->set = *s;
+  if (m->set.fixed && !(m->set.min_step > 0)) m->set.min_step = m->set.step * 1e-6;
+  double rho = s->rho_inf;
+  m->am = (2 * rho - 1) / (rho + 1);
+  m->af = rho / (rho + 1);
+  m->gamma = 0.5 + m->af - m->am;
+  m->beta = 0.25 * (m->gamma + 0.5) * (m->gamma + 0.5);
+  return FMBD_OK;
+}
+
+// dimensions: coordinate offsets, equation count, the state and workspace arrays
+static int init_dimensions(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  int64_t n = 0;
+  m->maxn = 7;
+  for (int ib = 0; ib < m->nb; ib++) {
+    m->b[ib].off = n;
+    n += m->b[ib].n;
+    if (m->b[ib].n > m->maxn) m->maxn = m->b[ib].n;
+  }
+  m->n = n;
+  int64_t neq = 0;
+  for (int j = 0; j < m->nj; j++) neq += m->j[j].neq;
+  neq += m->nd + m->nb;
+  m->neq = neq;
+  size_t nn = (size_t)n;
+  double **arrs[] = {&m->x,  &m->xd,   &m->xdd, &m->a,     &m->xn,     &m->xdn,    &m->xddn,
+                     &m->an, &m->xddp, &m->res, &m->scale, &m->nscale, &m->ascale, &m->floor_};
+  for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++)
+    FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
+  size_t mx = (size_t)m->maxn, n6 = mx - 1;
+  FMBD_GALLOC(m->wk = fmbd_calloc(30 * mx, sizeof(double)));
+  FMBD_GALLOC(m->bres = fmbd_calloc(mx, sizeof(double)));
+  FMBD_GALLOC(m->bblk = fmbd_calloc(mx * mx, sizeof(double)));
+  FMBD_GALLOC(m->bwork = fmbd_calloc(2 * n6 * n6 + n6, sizeof(double)));
+  FMBD_GALLOC(m->eq = fmbd_calloc((size_t)neq, sizeof(meq)));
+done:
+  return rc;
+}
+
+// equations: kind, owner, bodies, scale kind (positions get L_ref later) and Jacobian storage
+static int init_equations(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  const int64_t neq = m->neq;
+  int64_t e = 0;
+  for (int ij = 0; ij < m->nj; ij++) {
+    const mjoint *j = &m->j[ij];
+    for (int k = 0; k < j->neq; k++, e++) {
+      meq *q = &m->eq[e];
+      q->kind = EQ_JOINT, q->owner = ij, q->sub = k;
+      int kk = 0;
+      q->b[0] = q->b[1] = -1;
+      for (int sd = 0; sd < 2; sd++) {
+        if (j->body[sd] >= 0) q->b[kk++] = j->body[sd];
+      }
+      bool dotk = false;
+      switch (j->kind) {
+        case FMBD_MBS_REVOLUTE:
+        case FMBD_MBS_UNIVERSAL:
+        case FMBD_MBS_FIXED:
+          dotk = k >= 3;
+          break;
+        case FMBD_MBS_CYLINDRICAL:
+        case FMBD_MBS_PRISMATIC:
+          dotk = k < 2 || k == 4;
+          break;
+        default:
+          break;
+      }
+      q->sc = dotk ? 1.0 : 0;  // positions: Lref, set below
+    }
+  }
+  for (int id = 0; id < m->nd; id++, e++) {
+    meq *q = &m->eq[e];
+    const mdriver *d = &m->d[id];
+    q->kind = EQ_DRIVER, q->owner = id;
+    q->b[0] = q->b[1] = -1;
+    if (d->joint >= 0) {
+      int kk = 0;
+      for (int sd = 0; sd < 2; sd++) {
+        if (m->j[d->joint].body[sd] >= 0) q->b[kk++] = m->j[d->joint].body[sd];
+      }
+      q->sc = m->j[d->joint].kind == FMBD_MBS_REVOLUTE ? 1.0 : 0;
+    } else {
+      q->b[0] = d->body;
+      q->sc = d->coord < 3 ? 0 : -1;  // modal: set below
+    }
+  }
+  for (int ib = 0; ib < m->nb; ib++, e++) {
+    meq *q = &m->eq[e];
+    q->kind = EQ_NORM, q->owner = ib;
+    q->b[0] = ib, q->b[1] = -1;
+    q->sc = m->b[ib].snorm;
+  }
+  for (e = 0; e < neq; e++) {
+    meq *q = &m->eq[e];
+    q->nj = (q->b[0] >= 0 ? m->b[q->b[0]].n : 0) + (q->b[1] >= 0 ? m->b[q->b[1]].n : 0);
+    q->kept = true;
+    FMBD_GALLOC(q->jac = fmbd_calloc((size_t)(q->nj ? q->nj : 1), sizeof(double)));
+  }
+done:
+  return rc;
+}
+
+// initial state of every body: x = [R; p; q0], x' = [v; p' from the angular velocity; qd0]
+static void init_state(fmbd_mbs *m) {
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    double *x = m->x + b->off, *xd = m->xd + b->off;
+    memcpy(x, b->x0, sizeof(double) * 7);
+    if (b->nm) memcpy(x + 7, b->q0, sizeof(double) * (size_t)b->nm);
+    memcpy(xd, b->v0, sizeof(double) * 3);
+    double A[9], G[12], wl[3];
+    quat_to_A(x + 3, A);
+    quat_G(x + 3, G);
+    mtv3(A, b->w0, wl);
+    for (int c = 0; c < 4; c++)
+      xd[3 + c] = 0.5 * (G[c] * wl[0] + G[4 + c] * wl[1] + G[8 + c] * wl[2]);
+    if (b->nm) memcpy(xd + 7, b->qd0, sizeof(double) * (size_t)b->nm);
+  }
+}
+
+// the reference length L_ref (fmbd_mbs.h, STEP-SIZE) and the scales and floors of coordinates
+// and equations
+static void init_scales(fmbd_mbs *m) {
+  const int64_t neq = m->neq;
+  double L = 0;
+  for (int ib = 0; ib < m->nb; ib++) L = fmax(L, norm3(m->b[ib].x0) + 2 * m->b[ib].gyr);
+  for (int ip = 0; ip < m->np; ip++) {
+    double xw[3];
+    const mpoint *P = &m->p[ip];
+    if (P->body < 0) {
+      memcpy(xw, P->x0, sizeof xw);
+    } else {
+      double A[9];
+      quat_to_A(m->b[P->body].x0 + 3, A);
+      mv3(A, P->x0, xw);
+      for (int a = 0; a < 3; a++) xw[a] += m->b[P->body].x0[a];
+    }
+    L = fmax(L, norm3(xw));
+  }
+  m->Lref = fmax(L, 1e-3);
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    for (int i = 0; i < b->n; i++) {
+      int64_t k = b->off + i;
+      if (i < 3)
+        m->floor_[k] = 1e-3 * m->Lref, m->nscale[k] = m->Lref;
+      else if (i < 7)
+        m->floor_[k] = 1e-3, m->nscale[k] = 1;
+      else
+        m->floor_[k] = MODAL_FLOOR * m->Lref * sqrt(b->m),
+        m->nscale[k] = 1e-3 * m->Lref * sqrt(b->m);
+      m->scale[k] = m->floor_[k];
+    }
+  }
+  for (int64_t e = 0; e < neq; e++) {
+    meq *q = &m->eq[e];
+    if (q->sc == 0) q->sc = m->Lref;
+    if (q->sc < 0) q->sc = 1e-3 * m->Lref * sqrt(m->b[q->b[0]].m);
+  }
+  mbs_update_scales(m);
+}
+
+// redundant equations at the initial configuration (skipped for a tree of joints), then the
+// rows of the kept ones, the multiplier and right-hand side arrays and the matrix pattern
+static int init_redundancy(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  const int64_t neq = m->neq;
+  mbs_eval_constraints(m, m->x, m->t, true);
+  if (joints_form_free_tree(m)) {
+    fmbd_log(FMBD_LOG_INFO,
+             "constraints: the joints form a tree and every driver drives a joint: "
+             "no redundant equation possible (check skipped)");
+  } else {
+    double t_red = fmbd_wall_s();
+    if (fmbd_progress_enabled()) fmbd_progress("redundant constraints: %d joints", m->nj);
+    FMBD_GCALL(find_redundant(m));
+    fmbd_progress(NULL);
+    fmbd_log(FMBD_LOG_INFO, "constraints: redundancy check of %lld equations in %.3g s",
+             (long long)(m->neq), fmbd_wall_s() - t_red);
+  }
+  int64_t kept = 0;
+  for (int64_t e = 0; e < neq; e++) {
+    meq *q = &m->eq[e];
+    q->row = q->kept ? kept++ : -1;
+  }
+  m->m = kept;
+  m->N = m->n + kept;
+  FMBD_GALLOC(m->lam = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+  FMBD_GALLOC(m->lamn = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+  FMBD_GALLOC(m->rhs = fmbd_calloc((size_t)m->N, sizeof(double)));
+  FMBD_GCALL(mbs_build_pattern(m));
+done:
+  return rc;
+}
+
+// positions: minimum-change (mass metric) Newton onto Phi = 0; the redundant equations must
+// hold too; Euler parameters normalised exactly
+static int init_positions(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  const int64_t neq = m->neq;
+  {
+    int it;
+    double r = 0, rprev = INFINITY;
+    int64_t worst = -1;
+    for (it = 0; it < 50; it++) {
+      mbs_eval_system(m, m->t, NULL, true, 1, 0, 0, false);
+      r = worst_eq(m, &worst);
+      if (r <= 1e-13 || (it > 3 && r >= rprev)) break;
+      rprev = r;
+      FMBD_GCALL(mbs_factor(m));
+      memset(m->rhs, 0, sizeof(double) * (size_t)m->N);
+      for (int64_t e = 0; e < neq; e++) {
+        if (m->eq[e].kept) m->rhs[m->n + m->eq[e].row] = -m->eq[e].phi;
+      }
+      FMBD_GCALL(mbs_solve(m, m->rhs));
+      for (int64_t i = 0; i < m->n; i++) m->x[i] += m->rhs[i];
+    }
+    if (r > 1e-10) {
+      char buf[512] = "?";
+      if (worst >= 0) mbs_eq_describe(m, &m->eq[worst], buf, sizeof buf);
+      FMBD_GFAIL(
+          FMBD_ERR_CONVERGE,
+          "initial positions cannot be made consistent with the constraints: largest residual %.3g "
+          "(scaled) at %s",
+          r, buf);
+    }
+    if (it > 0)
+      fmbd_log(FMBD_LOG_INFO, "initial positions projected onto the constraints (%d iterations)",
+               it);
+  }
+  // equations removed as redundant must hold too (dependent to first order but violated
+  // means the assembly is inconsistent, e.g. two ball joints too far apart on one rod)
+  mbs_eval_constraints(m, m->x, m->t, false);
+  for (int64_t e = 0; e < neq; e++) {
+    const meq *q = &m->eq[e];
+    if (q->kept || mbs_eq_scaled(m, q) <= 1e-8) continue;
+    char buf[512];
+    mbs_eq_describe(m, q, buf, sizeof buf);
+    FMBD_GFAIL(FMBD_ERR_CONVERGE,
+               "initial positions cannot be made consistent with the constraints: the redundant %s "
+               "is violated "
+               "by %.3g (scaled)",
+               buf, mbs_eq_scaled(m, q));
+  }
+  // normalise the Euler parameters exactly
+  for (int ib = 0; ib < m->nb; ib++) {
+    double *p = m->x + m->b[ib].off + 3;
+    double pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+    for (int c = 0; c < 4; c++) p[c] /= pn;
+  }
+done:
+  return rc;
+}
+
+// velocities: [M Phi_x'; Phi_x 0] [x'; mu] = [M x'0; -Phi_t]
+static int init_velocities(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  const int64_t neq = m->neq;
+  mbs_eval_system(m, m->t, NULL, true, 1, 0, 0, false);
+  FMBD_GCALL(mbs_factor(m));
+  {
+    memset(m->rhs, 0, sizeof(double) * (size_t)m->N);
+    for (int ib = 0; ib < m->nb; ib++) {
+      const mbody *b = &m->b[ib];
+      const int64_t *pos = m->bpos[ib];
+      for (int j = 0; j < b->n; j++) {
+        for (int i = 0; i < b->n; i++)
+          m->rhs[b->off + i] += m->Ax[pos[i + b->n * j]] * m->xd[b->off + j];
+      }
+    }
+    for (int64_t e = 0; e < neq; e++) {
+      const meq *q = &m->eq[e];
+      if (!q->kept) continue;
+      double ft, ftt;
+      mbs_eq_time_derivs(m, m->t, e, &ft, &ftt);
+      m->rhs[m->n + q->row] = -ft;
+    }
+    double vres = 0;
+    for (int64_t e = 0; e < neq; e++) {
+      const meq *q = &m->eq[e];
+      if (!q->kept) continue;
+      vres = fmax(vres, fabs(mbs_eq_jv(m, q, m->xd) - m->rhs[m->n + q->row]) / q->sc);
+    }
+    FMBD_GCALL(mbs_solve(m, m->rhs));
+    memcpy(m->xd, m->rhs, sizeof(double) * (size_t)m->n);
+    if (vres > 1e-12) fmbd_log(FMBD_LOG_INFO, "initial velocities projected onto the constraints");
+  }
+done:
+  return rc;
+}
+
+// consistent accelerations and multipliers: [M Phi_x'; Phi_x 0] [x''; lambda] = [-(v - f); -gam]
+static int init_accelerations(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  const int64_t neq = m->neq, kept = m->m;
+  double *gam = NULL;
+  FMBD_GALLOC(gam = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+  {
+    constraint_gamma(m, gam);
+    mbs_eval_system(m, m->t, NULL, false, 1, 0, 0, false);  // res = T'(v - f)
+    for (int64_t i = 0; i < m->n; i++) m->rhs[i] = -m->res[i];
+    for (int64_t e = 0; e < neq; e++) {
+      const meq *q = &m->eq[e];
+      if (q->kept) m->rhs[m->n + q->row] = -gam[q->row];
+    }
+    FMBD_GCALL(mbs_solve(m, m->rhs));
+    memcpy(m->xdd, m->rhs, sizeof(double) * (size_t)m->n);
+    memcpy(m->a, m->xdd, sizeof(double) * (size_t)m->n);
+    for (int64_t k = 0; k < kept; k++) m->lam[k] = m->rhs[m->n + k];
+  }
+done:
+  fmbd_free(gam);
+  return rc;
+}
+
+int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
+  FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "fmbd_mbs_init called twice");
+  FMBD_CHECK(m->nb > 0, FMBD_ERR_VALUE, "the system has no bodies");
+  FMBD_CHECK(s, FMBD_ERR_VALUE, "no settings");
+  FMBD_CALL(init_settings(m, s));
+  FMBD_CALL(init_dimensions(m));
+  FMBD_CALL(init_equations(m));
+  init_state(m);
+  init_scales(m);
+  m->t = 0;
+  FMBD_CALL(init_redundancy(m));
+  FMBD_CALL(init_positions(m));
+  FMBD_CALL(init_velocities(m));
+  FMBD_CALL(init_accelerations(m));
+  // acceleration scales: the largest |x''_i| seen, at least nscale_i / t_end^2
+  for (int64_t i = 0; i < m->n; i++) m->ascale[i] = m->nscale[i] / (m->set.t_end * m->set.t_end);
+  mbs_update_scales(m);
+  m->need_factor = true;
+  m->h_next = m->set.fixed ? m->set.step : m->set.first_step;
+  m->h_fact = 0;
+  m->h_prop = 0;
+  m->k_out = 0;
+  m->st.coordinates = m->n;
+  m->st.equations = m->m;
+  m->st.redundant = m->nred;
+  m->ready = true;
+  return FMBD_OK;
+}

@@ -1,0 +1,282 @@
+// common/fmbd_mbs_step.c: time stepping: index-3 generalized-alpha, Newton, step-size control
+// SPDX-License-Identifier: MIT
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+#include "fmbd_mbs_impl.h"
+
+// ============================================================================================
+// time stepping
+// ============================================================================================
+static void save_state(fmbd_mbs *m) {
+  size_t nn = sizeof(double) * (size_t)m->n;
+  memcpy(m->xn, m->x, nn), memcpy(m->xdn, m->xd, nn), memcpy(m->xddn, m->xdd, nn),
+      memcpy(m->an, m->a, nn);
+  memcpy(m->lamn, m->lam, sizeof(double) * (size_t)(m->m + 1));
+}
+static void restore_state(fmbd_mbs *m) {
+  size_t nn = sizeof(double) * (size_t)m->n;
+  memcpy(m->x, m->xn, nn), memcpy(m->xd, m->xdn, nn), memcpy(m->xdd, m->xddn, nn),
+      memcpy(m->a, m->an, nn);
+  memcpy(m->lam, m->lamn, sizeof(double) * (size_t)(m->m + 1));
+}
+
+// message naming the largest scaled residual of the last Newton iterate
+static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
+  char what[512] = "?";
+  int64_t wi = m->worst_i;
+  if (wi >= m->n && wi < m->n + m->neq) {
+    mbs_eq_describe(m, &m->eq[wi - m->n], what, sizeof what);
+  } else if (wi >= 0 && wi < m->n) {
+    for (int ib = 0; ib < m->nb; ib++) {
+      const mbody *b = &m->b[ib];
+      if (wi < b->off || wi >= b->off + b->n) continue;
+      int k = (int)(wi - b->off);
+      if (k < 3)
+        snprintf(what, sizeof what, "body '%s' translational equation of motion (%c)", b->name,
+                 "xyz"[k]);
+      else if (k < 7)
+        snprintf(what, sizeof what, "body '%s' rotational equation of motion (row e%d)", b->name,
+                 k - 3);
+      else
+        snprintf(what, sizeof what, "body '%s' modal equation %d", b->name, k - 6);
+    }
+  }
+  char dxw[300] = "?";
+  if (m->worst_dx >= 0 && m->worst_dx < m->n) mbs_coord_describe(m, m->worst_dx, dxw, sizeof dxw);
+  snprintf(buf, len, "%s (scaled residual %.3g); largest correction: %s", what, m->worst_v, dxw);
+}
+
+// One attempt of a step of size h from the saved state. Returns FMBD_OK with *conv and *err
+// (scaled local error, 0 for fixed steps) or an error code (singular matrix, KLU).
+static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fresh_out,
+                   double *err) {
+  const double am = m->am, af = m->af, be = m->beta, ga = m->gamma;
+  const double bp = (1 - am) / (be * h * h * (1 - af)), gp = ga / (be * h);
+  const double t1 = m->t + h;
+  const int64_t n = m->n;
+  *conv = false, *err = 0;
+  // predictor: x''_{n+1} extrapolated linearly from the last two accepted steps (constant
+  // at the first step), lambda_{n+1} = lambda_n
+  double ex = (PRED_EXTRAP && m->h_prev > 0) ? h / m->h_prev : 0;
+  for (int64_t i = 0; i < n; i++) {
+    double an = m->an[i], xdd1 = m->xddn[i] + ex * (m->xddn[i] - m->xddp[i]);
+    double a1 = ((1 - af) * xdd1 + af * m->xddn[i] - am * an) / (1 - am);
+    m->a[i] = a1;
+    m->xdd[i] = xdd1;
+    m->x[i] = m->xn[i] + h * m->xdn[i] + h * h * ((0.5 - be) * an + be * a1);
+    m->xd[i] = m->xdn[i] + h * ((1 - ga) * an + ga * a1);
+  }
+  memcpy(m->lam, m->lamn, sizeof(double) * (size_t)(m->m + 1));
+  if (m->h_fact <= 0 || fabs(h / m->h_fact - 1) > 0.25) m->need_factor = true;
+  if (force_fresh) m->need_factor = true;
+  bool fresh = false;
+  double prev = 0;
+  for (int it = 0; it < m->set.newton_max; it++) {
+    bool matrix = m->need_factor;
+    mbs_eval_system(m, t1, m->xdd, matrix, 1, gp / bp, 1 / bp, true);
+    for (int64_t i = 0; i < n; i++) m->rhs[i] = -m->res[i] / bp;
+    for (int64_t e = 0; e < m->neq; e++) {
+      const meq *q = &m->eq[e];
+      if (q->kept) m->rhs[n + q->row] = -q->phi;
+    }
+    // the largest scaled residual of this iterate (for the failure message)
+    m->worst_v = -1;
+    for (int64_t i = 0; i < n; i++) {
+      double v = fabs(m->rhs[i]) / m->nscale[i];
+      if (!(v <= m->worst_v)) m->worst_v = v, m->worst_i = i;
+    }
+    for (int64_t e = 0; e < m->neq; e++) {
+      const meq *q = &m->eq[e];
+      if (!q->kept) continue;
+      double v = mbs_eq_scaled(m, q);
+      if (!(v <= m->worst_v)) m->worst_v = v, m->worst_i = m->n + e;
+    }
+    if (matrix) {
+      FMBD_CALL(mbs_factor(m));
+      m->need_factor = false;
+      m->h_fact = h;
+      fresh = true;
+    }
+    FMBD_CALL(mbs_solve(m, m->rhs));
+    m->st.newton_iterations++;
+    // increments in units of the per-coordinate tolerance: position accuracy newton_tol *
+    // nscale_i and acceleration accuracy newton_tol * ascale_i (an x error dx gives an x''
+    // error beta' dx: without this bound the leftover of a modified-Newton iteration acts as
+    // a spurious force that breaks momentum conservation at small steps), but never below
+    // the round-off of x_i
+    double nrm = 0;
+    for (int64_t i = 0; i < n; i++) {
+      double dx = m->rhs[i];
+      m->x[i] += dx;
+      m->xd[i] += gp * dx;
+      m->xdd[i] += bp * dx;
+      double tx = m->set.newton_tol * fmin(m->nscale[i], m->ascale[i] / bp);
+      tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), m->nscale[i]));
+      double v = fabs(dx) / tx;
+      if (!(v <= nrm)) nrm = v, m->worst_dx = i;
+    }
+    for (int64_t k = 0; k < m->m; k++) m->lam[k] += bp * m->rhs[n + k];
+    if (!isfinite(nrm)) break;
+    // converged when the estimated remaining error theta/(1 - theta) |dx| (Hairer & Wanner II,
+    // sec. IV.8) is within tolerance; in the first iteration (theta unknown) only when |dx|
+    // is far below it; theta >= 1 with |dx| within tolerance is round-off stagnation
+    double theta = it > 0 ? nrm / prev : 0;
+    if (nrm <= 1e-3 || (it > 0 && nrm <= 1 && (theta >= 1 || theta / (1 - theta) * nrm <= 1))) {
+      *conv = true;
+      break;
+    }
+    if (it > 0 && theta >= 1 && fresh) break;  // diverging with an up-to-date matrix
+    if (it > 0 && theta > THETA_REFACTOR && !matrix) m->need_factor = true;
+    prev = nrm;
+  }
+  *fresh_out = fresh;
+  if (!*conv) return FMBD_OK;
+  // pseudo-accelerations of the converged state
+  for (int64_t i = 0; i < n; i++) {
+    m->a[i] = ((1 - af) * m->xdd[i] + af * m->xddn[i] - am * m->an[i]) / (1 - am);
+  }
+  if (!m->set.fixed) {
+    // local error estimate of the displacement update (Geradin & Cardona 2001, sec. 11.5):
+    // e = h^2 |beta - 1/6| (a_{n+1} - a_n)
+    double c = h * h * fabs(be - 1.0 / 6.0), e = 0;
+    for (int64_t i = 0; i < n; i++) {
+      double sc = fmax(m->scale[i], m->floor_[i]);
+      double v = c * fabs(m->a[i] - m->an[i]) / (m->set.tolerance * sc);
+      if (!(v <= e)) e = v;
+    }
+    *err = e;
+  }
+  return FMBD_OK;
+}
+
+int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
+  FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "fmbd_mbs_step before fmbd_mbs_init");
+  if (at_output) *at_output = false;
+  const double tend = m->set.t_end;
+  if (m->t >= tend * (1 - 1e-14)) return 1;
+  FMBD_CHECK(m->set.max_steps <= 0 || m->st.steps < m->set.max_steps, FMBD_ERR_CONVERGE,
+             "t = %.6g s: step limit %lld reached", m->t, (long long)m->set.max_steps);
+  const double oe = m->set.output_every;
+  save_state(m);
+  bool retried_fresh = false;
+  for (;;) {
+    double h = m->h_next;
+    if (m->set.fixed && h > m->set.step) h = m->set.step;
+    if (!m->set.fixed && h > m->set.max_step) h = m->set.max_step;
+    double lim = tend;
+    bool out_lim = false;
+    if (oe > 0) {
+      double to = (double)(m->k_out + 1) * oe;
+      if (to < lim) lim = to, out_lim = true;
+    }
+    bool clipped = false;
+    if (m->t + h > lim - 0.01 * h) {
+      if (lim - m->t < h) clipped = true;
+      m->h_prop = h;
+      h = lim - m->t;
+    }
+    bool conv, fresh;
+    double err;
+    int arc = attempt(m, h, retried_fresh, &conv, &fresh, &err);
+    if (arc != 0) {
+      restore_state(m);  // the caller may still query (and write) the last accepted state
+      return arc;
+    }
+    if (!conv) {
+      restore_state(m);
+      if (!fresh && !retried_fresh) {
+        retried_fresh = true;  // the old factor was too far off: same h, fresh matrix
+        continue;
+      }
+      m->st.rejected++;
+      double hmin = m->set.min_step;
+      if (h <= hmin * (1 + 1e-9)) {
+        char buf[800];
+        worst_residual(m, buf, sizeof buf);
+        if (!isfinite(m->worst_v)) {
+          // overflow, not a convergence problem: say so rather than "singular" or "diverged"
+          FMBD_FAIL(FMBD_ERR_CONVERGE,
+                    "t = %.9g s: the equations are not finite (overflow: a load, stiffness, "
+                    "mass or initial velocity of absurd magnitude?); first at %s",
+                    m->t + h, buf);
+        }
+        FMBD_FAIL(FMBD_ERR_CONVERGE,
+                  "t = %.9g s, h = %.3g s: Newton did not converge; largest residual: %s", m->t + h,
+                  h, buf);
+      }
+      m->h_next = fmax(h / 4, hmin);
+      m->after_reject = true;
+      retried_fresh = false;
+      continue;
+    }
+    if (fmbd_log_level() >= FMBD_LOG_DEBUG) {
+      fmbd_log(FMBD_LOG_DEBUG, "t = %.9g h = %.3g err = %.3g%s", m->t, h, err,
+               err > 1 ? " rejected" : "");
+    }
+    if (!m->set.fixed && err > 1 && h > m->set.min_step * (1 + 1e-9)) {
+      restore_state(m);
+      m->st.rejected++;
+      m->after_reject = true;
+      double f = fmax(0.2, 0.9 * pow(err, -1.0 / 3.0));
+      m->h_next = fmax(h * f, m->set.min_step);
+      retried_fresh = false;
+      continue;
+    }
+    // --- accepted ---
+    m->t += h;
+    m->st.steps++;
+    m->st.h_last = h;
+    memcpy(m->xddp, m->xddn, sizeof(double) * (size_t)m->n);  // x'' of the previous step
+    m->h_prev = h;
+    mbs_update_scales(m);
+    bool hit_out = oe <= 0;
+    if (oe > 0 && clipped && out_lim) {
+      m->k_out++;
+      hit_out = true;
+    } else if (oe > 0) {
+      double to = (double)(m->k_out + 1) * oe;
+      if (fabs(m->t - to) <= 1e-9 * fmax(1.0, fabs(to))) {
+        m->k_out++;
+        hit_out = true;
+      }
+    }
+    if (oe > 0 && m->t >= tend * (1 - 1e-14)) hit_out = true;
+    if (at_output) *at_output = hit_out;
+    if (m->set.fixed) {
+      m->h_next = m->set.step;
+    } else {
+      // elementary controller (order 2 method: local error ~ h^3) with a dead band that
+      // keeps h (and the factorised matrix) unchanged for small proposed increases, and no
+      // increase right after a rejection (Hairer, Norsett & Wanner I, sec. II.4)
+      double f = err > 0 ? SAFETY * pow(err, -1.0 / 3.0) : 2.0;
+      f = fmin(2.0, fmax(0.2, f));
+      if (f > 1 && (f < 1.25 || m->after_reject)) f = 1;
+      if (f < 1 && f > DEAD_LOW) f = 1;
+      double hn = h * f;
+      if (clipped && m->h_prop > hn) hn = m->h_prop;
+      m->h_next = fmin(m->set.max_step, fmax(m->set.min_step, hn));
+      m->after_reject = false;
+    }
+    return FMBD_OK;
+  }
+}
+
+int fmbd_mbs_run(fmbd_mbs *m, fmbd_mbs_callback cb, void *user) {
+  for (;;) {
+    bool out;
+    int rc = fmbd_mbs_step(m, &out);
+    if (rc == 1) return FMBD_OK;
+    if (rc != 0) return rc;
+    if (cb) {
+      int r = cb(m, out, user);
+      if (r != 0) return r;
+    }
+  }
+}

@@ -1,0 +1,185 @@
+// common/fmbd_mbs_system.c: the iteration matrix: system evaluation, sparse pattern, factorisation (fmbd_klu)
+// SPDX-License-Identifier: MIT
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmbd_alloc.h"
+#include "fmbd_err.h"
+#include "fmbd_log.h"
+#include "fmbd_mbs_impl.h"
+
+// ============================================================================================
+// system evaluation, sparse matrix, KLU
+// ============================================================================================
+// name of coordinate i of x
+void mbs_coord_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len) {
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (i >= b->off && i < b->off + b->n) {
+      int k = (int)(i - b->off);
+      static const char *nm[] = {"R_x",
+                                 "R_y",
+                                 "R_z",
+                                 "Euler parameter e0",
+                                 "Euler parameter e1",
+                                 "Euler parameter e2",
+                                 "Euler parameter e3"};
+      if (k < 7)
+        snprintf(buf, len, "body '%s' coordinate %s", b->name, nm[k]);
+      else
+        snprintf(buf, len, "body '%s' modal coordinate %d", b->name, k - 7 + 1);
+      return;
+    }
+  }
+  snprintf(buf, len, "coordinate %lld", (long long)i);
+}
+// name of unknown i of the matrix (coordinate or kept equation)
+static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len) {
+  if (i < m->n) {
+    mbs_coord_describe(m, i, buf, len);
+    return;
+  }
+  for (int64_t e = 0; e < m->neq; e++) {
+    if (m->eq[e].kept && m->eq[e].row == i - m->n) {
+      mbs_eq_describe(m, &m->eq[e], buf, len);
+      return;
+    }
+  }
+  snprintf(buf, len, "unknown %lld", (long long)i);
+}
+
+// res = body residuals (+ Phi_x' lam when add_lam), eq phi/jac, and with `matrix` the matrix
+// Ax = [cm M + cc C + ck K, Phi_x'; Phi_x, 0] (dynamics block as mbs_body_eval).
+void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
+                        double ck, bool add_lam) {
+  if (matrix) memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
+  for (int ib = 0; ib < m->nb; ib++) {
+    mbody *b = &m->b[ib];
+    mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->bblk : NULL, cm, cc, ck);
+    if (matrix) {
+      const int64_t *pos = m->bpos[ib];
+      for (int i = 0; i < b->n * b->n; i++) m->Ax[pos[i]] += m->bblk[i];
+    }
+  }
+  mbs_eval_constraints(m, m->x, t, true);
+  for (int64_t e = 0; e < m->neq; e++) {
+    meq *q = &m->eq[e];
+    if (!q->kept) continue;
+    if (add_lam) mbs_eq_jtv(m, q, m->lam[q->row], m->res);
+    if (matrix) {
+      for (int i = 0; i < q->nj; i++) {
+        m->Ax[q->pr[i]] += q->jac[i];
+        m->Ax[q->pc[i]] += q->jac[i];
+      }
+    }
+  }
+}
+
+typedef struct slot {
+  int64_t key, id;
+} slot;
+static int slot_cmp(const void *a, const void *b) {
+  int64_t x = ((const slot *)a)->key, y = ((const slot *)b)->key;
+  return x < y ? -1 : x > y;
+}
+
+// compressed-column pattern of the iteration matrix, the maps of the body blocks and equation
+// rows into it, KLU symbolic analysis
+int mbs_build_pattern(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  slot *sl = NULL;
+  int64_t *Ap = NULL, *Ai = NULL, *where = NULL;
+  int64_t N = m->N, cnt = 0;
+  for (int ib = 0; ib < m->nb; ib++) cnt += (int64_t)m->b[ib].n * m->b[ib].n;
+  for (int64_t e = 0; e < m->neq; e++) {
+    if (m->eq[e].kept) cnt += 2 * m->eq[e].nj;
+  }
+  m->nnz = cnt;
+  FMBD_GALLOC(sl = fmbd_malloc(sizeof(slot) * (size_t)(cnt ? cnt : 1)));
+  FMBD_GALLOC(m->bpos = fmbd_calloc((size_t)m->nb, sizeof(int64_t *)));
+  int64_t s = 0;
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    FMBD_GALLOC(m->bpos[ib] = fmbd_malloc(sizeof(int64_t) * (size_t)(b->n * b->n)));
+    for (int j = 0; j < b->n; j++) {
+      for (int i = 0; i < b->n; i++, s++) {
+        sl[s].key = (b->off + j) * N + (b->off + i);
+        sl[s].id = s;
+      }
+    }
+  }
+  for (int64_t e = 0; e < m->neq; e++) {
+    meq *q = &m->eq[e];
+    if (!q->kept) continue;
+    FMBD_GALLOC(q->pr = fmbd_malloc(sizeof(int64_t) * (size_t)q->nj));
+    FMBD_GALLOC(q->pc = fmbd_malloc(sizeof(int64_t) * (size_t)q->nj));
+    int64_t row = m->n + q->row;
+    int o = 0;
+    for (int k = 0; k < 2; k++) {
+      if (q->b[k] < 0) continue;
+      const mbody *b = &m->b[q->b[k]];
+      for (int i = 0; i < b->n; i++) {
+        int64_t col = b->off + i;
+        sl[s].key = col * N + row, sl[s].id = s, s++;
+        sl[s].key = row * N + col, sl[s].id = s, s++;
+      }
+      o += b->n;
+    }
+  }
+  qsort(sl, (size_t)cnt, sizeof(slot), slot_cmp);
+  FMBD_GALLOC(Ap = fmbd_calloc((size_t)N + 1, sizeof(int64_t)));
+  FMBD_GALLOC(Ai = fmbd_malloc(sizeof(int64_t) * (size_t)(cnt ? cnt : 1)));
+  FMBD_GALLOC(m->Ax = fmbd_calloc((size_t)(cnt ? cnt : 1), sizeof(double)));
+  FMBD_GALLOC(where = fmbd_malloc(sizeof(int64_t) * (size_t)(cnt ? cnt : 1)));
+  for (int64_t k = 0; k < cnt; k++) {
+    int64_t col = sl[k].key / N, row = sl[k].key % N;
+    FMBD_ASSERT(k == 0 || sl[k].key != sl[k - 1].key);
+    Ai[k] = row;
+    Ap[col + 1]++;
+    where[sl[k].id] = k;
+  }
+  for (int64_t c = 0; c < N; c++) Ap[c + 1] += Ap[c];
+  s = 0;
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    for (int i = 0; i < b->n * b->n; i++, s++) m->bpos[ib][i] = where[s];
+  }
+  for (int64_t e = 0; e < m->neq; e++) {
+    meq *q = &m->eq[e];
+    if (!q->kept) continue;
+    for (int i = 0; i < q->nj; i++) {
+      q->pr[i] = where[s++];
+      q->pc[i] = where[s++];
+    }
+  }
+  FMBD_GCALL(fmbd_klu_analyze(N, Ap, Ai, &m->klu));
+done:
+  fmbd_free(sl), fmbd_free(where), fmbd_free(Ap), fmbd_free(Ai);
+  return rc;
+}
+
+// numeric factorisation of Ax (fmbd_klu: a refactor with the old pivoting when possible); a
+// singular matrix is reported with the coordinate or equation of KLU's zero pivot
+int mbs_factor(fmbd_mbs *m) {
+  int rc = fmbd_klu_factor(m->klu, m->Ax);
+  if (rc == FMBD_ERR_SINGULAR) {
+    char what[400];
+    int64_t col = fmbd_klu_singular_col(m->klu);
+    if (col >= 0 && col < m->N)
+      unknown_describe(m, col, what, sizeof what);
+    else
+      snprintf(what, sizeof what, "unknown column");
+    FMBD_FAIL(FMBD_ERR_SINGULAR,
+              "t = %.6g s: singular iteration matrix (mass matrix or constraint Jacobian) at %s",
+              m->t, what);
+  }
+  FMBD_CALL(rc);
+  m->st.factorizations++;
+  return FMBD_OK;
+}
+
+int mbs_solve(fmbd_mbs *m, double *rhs) {
+  return fmbd_klu_solve(m->klu, rhs);
+}
