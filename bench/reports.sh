@@ -12,7 +12,7 @@ OUT=${BENCH_OUT:-$ROOT/$BUILD/bench}/reports
 export OPENBLAS_NUM_THREADS=1
 cd "$ROOT" || exit 1
 rc=0
-for r in report-quadpend report-slidercrank report-spatial-slidercrank; do
+for r in report-slidercrank report-spatial-slidercrank report-quadpend; do
   echo "== $r"
   make --no-print-directory -f examples/report.mk BUILD="$BUILD" PYTHON="$PYTHON" RP_OUT="$OUT" "$r" || rc=1
   n=${r#report-}
