@@ -1,5 +1,5 @@
-// common/fmbd_mbs_body.c: the equations of motion of one floating-frame body (fmbd_mbs.h, EQUATIONS)
-// SPDX-License-Identifier: MIT
+// common/fmbd_mbs_body.c: the equations of motion of one floating-frame body (fmbd_mbs.h,
+// EQUATIONS) SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -31,7 +31,7 @@ static void matvec(int m, int n, const double *restrict A, const double *restric
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
 // xdd may be NULL (zero accelerations).
 void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
-                      const double *xddg, double *r, double *B, double cm, double cc, double ck) {
+                   const double *xddg, double *r, double *B, double cm, double cc, double ck) {
   mbody *b = &m->b[ib];
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;

@@ -217,7 +217,7 @@ struct fmbd_mbs {
   bool need_factor, after_reject;
   // --- sparse matrix and KLU ---
   int64_t nnz;
-  double *Ax;       // values in the pattern analysed by klu (compressed columns)
+  double *Ax;      // values in the pattern analysed by klu (compressed columns)
   int64_t **bpos;  // per body n^2 positions
   fmbd_klu *klu;   // symbolic analysis once (fmbd_mbs_init), numeric factor kept
   // --- results ---
@@ -257,7 +257,6 @@ typedef struct side {
   double r[3], g[4][3];
   double *dr, *dg[4];
 } side;
-
 
 // --- internal functions ----------------------------------------------------------------------
 // fmbd_mbs.c

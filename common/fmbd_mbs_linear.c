@@ -1,5 +1,5 @@
-// common/fmbd_mbs_linear.c: the mechanism's equations outside the integrator (linearisation, global modes)
-// SPDX-License-Identifier: MIT
+// common/fmbd_mbs_linear.c: the mechanism's equations outside the integrator (linearisation, global
+// modes) SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -141,4 +141,3 @@ int64_t fmbd_mbs_ncoordinates(const fmbd_mbs *m) {
 const double *fmbd_mbs_state(const fmbd_mbs *m) {
   return m->x;
 }
-

@@ -1,5 +1,5 @@
-// common/fmbd_mbs_system.c: the iteration matrix: system evaluation, sparse pattern, factorisation (fmbd_klu)
-// SPDX-License-Identifier: MIT
+// common/fmbd_mbs_system.c: the iteration matrix: system evaluation, sparse pattern, factorisation
+// (fmbd_klu) SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -53,7 +53,7 @@ static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len
 // res = body residuals (+ Phi_x' lam when add_lam), eq phi/jac, and with `matrix` the matrix
 // Ax = [cm M + cc C + ck K, Phi_x'; Phi_x, 0] (dynamics block as mbs_body_eval).
 void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
-                        double ck, bool add_lam) {
+                     double ck, bool add_lam) {
   if (matrix) memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
   for (int ib = 0; ib < m->nb; ib++) {
     mbody *b = &m->b[ib];
