@@ -86,14 +86,18 @@ static void on_fatal_signal(int sig) {
   _exit(1);
 }
 
-void fmbd_cli_init(const char *prog, int argc, char **argv) {
+void fmbd_cli_on_signals(void (*handler)(int)) {
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
-  sa.sa_handler = on_fatal_signal;
+  sa.sa_handler = handler;
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
   sigaction(SIGHUP, &sa, NULL);
+}
+
+void fmbd_cli_init(const char *prog, int argc, char **argv) {
+  fmbd_cli_on_signals(on_fatal_signal);
   fmbd_timer_start(&g_timer);
   g_timer_started = true;
   fmbd_log_init(prog, FMBD_LOG_WARN);

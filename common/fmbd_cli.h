@@ -11,6 +11,10 @@ const char *fmbd_version(void);
 /// @brief Start of every main(): program name for messages, the command line (kept for the
 /// command_line attribute), start of the wall/CPU timer, HDF5 error printing off.
 void fmbd_cli_init(const char *prog, int argc, char **argv);
+/// @brief Handle SIGINT, SIGTERM and SIGHUP with `handler` (fmbd_cli_init installs one that
+/// removes the output being written and exits 1; fmbd_runfile_catch_signals one that only sets a
+/// flag, so that a run keeps its valid prefix).
+void fmbd_cli_on_signals(void (*handler)(int));
 /// @brief The command line as one shell-quoted string (borrowed).
 const char *fmbd_cli_command_line(void);
 /// @brief Seconds of wall / CPU time since fmbd_cli_init.

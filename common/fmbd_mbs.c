@@ -72,6 +72,7 @@ static void body_free(mbody *b) {
   fmbd_free(b->S1), fmbd_free(b->XS), fmbd_free(b->SS), fmbd_free(b->Mff), fmbd_free(b->Kff);
   fmbd_free(b->Dff), fmbd_free(b->XSx), fmbd_free(b->SSx), fmbd_free(b->q0), fmbd_free(b->qd0);
   fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
+  mbs_fe_free(&b->fe);
 }
 
 void fmbd_mbs_destroy(fmbd_mbs **mp) {
@@ -79,7 +80,8 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
   fmbd_mbs *m = *mp;
   for (int i = 0; i < m->nb; i++) body_free(&m->b[i]);
   fmbd_free(m->b);
-  for (int i = 0; i < m->np; i++) fmbd_free(m->p[i].T), fmbd_free(m->p[i].Rr);
+  for (int i = 0; i < m->np; i++)
+    fmbd_free(m->p[i].T), fmbd_free(m->p[i].Rr), fmbd_free(m->p[i].sup);
   fmbd_free(m->p);
   for (int i = 0; i < m->nj; i++) fmbd_free(m->j[i].name);
   fmbd_free(m->j);
@@ -90,7 +92,7 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
   if (m->eq) {
     for (int64_t e = 0; e < m->neq; e++) {
       fmbd_free(m->eq[e].jac), fmbd_free(m->eq[e].pr), fmbd_free(m->eq[e].pc),
-          fmbd_free(m->eq[e].text);
+          fmbd_free(m->eq[e].text), fmbd_free(m->eq[e].cols);
     }
     fmbd_free(m->eq);
   }
@@ -354,6 +356,57 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
   return FMBD_OK;
 }
 
+static bool csr_shape(const fmbd_csr *A, int64_t nr, int64_t nc) {
+  return A && A->nrows == nr && A->ncols == nc && mbs_finite_n(A->data, A->indptr[nr]);
+}
+
+int fmbd_mbs_add_fe(fmbd_mbs *m, const char *name, const fmbd_mbs_fe_data *d,
+                    const fmbd_mbs_state0 *s0, int *id) {
+  const char *nm_ = name ? name : "?";
+  FMBD_CHECK(d, FMBD_ERR_VALUE, "body '%s': no data", nm_);
+  const int64_t n = d->n, nn = d->nnodes;
+  FMBD_CHECK(n >= 1 && n < INT32_MAX / 16 && nn >= 1, FMBD_ERR_VALUE,
+             "body '%s': bad size (%lld coordinates, %lld nodes)", nm_, (long long)n,
+             (long long)nn);
+  FMBD_CHECK(isfinite(d->mass) && d->mass > 0, FMBD_ERR_VALUE,
+             "body '%s': mass %g must be positive", nm_, d->mass);
+  FMBD_CHECK(mbs_finite_n(d->first_moment, 3) && mbs_finite_n(d->second_moment, 9), FMBD_ERR_VALUE,
+             "body '%s': non-finite first or second moment", nm_);
+  FMBD_CHECK(csr_shape(d->M, n, n) && csr_shape(d->K, n, n) && (!d->D || csr_shape(d->D, n, n)) &&
+                 csr_shape(d->Mn, nn, nn) && csr_shape(d->E, 3 * nn, n),
+             FMBD_ERR_VALUE,
+             "body '%s': M, K (and D) must be %lld x %lld, Mn %lld x %lld, E %lld x %lld, finite",
+             nm_, (long long)n, (long long)n, (long long)nn, (long long)nn, (long long)(3 * nn),
+             (long long)n);
+  FMBD_CHECK(d->node_xyz && mbs_finite_n(d->node_xyz, 3 * nn), FMBD_ERR_VALUE,
+             "body '%s': missing or non-finite node positions", nm_);
+  FMBD_CHECK((!d->q0 || mbs_finite_n(d->q0, n)) && (!d->qd0 || mbs_finite_n(d->qd0, n)),
+             FMBD_ERR_VALUE, "body '%s': non-finite q0 or qd0", nm_);
+  mbs_fe *fe = NULL;
+  FMBD_CALL(mbs_fe_create(d, &fe));
+  double *q0 = fmbd_calloc((size_t)n, sizeof(double)),
+         *qd0 = fmbd_calloc((size_t)n, sizeof(double));
+  mbody *b = NULL;
+  int rc = q0 && qd0 ? add_body(m, name, (int)n, s0, &b) : FMBD_ERR_NOMEM;
+  if (rc) {
+    mbs_fe_free(&fe), fmbd_free(q0), fmbd_free(qd0);
+    if (rc == FMBD_ERR_NOMEM) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+    return rc;
+  }
+  b->fe = fe, b->q0 = q0, b->qd0 = qd0;
+  if (d->q0) memcpy(b->q0, d->q0, sizeof(double) * (size_t)n);
+  if (d->qd0) memcpy(b->qd0, d->qd0, sizeof(double) * (size_t)n);
+  b->m = d->mass;
+  memcpy(b->c0, d->first_moment, sizeof b->c0);
+  for (int a = 0; a < 3; a++) {
+    for (int c = 0; c < 3; c++)
+      b->J0[3 * a + c] = 0.5 * (d->second_moment[3 * a + c] + d->second_moment[3 * c + a]);
+  }
+  body_scales(b);
+  if (id) *id = m->nb - 1;
+  return FMBD_OK;
+}
+
 int fmbd_mbs_add_point(fmbd_mbs *m, int body, const double x0[3], const double *T,
                        const double *Rot, int *pid) {
   FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "point added after fmbd_mbs_init");
@@ -371,7 +424,33 @@ int fmbd_mbs_add_point(fmbd_mbs *m, int body, const double x0[3], const double *
   memset(p, 0, sizeof *p);
   p->body = body;
   memcpy(p->x0, x0, sizeof p->x0);
-  if (nm > 0) {
+  if (nm > 0 && m->b[body].fe) {
+    // an FE body: keep the coordinates that move the point
+    int ns = 0;
+    for (int k = 0; k < nm; k++) {
+      bool nz = false;
+      for (int a = 0; a < 3; a++) nz |= (T && T[a + 3 * k] != 0) || (Rot && Rot[a + 3 * k] != 0);
+      ns += nz;
+    }
+    p->sup = fmbd_malloc(sizeof(int64_t) * (size_t)(ns + 1));
+    p->T = fmbd_calloc(3 * (size_t)ns + 1, sizeof(double));
+    p->Rr = fmbd_calloc(3 * (size_t)ns + 1, sizeof(double));
+    if (!p->sup || !p->T || !p->Rr) {
+      fmbd_free(p->T), fmbd_free(p->Rr), fmbd_free(p->sup);
+      FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+    }
+    p->nsup = 0;
+    for (int k = 0; k < nm; k++) {
+      bool nz = false;
+      for (int a = 0; a < 3; a++) nz |= (T && T[a + 3 * k] != 0) || (Rot && Rot[a + 3 * k] != 0);
+      if (!nz) continue;
+      for (int a = 0; a < 3; a++) {
+        p->T[a + 3 * p->nsup] = T ? T[a + 3 * k] : 0;
+        p->Rr[a + 3 * p->nsup] = Rot ? Rot[a + 3 * k] : 0;
+      }
+      p->sup[p->nsup++] = k;
+    }
+  } else if (nm > 0) {
     p->T = fmbd_calloc(3 * (size_t)nm, sizeof(double));
     p->Rr = fmbd_calloc(3 * (size_t)nm, sizeof(double));
     if (!p->T || !p->Rr) {

@@ -211,6 +211,28 @@ typedef struct fmbd_mbs_flex_data {
   const double *q0, *qd0;   ///< initial modal coordinates and rates (nm each; NULL: zero)
 } fmbd_mbs_flex_data;
 
+/// A full finite-element body (docs/THEORY.md section 4b): every FE dof that the frame does
+/// not fix is a coordinate (nm = n), in the floating frame of reference. All matrices are
+/// sparse and copied; nothing of size n x n is ever dense. The inertia invariants are
+/// evaluated on the fly from a scalar nodal mass Mn and the map E from the coordinates to the
+/// nodal translations (THEORY 4b): S1 q = 1' Mn U, XS q = x' Mn U, SS q q = U' Mn U with
+/// U = E q (U_a: the a components of all nodes).
+typedef struct fmbd_mbs_fe_data {
+  int64_t n;                ///< coordinates (FE dofs not fixed by the frame), >= 1
+  double mass;              ///< m > 0
+  double first_moment[3];   ///< c0 = int rho x0 dV
+  double second_moment[9];  ///< J0 (symmetric)
+  const fmbd_csr *M, *K;    ///< n x n mass and stiffness (full symmetric storage)
+  const fmbd_csr *D;        ///< n x n damping (full symmetric storage) or NULL
+  int64_t nnodes;           ///< nodes of the body
+  const double *node_xyz;   ///< 3 x nnodes reference positions (body frame), xyz[a + 3p]
+  const fmbd_csr *Mn;       ///< nnodes x nnodes scalar mass of the invariants (symmetric)
+  const fmbd_csr *E;        ///< (3 nnodes) x n: row a nnodes + p = translation a of node p
+  const int64_t *dofs;      ///< 2 x n: node and direction (0..5) of each coordinate, or NULL
+                            ///< (names in messages)
+  const double *q0, *qd0;   ///< initial coordinates and rates (n each; NULL: zero)
+} fmbd_mbs_fe_data;
+
 /// @brief Create an empty system (no gravity).
 /// @param[out] out caller destroys with fmbd_mbs_destroy
 int fmbd_mbs_create(fmbd_mbs **out);
@@ -232,6 +254,13 @@ int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double 
 /// @return FMBD_OK, FMBD_ERR_VALUE (mass <= 0, Mff not positive definite, ...), FMBD_ERR_NOMEM
 int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d,
                       const fmbd_mbs_state0 *s0, int *id);
+
+/// @brief Add a full FE body (fmbd_mbs_fe_data). Its points (fmbd_mbs_add_point) take T and
+/// Rot as for a modal body (3 x n); only their nonzero columns are kept, so a point's
+/// equations touch only the coordinates that move it.
+/// @return FMBD_OK, FMBD_ERR_VALUE (sizes, mass, non-finite values), FMBD_ERR_NOMEM
+int fmbd_mbs_add_fe(fmbd_mbs *m, const char *name, const fmbd_mbs_fe_data *d,
+                    const fmbd_mbs_state0 *s0, int *id);
 
 /// @brief Add a point (joint attachment, load point, output point) on a body.
 /// @param[in] body  body id or FMBD_MBS_GROUND

@@ -41,7 +41,9 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, c
     return;
   }
   const mbody *b = &m->b[P->body];
-  const int nm = b->nm, n = b->n;
+  // the flexible coordinates that move the point: all (modal body) or its support (FE body)
+  const int nm = P->sup ? P->nsup : b->nm, n = 7 + nm;
+  const int64_t *sup = P->sup;
   s->n = n;
   const double *x = xg + b->off, *p = x + 3, *q = x + 7;
   double A[9], G[12], pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
@@ -51,7 +53,8 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, c
   memcpy(u, P->x0, sizeof u);
   double th[3] = {0, 0, 0};
   for (int k = 0; k < nm; k++) {
-    for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * q[k], th[a] += P->Rr[a + 3 * k] * q[k];
+    double qk = q[sup ? sup[k] : k];
+    for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * qk, th[a] += P->Rr[a + 3 * k] * qk;
   }
   double Au[3];
   mv3(A, u, Au);
@@ -262,7 +265,9 @@ void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac)
       q->phi = x[b->off + c] - f;
       if (want_jac) {
         memset(q->jac, 0, sizeof(double) * (size_t)q->nj);
-        q->jac[c] = 1;
+        for (int i = 0; i < q->nj; i++) {
+          if (q->cols[i] == b->off + c) q->jac[i] = 1;
+        }
       }
     }
   }
@@ -289,25 +294,13 @@ void mbs_eq_time_derivs(const fmbd_mbs *m, double t, int64_t e, double *ft, doub
   }
 }
 
-// jac . v over the equation's bodies
+// jac . v over the equation's coordinates
 double mbs_eq_jv(const fmbd_mbs *m, const meq *q, const double *v) {
   double s = 0;
-  int o = 0;
-  for (int k = 0; k < 2; k++) {
-    if (q->b[k] < 0) continue;
-    const mbody *b = &m->b[q->b[k]];
-    for (int i = 0; i < b->n; i++) s += q->jac[o + i] * v[b->off + i];
-    o += b->n;
-  }
+  for (int i = 0; i < q->nj; i++) s += q->jac[i] * v[q->cols[i]];
   return s;
 }
 // v[cols] += f * jac
 void mbs_eq_jtv(const fmbd_mbs *m, const meq *q, double f, double *v) {
-  int o = 0;
-  for (int k = 0; k < 2; k++) {
-    if (q->b[k] < 0) continue;
-    const mbody *b = &m->b[q->b[k]];
-    for (int i = 0; i < b->n; i++) v[b->off + i] += f * q->jac[o + i];
-    o += b->n;
-  }
+  for (int i = 0; i < q->nj; i++) v[q->cols[i]] += f * q->jac[i];
 }

@@ -117,6 +117,25 @@ static inline void A_to_quat(const double *A, double *p) {
 }
 
 // --- the system ----------------------------------------------------------------------------
+// A full FE body's data (fmbd_mbs_fe.c; docs/THEORY.md section 4b). Nodal fields are nn x 3
+// column-major (u[p + nn a]); E maps the n coordinates to them.
+typedef struct mbs_fe {
+  int64_t nn;             // nodes
+  fmbd_csr *E, *Et, *Mn;  // (3 nn) x n, its transpose, nn x nn scalar nodal mass
+  double *x, *m1, *mx;    // nn x 3 positions; Mn 1 (nn); Mn x (nn x 3)
+  double *S1;             // 3 x n: S1[a + 3k] = (E_a' Mn 1)_k
+  fmbd_csr *P;            // n x n pattern of M + K + D; values in Mv, Kv, Dv
+  double *Mv, *Kv, *Dv;   // on P's entries
+  double *Gv;     // 3 nnz: Gv[e + nnz a] = (sum_bc eps_abc E_c' Mn E_b)(entry e): the gyroscopic
+                  // tangent 2 w . int rho S_l x S_k of the flexible rows = 2 sum_a w_a G_a
+  int64_t *dofs;  // 2 x n (node, direction) or NULL
+  double *U, *Ud, *Udd, *W, *Vd, *Y, *z;  // nn x 3 workspace
+  double *v1, *h;                         // (n), (10 n) workspace
+  double *cu, *cl;                        // 6 x n coupling blocks (upper [i + 6k], lower)
+  int64_t pos7[49];                       // Ax positions of the 7 x 7 block (i + 7 j)
+  int64_t *pu, *pl, *pff;  // of (i, 7 + k) at pu[i + 7k], (7 + k, i) at pl[i + 7k], P
+} mbs_fe;
+
 typedef struct mbody {
   char *name;
   int nm, n;    // modes; coordinates 7 + nm
@@ -136,12 +155,18 @@ typedef struct mbody {
   double *Mwf;  // 3 x nm
   double *cor;  // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;   // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
+  mbs_fe *fe;   // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
 } mbody;
+// unit of a body's flexible coordinates in the scales: sqrt(m) for mass-normalised modal
+// coordinates, 1 for FE dofs (m, rad)
+#define QUNIT(b) ((b)->fe ? 1.0 : sqrt((b)->m))
 
 typedef struct mpoint {
   int body;
   double x0[3];
-  double *T, *Rr;  // 3 x nm each or NULL
+  double *T, *Rr;  // 3 x nm each or NULL (modal); 3 x nsup on an FE body
+  int nsup;        // FE body: the flexible coordinates that move the point (sup, increasing)
+  int64_t *sup;    // NULL: all nm (modal bodies)
 } mpoint;
 
 typedef struct mjoint {
@@ -176,6 +201,7 @@ typedef struct meq {
   double phi;        // value
   double sc;         // scale of phi (m for positions, 1 for direction products)
   double *jac;       // nj
+  int64_t *cols;     // nj coordinates of the jac entries (side 1's body, then side 2's)
   int64_t *pr, *pc;  // positions in Ax of (row, col) and (col, row) per jac entry
   char *text;        // description (redundant ones)
 } meq;
@@ -203,7 +229,8 @@ struct fmbd_mbs {
   double *xddp;                         // x'' one step before
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double Lref;
-  int maxn;
+  int maxn;             // largest dense body block (modal bodies) or joint side (7 + point support)
+  int64_t maxb;         // largest body (coordinates)
   double *wk;           // side kinematics workspace
   double *bres, *bblk;  // per-body residual (n) and block (n^2), max size
   double *bwork;        // per-body workspace
@@ -285,6 +312,22 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
 int mbs_build_pattern(fmbd_mbs *m);
 int mbs_factor(fmbd_mbs *m);
 int mbs_solve(fmbd_mbs *m, double *rhs);
+// fmbd_mbs_fe.c: full FE bodies. mbs_fe_eval: the residual r (7 + n) as mbs_body_eval, and
+// with Ax the block cm M + cc C + ck K added into Ax at the body's positions
+void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
+                 const double *xddg, double *r, double *Ax, double cm, double cc, double ck);
+void mbs_fe_free(mbs_fe **fe);
+int mbs_fe_create(const fmbd_mbs_fe_data *d, mbs_fe **out);
+int64_t mbs_fe_nnz(const mbody *b);  // entries of its block
+// enumerate the block's entries (row, col within the body) in a fixed order: k-th entry
+void mbs_fe_entries(const mbody *b, int64_t *rows, int64_t *cols);
+// store the Ax positions of the entries, in the order of mbs_fe_entries
+void mbs_fe_set_positions(mbody *b, const int64_t *pos);
+// y += B v for the body's block as stored in Ax (v, y: the body's coordinates)
+void mbs_fe_block_mul(const mbody *b, const double *Ax, const double *v, double *y);
+// kinetic energy, c, I, S1 q', Mwf q' of an FE body at the state (queries)
+void mbs_fe_inert(const fmbd_mbs *m, int ib, double *c, double *I, double *S1qd, double *Mwfqd,
+                  double *Tq, double *strain);
 // fmbd_mbs_init.c
 double mbs_eq_scaled(const fmbd_mbs *m, const meq *q);
 void mbs_update_scales(fmbd_mbs *m);

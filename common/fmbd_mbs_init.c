@@ -234,7 +234,7 @@ void mbs_update_scales(fmbd_mbs *m) {
     for (int k = 0; k < b->nm; k++) {
       int64_t i = b->off + 7 + k;
       m->scale[i] = qm, m->ascale[i] = am;
-      m->nscale[i] = fmax(qm, 1e-3 * m->Lref * sqrt(b->m));
+      m->nscale[i] = fmax(qm, 1e-3 * m->Lref * QUNIT(b));
     }
   }
 }
@@ -279,10 +279,15 @@ static int init_dimensions(fmbd_mbs *m) {
   int rc = FMBD_OK;
   int64_t n = 0;
   m->maxn = 7;
+  m->maxb = 7;
   for (int ib = 0; ib < m->nb; ib++) {
     m->b[ib].off = n;
     n += m->b[ib].n;
-    if (m->b[ib].n > m->maxn) m->maxn = m->b[ib].n;
+    if (m->b[ib].n > m->maxb) m->maxb = m->b[ib].n;
+    if (!m->b[ib].fe && m->b[ib].n > m->maxn) m->maxn = m->b[ib].n;
+  }
+  for (int ip = 0; ip < m->np; ip++) {
+    if (m->p[ip].sup && 7 + m->p[ip].nsup > m->maxn) m->maxn = 7 + m->p[ip].nsup;
   }
   m->n = n;
   int64_t neq = 0;
@@ -296,12 +301,43 @@ static int init_dimensions(fmbd_mbs *m) {
     FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
   size_t mx = (size_t)m->maxn, n6 = mx - 1;
   FMBD_GALLOC(m->wk = fmbd_calloc(30 * mx, sizeof(double)));
-  FMBD_GALLOC(m->bres = fmbd_calloc(mx, sizeof(double)));
+  FMBD_GALLOC(m->bres = fmbd_calloc((size_t)m->maxb, sizeof(double)));
   FMBD_GALLOC(m->bblk = fmbd_calloc(mx * mx, sizeof(double)));
   FMBD_GALLOC(m->bwork = fmbd_calloc(2 * n6 * n6 + n6, sizeof(double)));
   FMBD_GALLOC(m->eq = fmbd_calloc((size_t)neq, sizeof(meq)));
 done:
   return rc;
+}
+
+// The coordinates an equation's Jacobian covers on its side sd (pts: the joint's points, or
+// -1): all of a modal body's (7 + nm), on an FE body the 7 rigid ones and those that move the
+// point (a driven body coordinate; nothing more for the normalisation). cols may be NULL.
+static int eq_side_cols(const fmbd_mbs *m, const meq *q, const int pts[2], int sd, int64_t *cols) {
+  int ib;
+  if (pts[0] >= 0) {
+    ib = m->p[pts[sd]].body;
+  } else {
+    ib = q->b[sd];
+  }
+  if (ib < 0) return 0;
+  const mbody *b = &m->b[ib];
+  int cnt = 0;
+  if (!b->fe) {
+    for (int i = 0; i < b->n; i++, cnt++)
+      if (cols) cols[cnt] = b->off + i;
+    return cnt;
+  }
+  for (int i = 0; i < 7; i++, cnt++)
+    if (cols) cols[cnt] = b->off + i;
+  if (pts[0] >= 0) {
+    const mpoint *P = &m->p[pts[sd]];
+    for (int k = 0; k < P->nsup; k++, cnt++)
+      if (cols) cols[cnt] = b->off + 7 + P->sup[k];
+  } else if (q->kind == EQ_DRIVER && m->d[q->owner].coord >= 3) {
+    if (cols) cols[cnt] = b->off + 7 + (m->d[q->owner].coord - 3);
+    cnt++;
+  }
+  return cnt;
 }
 
 // equations: kind, owner, bodies, scale kind (positions get L_ref later) and Jacobian storage
@@ -360,9 +396,17 @@ static int init_equations(fmbd_mbs *m) {
   }
   for (e = 0; e < neq; e++) {
     meq *q = &m->eq[e];
-    q->nj = (q->b[0] >= 0 ? m->b[q->b[0]].n : 0) + (q->b[1] >= 0 ? m->b[q->b[1]].n : 0);
+    int pts[2] = {-1, -1};
+    if (q->kind == EQ_JOINT || (q->kind == EQ_DRIVER && m->d[q->owner].joint >= 0)) {
+      const mjoint *j = &m->j[q->kind == EQ_JOINT ? q->owner : m->d[q->owner].joint];
+      pts[0] = j->pt[0], pts[1] = j->pt[1];
+    }
+    q->nj = 0;
+    for (int sd = 0; sd < 2; sd++) q->nj += eq_side_cols(m, q, pts, sd, NULL);
     q->kept = true;
     FMBD_GALLOC(q->jac = fmbd_calloc((size_t)(q->nj ? q->nj : 1), sizeof(double)));
+    FMBD_GALLOC(q->cols = fmbd_calloc((size_t)(q->nj ? q->nj : 1), sizeof(int64_t)));
+    for (int sd = 0, o = 0; sd < 2; sd++) o += eq_side_cols(m, q, pts, sd, q->cols + o);
   }
 done:
   return rc;
@@ -415,15 +459,14 @@ static void init_scales(fmbd_mbs *m) {
       else if (i < 7)
         m->floor_[k] = 1e-3, m->nscale[k] = 1;
       else
-        m->floor_[k] = MODAL_FLOOR * m->Lref * sqrt(b->m),
-        m->nscale[k] = 1e-3 * m->Lref * sqrt(b->m);
+        m->floor_[k] = MODAL_FLOOR * m->Lref * QUNIT(b), m->nscale[k] = 1e-3 * m->Lref * QUNIT(b);
       m->scale[k] = m->floor_[k];
     }
   }
   for (int64_t e = 0; e < neq; e++) {
     meq *q = &m->eq[e];
     if (q->sc == 0) q->sc = m->Lref;
-    if (q->sc < 0) q->sc = 1e-3 * m->Lref * sqrt(m->b[q->b[0]].m);
+    if (q->sc < 0) q->sc = 1e-3 * m->Lref * QUNIT(&m->b[q->b[0]]);
   }
   mbs_update_scales(m);
 }
@@ -531,6 +574,10 @@ static int init_velocities(fmbd_mbs *m) {
     for (int ib = 0; ib < m->nb; ib++) {
       const mbody *b = &m->b[ib];
       const int64_t *pos = m->bpos[ib];
+      if (b->fe) {
+        mbs_fe_block_mul(b, m->Ax, m->xd + b->off, m->rhs + b->off);
+        continue;
+      }
       for (int j = 0; j < b->n; j++) {
         for (int i = 0; i < b->n; i++)
           m->rhs[b->off + i] += m->Ax[pos[i + b->n * j]] * m->xd[b->off + j];

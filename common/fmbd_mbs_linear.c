@@ -15,15 +15,36 @@
 // ============================================================================================
 // One CSR matrix from per-body dense blocks (the bodies' coordinates are contiguous and their
 // blocks do not overlap): block diagonal, column-major blocks.
+// An FE body's "block" is the iteration-matrix array Ax it was evaluated into (its positions).
 static int blocks_to_csr(const fmbd_mbs *m, double *const *blk, fmbd_csr **out) {
   int64_t nnz = 0;
-  for (int ib = 0; ib < m->nb; ib++) nnz += (int64_t)m->b[ib].n * m->b[ib].n;
+  for (int ib = 0; ib < m->nb; ib++)
+    nnz += m->b[ib].fe ? mbs_fe_nnz(&m->b[ib]) : (int64_t)m->b[ib].n * m->b[ib].n;
   FMBD_CALL(fmbd_csr_create(m->n, m->n, nnz, out));
   fmbd_csr *A = *out;
   int64_t p = 0;
   A->indptr[0] = 0;
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
+    if (b->fe) {
+      const mbs_fe *f = b->fe;
+      const double *Ax = blk[ib];
+      const int64_t nf = b->nm;
+      for (int i = 0; i < 7; i++) {
+        for (int j = 0; j < 7; j++)
+          A->indices[p] = b->off + j, A->data[p++] = Ax[f->pos7[i + 7 * j]];
+        for (int64_t k = 0; k < nf; k++)
+          A->indices[p] = b->off + 7 + k, A->data[p++] = Ax[f->pu[i + 7 * k]];
+        A->indptr[b->off + i + 1] = p;
+      }
+      for (int64_t k = 0; k < nf; k++) {
+        for (int i = 0; i < 7; i++) A->indices[p] = b->off + i, A->data[p++] = Ax[f->pl[i + 7 * k]];
+        for (int64_t e = f->P->indptr[k]; e < f->P->indptr[k + 1]; e++)
+          A->indices[p] = b->off + 7 + f->P->indices[e], A->data[p++] = Ax[f->pff[e]];
+        A->indptr[b->off + 7 + k + 1] = p;
+      }
+      continue;
+    }
     for (int i = 0; i < b->n; i++) {
       for (int j = 0; j < b->n; j++) {
         A->indices[p] = b->off + j;
@@ -33,6 +54,11 @@ static int blocks_to_csr(const fmbd_mbs *m, double *const *blk, fmbd_csr **out) 
     }
   }
   return FMBD_OK;
+}
+
+static int cmp_i64(const void *a, const void *b) {
+  int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+  return x < y ? -1 : x > y;
 }
 
 void fmbd_mbs_linear_free(fmbd_mbs_linear *L) {
@@ -68,8 +94,13 @@ int fmbd_mbs_linearise(fmbd_mbs *m, double t, const double *x, const double *xd,
     FMBD_GALLOC(blk[k] = fmbd_calloc((size_t)(m->nb + 1), sizeof(double *)));
     for (int ib = 0; ib < m->nb; ib++) {
       const mbody *b = &m->b[ib];
-      FMBD_GALLOC(blk[k][ib] = fmbd_calloc((size_t)b->n * b->n, sizeof(double)));
-      mbs_body_eval(m, ib, t, m->x, m->xd, NULL, m->bres, blk[k][ib], k == 0, k == 1, k == 2);
+      if (b->fe) {  // evaluated into an array laid out as the iteration matrix's
+        FMBD_GALLOC(blk[k][ib] = fmbd_calloc((size_t)m->nnz, sizeof(double)));
+        mbs_fe_eval(m, ib, t, m->x, m->xd, NULL, m->bres, blk[k][ib], k == 0, k == 1, k == 2);
+      } else {
+        FMBD_GALLOC(blk[k][ib] = fmbd_calloc((size_t)b->n * b->n, sizeof(double)));
+        mbs_body_eval(m, ib, t, m->x, m->xd, NULL, m->bres, blk[k][ib], k == 0, k == 1, k == 2);
+      }
       if (k == 0) {  // Q = -(residual at zero accelerations)
         for (int i = 0; i < b->n; i++) L->Q[b->off + i] = -m->bres[i];
       }
@@ -99,19 +130,12 @@ int fmbd_mbs_linearise(fmbd_mbs *m, double t, const double *x, const double *xd,
       const meq *q = &m->eq[e];
       if (!q->kept) continue;
       mbs_eq_jtv(m, q, 1.0, row);  // the row, dense; gathered in column order, then cleared
-      int bo[2] = {q->b[0], q->b[1]};
-      if (bo[0] >= 0 && bo[1] >= 0 && m->b[bo[1]].off < m->b[bo[0]].off) {
-        int s = bo[0];
-        bo[0] = bo[1], bo[1] = s;
-      }
-      for (int k = 0; k < 2; k++) {
-        if (bo[k] < 0 || (k == 1 && bo[1] == bo[0])) continue;
-        const mbody *b = &m->b[bo[k]];
-        for (int i = 0; i < b->n; i++) {
-          C->indices[p] = b->off + i;
-          C->data[p++] = row[b->off + i];
-          row[b->off + i] = 0.0;
-        }
+      int64_t p0 = p;
+      for (int i = 0; i < q->nj; i++) C->indices[p++] = q->cols[i];
+      qsort(C->indices + p0, (size_t)(p - p0), sizeof(int64_t), cmp_i64);
+      for (int64_t e2 = p0; e2 < p; e2++) {
+        C->data[e2] = row[C->indices[e2]];
+        row[C->indices[e2]] = 0.0;
       }
       L->phi[r] = q->phi;
       L->eq[r] = e;

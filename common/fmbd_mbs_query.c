@@ -50,11 +50,13 @@ static void point_local(const fmbd_mbs *m, const mpoint *P, double *u, double *u
   const double *q = m->x + b->off + 7, *qd = m->xd + b->off + 7, *qdd = m->xdd + b->off + 7;
   memcpy(u, P->x0, 3 * sizeof(double));
   for (int a = 0; a < 3; a++) ud[a] = udd[a] = 0;
-  for (int k = 0; k < b->nm; k++) {
+  const int nk = P->sup ? P->nsup : b->nm;  // FE body: the coordinates that move the point
+  for (int k = 0; k < nk; k++) {
+    int64_t kk = P->sup ? P->sup[k] : k;
     for (int a = 0; a < 3; a++) {
-      u[a] += P->T[a + 3 * k] * q[k];
-      ud[a] += P->T[a + 3 * k] * qd[k];
-      udd[a] += P->T[a + 3 * k] * qdd[k];
+      u[a] += P->T[a + 3 * k] * q[kk];
+      ud[a] += P->T[a + 3 * k] * qd[kk];
+      udd[a] += P->T[a + 3 * k] * qdd[kk];
     }
   }
 }
@@ -134,11 +136,16 @@ int64_t fmbd_mbs_modal(const fmbd_mbs *m, int body, const double **q, const doub
 // per-body inertia quantities at the current state (c, I, Mwf, velocities)
 typedef struct binert {
   double A[9], w[3], c[3], I[9], S1qd[3], Mwfqd[3];
+  double Tq, U;  // FE body: q' M q', q' K q / 2
 } binert;
 static void body_inert(const fmbd_mbs *m, int ib, binert *o) {
   const mbody *b = &m->b[ib];
   const double *q = m->x + b->off + 7, *qd = m->xd + b->off + 7;
   mbs_body_kin(m, b, o->A, o->w, NULL);
+  if (b->fe) {
+    mbs_fe_inert(m, ib, o->c, o->I, o->S1qd, o->Mwfqd, &o->Tq, &o->U);
+    return;
+  }
   const int nm = b->nm;
   double J[9];
   memcpy(o->c, b->c0, sizeof o->c);
@@ -188,15 +195,16 @@ void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, doub
     mv3(Ac, o.w, v1);
     mv3(o.A, o.S1qd, AS);
     double Tq = 0;
-    for (int k = 0; k < nm; k++) {
+    for (int k = 0; k < nm && !b->fe; k++) {
       for (int l = 0; l < nm; l++) Tq += qd[k] * b->Mff[k + (size_t)nm * l] * qd[l];
     }
+    if (b->fe) Tq = o.Tq, U += o.U;
     T += 0.5 * (b->m * dot3(Rd, Rd) + dot3(o.w, Iw) + Tq) - dot3(Rd, v1) + dot3(Rd, AS) +
          dot3(o.w, o.Mwfqd);
     double Acw[3];
     mv3(o.A, o.c, Acw);
     V -= b->m * dot3(m->g, m->x + b->off) + dot3(m->g, Acw);
-    for (int k = 0; k < nm; k++) {
+    for (int k = 0; k < nm && !b->fe; k++) {
       for (int l = 0; l < nm; l++) U += 0.5 * q[k] * b->Kff[k + (size_t)nm * l] * q[l];
     }
   }
@@ -283,14 +291,13 @@ int fmbd_mbs_joint_coordinate(const fmbd_mbs *m, int joint, double *value, doubl
   double *buf = fmbd_malloc(sizeof(double) * (size_t)(s1.n + s2.n + 1));
   FMBD_CHECK(buf, FMBD_ERR_NOMEM, "out of memory");
   double v = mbs_joint_coord(j, &s1, &s2, buf);
-  double r = 0;
-  int o = 0;
-  for (int sd = 0; sd < 2; sd++) {
-    if (j->body[sd] < 0) continue;
-    const mbody *b = &m->b[j->body[sd]];
-    for (int i = 0; i < b->n; i++) r += buf[o + i] * m->xd[b->off + i];
-    o += b->n;
+  // the columns of the joint's equations (its first equation's)
+  const meq *q = NULL;
+  for (int64_t e = 0; e < m->neq && !q; e++) {
+    if (m->eq[e].kind == EQ_JOINT && m->eq[e].owner == joint) q = &m->eq[e];
   }
+  double r = 0;
+  for (int i = 0; q && i < q->nj && i < s1.n + s2.n; i++) r += buf[i] * m->xd[q->cols[i]];
   fmbd_free(buf);
   if (value) *value = v;
   if (rate) *rate = r;

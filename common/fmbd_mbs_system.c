@@ -28,6 +28,11 @@ void mbs_coord_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len) {
                                  "Euler parameter e3"};
       if (k < 7)
         snprintf(buf, len, "body '%s' coordinate %s", b->name, nm[k]);
+      else if (b->fe && b->fe->dofs)
+        snprintf(buf, len, "body '%s' FE dof %d (node %lld, direction %lld)", b->name, k - 7 + 1,
+                 (long long)b->fe->dofs[2 * (k - 7)], (long long)b->fe->dofs[2 * (k - 7) + 1]);
+      else if (b->fe)
+        snprintf(buf, len, "body '%s' FE dof %d", b->name, k - 7 + 1);
       else
         snprintf(buf, len, "body '%s' modal coordinate %d", b->name, k - 7 + 1);
       return;
@@ -57,6 +62,10 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
   if (matrix) memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
   for (int ib = 0; ib < m->nb; ib++) {
     mbody *b = &m->b[ib];
+    if (b->fe) {
+      mbs_fe_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->Ax : NULL, cm, cc, ck);
+      continue;
+    }
     mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->bblk : NULL, cm, cc, ck);
     if (matrix) {
       const int64_t *pos = m->bpos[ib];
@@ -92,7 +101,8 @@ int mbs_build_pattern(fmbd_mbs *m) {
   slot *sl = NULL;
   int64_t *Ap = NULL, *Ai = NULL, *where = NULL;
   int64_t N = m->N, cnt = 0;
-  for (int ib = 0; ib < m->nb; ib++) cnt += (int64_t)m->b[ib].n * m->b[ib].n;
+  for (int ib = 0; ib < m->nb; ib++)
+    cnt += m->b[ib].fe ? mbs_fe_nnz(&m->b[ib]) : (int64_t)m->b[ib].n * m->b[ib].n;
   for (int64_t e = 0; e < m->neq; e++) {
     if (m->eq[e].kept) cnt += 2 * m->eq[e].nj;
   }
@@ -102,6 +112,23 @@ int mbs_build_pattern(fmbd_mbs *m) {
   int64_t s = 0;
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
+    if (b->fe) {  // its sparse block (mbs_fe_entries), positions kept by the body
+      int64_t ne = mbs_fe_nnz(b);
+      int64_t *r = NULL, *c = NULL;
+      r = fmbd_malloc(sizeof(int64_t) * (size_t)ne);
+      c = fmbd_malloc(sizeof(int64_t) * (size_t)ne);
+      if (!r || !c) {
+        fmbd_free(r), fmbd_free(c);
+        FMBD_GFAIL(FMBD_ERR_NOMEM, "out of memory");
+      }
+      mbs_fe_entries(b, r, c);
+      for (int64_t k = 0; k < ne; k++, s++) {
+        sl[s].key = (b->off + c[k]) * N + (b->off + r[k]);
+        sl[s].id = s;
+      }
+      fmbd_free(r), fmbd_free(c);
+      continue;
+    }
     FMBD_GALLOC(m->bpos[ib] = fmbd_malloc(sizeof(int64_t) * (size_t)(b->n * b->n)));
     for (int j = 0; j < b->n; j++) {
       for (int i = 0; i < b->n; i++, s++) {
@@ -116,16 +143,10 @@ int mbs_build_pattern(fmbd_mbs *m) {
     FMBD_GALLOC(q->pr = fmbd_malloc(sizeof(int64_t) * (size_t)q->nj));
     FMBD_GALLOC(q->pc = fmbd_malloc(sizeof(int64_t) * (size_t)q->nj));
     int64_t row = m->n + q->row;
-    int o = 0;
-    for (int k = 0; k < 2; k++) {
-      if (q->b[k] < 0) continue;
-      const mbody *b = &m->b[q->b[k]];
-      for (int i = 0; i < b->n; i++) {
-        int64_t col = b->off + i;
-        sl[s].key = col * N + row, sl[s].id = s, s++;
-        sl[s].key = row * N + col, sl[s].id = s, s++;
-      }
-      o += b->n;
+    for (int i = 0; i < q->nj; i++) {
+      int64_t col = q->cols[i];
+      sl[s].key = col * N + row, sl[s].id = s, s++;
+      sl[s].key = row * N + col, sl[s].id = s, s++;
     }
   }
   qsort(sl, (size_t)cnt, sizeof(slot), slot_cmp);
@@ -143,7 +164,12 @@ int mbs_build_pattern(fmbd_mbs *m) {
   for (int64_t c = 0; c < N; c++) Ap[c + 1] += Ap[c];
   s = 0;
   for (int ib = 0; ib < m->nb; ib++) {
-    const mbody *b = &m->b[ib];
+    mbody *b = &m->b[ib];
+    if (b->fe) {
+      mbs_fe_set_positions(b, where + s);
+      s += mbs_fe_nnz(b);
+      continue;
+    }
     for (int i = 0; i < b->n * b->n; i++, s++) m->bpos[ib][i] = where[s];
   }
   for (int64_t e = 0; e < m->neq; e++) {

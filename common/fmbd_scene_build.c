@@ -11,6 +11,7 @@
 
 #include "fmbd_alloc.h"
 #include "fmbd_cb.h"
+#include "fmbd_eig.h"
 #include "fmbd_err.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
@@ -20,6 +21,9 @@
     fmbd_scene_context((s), (loc)); \
     FMBD_GFAIL(code, __VA_ARGS__);  \
   } while (0)
+
+static void fe_node_modes(const fmbd_scene_model *m, int bi, int64_t node, int64_t n, double *T,
+                          double *R);
 
 // --- keeping the first n modes of a modal body ----------------------------------------------
 static int truncate_modes(fmbd_rflex *r, int64_t n) {
@@ -191,6 +195,16 @@ static int add_point(fmbd_scene_model *m, const fmbd_scene *s, int bi, const fmb
   const fmbd_rflex *r = m->flex[bi];
   int64_t node;
   FMBD_GCALL(flex_node(s, bi, r, at, x0, loc, what, &node));
+  if (m->fe[bi]) {
+    int64_t n = fmbd_mbs_body_nm(m->mbs, m->body_id[bi]);
+    FMBD_GALLOC(T = fmbd_malloc(sizeof(double) * (size_t)(3 * n + 1)));
+    FMBD_GALLOC(R = fmbd_malloc(sizeof(double) * (size_t)(3 * n + 1)));
+    fe_node_modes(m, bi, node, n, T, R);
+    memcpy(x0, r->node_xyz + 3 * node, sizeof x0);
+    FMBD_GCALL(fmbd_mbs_add_point(m->mbs, m->body_id[bi], x0, T, R, pid));
+    if (node_out) *node_out = node;
+    goto done;
+  }
   int64_t nm = r->nm;
   FMBD_GALLOC(T = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
   FMBD_GALLOC(R = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
@@ -218,6 +232,206 @@ static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
   return 0;
 }
 
+// --- full FE bodies (docs/THEORY.md section 4b) ---------------------------------------------
+// The scalar nodal mass of the invariants: the consistent mass of the solid elements (the mass
+// the FE matrices hold, fmbd_rflex_consistent_invariants) or the lumped nodal masses.
+static int fe_nodal_mass(const fmbd_fe_body *fe, fmbd_csr **out) {
+  int rc = FMBD_OK;
+  int64_t nn = fe->nnodes;
+  *out = NULL;
+  if (fmbd_rflex_consistent_invariants(fe)) {
+    int k = fe->tet_nodes;
+    FMBD_GCALL(fmbd_csr_pattern_from_elements(nn, fe->ntet, k, fe->tet, out));
+    double xyz[30], Me[100], vol;
+    for (int64_t e = 0; e < fe->ntet; e++) {
+      const int64_t *nd = fe->tet + (int64_t)k * e;
+      for (int i = 0; i < k; i++) memcpy(xyz + 3 * i, fe->xyz + 3 * nd[i], 3 * sizeof(double));
+      FMBD_GCALL(fmbd_fe_tet_matrices(k, xyz, fe->E, fe->nu, fe->rho, e, NULL, Me, &vol));
+      FMBD_GCALL(fmbd_csr_add_block(*out, k, nd, Me));
+    }
+  } else {
+    FMBD_GCALL(fmbd_csr_create(nn, nn, nn, out));
+    for (int64_t p = 0; p < nn; p++) {
+      (*out)->indptr[p + 1] = p + 1;
+      (*out)->indices[p] = p;
+      (*out)->data[p] = fe->node_mass ? fe->node_mass[p] : 0;
+    }
+  }
+done:
+  if (rc) fmbd_csr_destroy(out);
+  return rc;
+}
+
+// Stiffness-proportional damping D = (2 zeta / omega_1) K: ratio zeta at the body's first
+// frequency omega_1 held at its frame node (the lowest eigenvalue of K, M), zeta omega/omega_1
+// above (Rayleigh's beta K; the modal damping of a modal body has zeta on every mode).
+static int fe_damping(const fmbd_csr *K, const fmbd_csr *M, double zeta, fmbd_csr **D,
+                      double *omega1) {
+  fmbd_eig_opts o;
+  fmbd_eig_defaults(&o);
+  o.nev = 1;
+  o.sturm = false;
+  fmbd_eig_result er;
+  memset(&er, 0, sizeof er);
+  int rc = fmbd_eig_solve(K, M, NULL, &o, &er);
+  if (rc) {
+    fmbd_eig_result_free(&er);
+    return rc;
+  }
+  *omega1 = sqrt(er.lambda[0]);
+  fmbd_eig_result_free(&er);
+  FMBD_CALL(fmbd_csr_duplicate(K, D));
+  double f = 2 * zeta / *omega1;
+  for (int64_t e = 0; e < K->indptr[K->nrows]; e++) (*D)->data[e] *= f;
+  return FMBD_OK;
+}
+
+// A .fe.h5 body: every active FE dof but the frame node's a coordinate. The frame is attached
+// to the first rbe2 interface node (by name): its 6 dofs are the frame's motion.
+static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f) {
+  int rc = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  fmbd_fe_body *fe = NULL;
+  fmbd_csr *Mf = NULL, *Kf = NULL, *D = NULL, *E = NULL, *Mn = NULL;
+  int64_t *kept = NULL, *rows = NULL, *kdofs = NULL;
+  fmbd_rflex *r = NULL;
+  if (b->modes > 0) {
+    SFAIL(s, b->loc, FMBD_ERR_SCENE,
+          "body '%s': 'modes' makes no sense for a full-model body (%s keeps every FE dof); "
+          "drop it, or use the .cb.h5 or .rflex.h5 of this body",
+          b->name, b->file);
+  }
+  FMBD_GCALL(fmbd_fe_read(f, &fe));
+  if (!fe->K || !fe->M || !fe->expand) {
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s': %s has no /K, /M or /expand", b->name,
+          b->file);
+  }
+  int frame = -1;
+  for (int i = 0; i < fe->ninterfaces && frame < 0; i++) {
+    int64_t nd = fe->interfaces[i].node;
+    if (fe->interfaces[i].kind == FMBD_FE_RBE3) continue;
+    int cnt = 0;
+    for (int d = 0; d < 6; d++) cnt += fmbd_fe_dof(fe, nd, d) >= 0;
+    if (cnt == 6) frame = i;
+  }
+  if (frame < 0) {
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
+          "body '%s': %s: full-model bodies need an rbe2 interface node with its 6 dofs (mesh2fe "
+          "--interface GROUP): the floating frame is attached to it (docs/THEORY.md section 4b)",
+          b->name, b->file);
+  }
+  const int64_t nfr = fe->interfaces[frame].node, ndof = fe->ndof, nn = fe->nnodes;
+  const int64_t n = ndof - 6;
+  if (n < 1)
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s': %s has no dof besides its frame node",
+          b->name, b->file);
+  FMBD_GALLOC(kept = fmbd_malloc(sizeof(int64_t) * (size_t)n));
+  FMBD_GALLOC(kdofs = fmbd_malloc(sizeof(int64_t) * (size_t)(2 * n)));
+  FMBD_GALLOC(m->fe_col[bi] = fmbd_malloc(sizeof(int64_t) * (size_t)ndof));
+  for (int64_t i = 0, k = 0; i < ndof; i++) {
+    if (fe->dofs[2 * i] == nfr) {
+      m->fe_col[bi][i] = -1;
+      continue;
+    }
+    m->fe_col[bi][i] = k;
+    kdofs[2 * k] = fe->dofs[2 * i], kdofs[2 * k + 1] = fe->dofs[2 * i + 1];
+    kept[k++] = i;
+  }
+  FMBD_GCALL(fmbd_csr_submatrix(fe->M, n, kept, n, kept, &Mf));
+  FMBD_GCALL(fmbd_csr_submatrix(fe->K, n, kept, n, kept, &Kf));
+  FMBD_GALLOC(rows = fmbd_malloc(sizeof(int64_t) * (size_t)(3 * nn)));
+  for (int a = 0; a < 3; a++) {
+    for (int64_t p = 0; p < nn; p++) rows[p + nn * a] = 6 * p + a;
+  }
+  FMBD_GCALL(fmbd_csr_submatrix(fe->expand, 3 * nn, rows, n, kept, &E));
+  FMBD_GCALL(fe_nodal_mass(fe, &Mn));
+  if (b->damping_ratio > 0) {
+    double w1 = 0;
+    FMBD_GCALL(fe_damping(Kf, Mf, b->damping_ratio, &D, &w1));
+    fmbd_log(FMBD_LOG_INFO,
+             "body '%s': stiffness-proportional damping %g K (ratio %g at its first frequency "
+             "%.6g Hz held at the frame node)",
+             b->name, 2 * b->damping_ratio / w1, b->damping_ratio, w1 / (2 * M_PI));
+  }
+  fmbd_mbs_fe_data d = {.n = n,
+                        .mass = fe->mass,
+                        .M = Mf,
+                        .K = Kf,
+                        .D = D,
+                        .nnodes = nn,
+                        .node_xyz = fe->xyz,
+                        .Mn = Mn,
+                        .E = E,
+                        .dofs = kdofs};
+  for (int a = 0; a < 3; a++) d.first_moment[a] = fe->mass * fe->center_of_mass[a];
+  {  // J = tr(Ic)/2 I - Ic + m c c' (as the reduced bodies)
+    const double *Ic = fe->inertia, *c = fe->center_of_mass;
+    double tr = Ic[0] + Ic[4] + Ic[8];
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        d.second_moment[a + 3 * bb] = (a == bb ? 0.5 * tr : 0.0) -
+                                      0.5 * (Ic[3 * a + bb] + Ic[3 * bb + a]) +
+                                      fe->mass * c[a] * c[bb];
+      }
+    }
+  }
+  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
+  memcpy(s0.position, b->position, sizeof s0.position);
+  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
+  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
+  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  rc = fmbd_mbs_add_fe(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
+  if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
+  fmbd_log(FMBD_LOG_INFO,
+           "body '%s': full FE model, %lld dofs in the floating frame attached to interface '%s'",
+           b->name, (long long)n, fe->interfaces[frame].name);
+  // nodes and interfaces for placing points (no modes)
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof *r));
+  r->nnodes = nn;
+  r->ndof = ndof;
+  FMBD_GALLOC(r->node_xyz = fmbd_malloc(sizeof(double) * (size_t)(3 * nn)));
+  memcpy(r->node_xyz, fe->xyz, sizeof(double) * (size_t)(3 * nn));
+  r->ninterfaces = fe->ninterfaces;
+  FMBD_GALLOC(r->interfaces =
+                  fmbd_calloc((size_t)fe->ninterfaces + 1, sizeof(fmbd_rflex_interface)));
+  for (int i = 0; i < fe->ninterfaces; i++) {
+    fmbd_rflex_interface *it = &r->interfaces[i];
+    FMBD_GALLOC(it->name = fmbd_strdup(fe->interfaces[i].name));
+    FMBD_GALLOC(it->kind = fmbd_strdup(fe->interfaces[i].kind == FMBD_FE_RBE3 ? "rbe3" : "rbe2"));
+    it->node = fe->interfaces[i].node;
+    memcpy(it->x0, fe->xyz + 3 * it->node, sizeof it->x0);
+  }
+  m->flex[bi] = r;
+  r = NULL;
+  m->fe[bi] = fe;
+  fe = NULL;
+done:
+  fmbd_rflex_destroy(&r);
+  fmbd_fe_body_destroy(&fe);
+  fmbd_csr_destroy(&Mf), fmbd_csr_destroy(&Kf), fmbd_csr_destroy(&D), fmbd_csr_destroy(&E),
+      fmbd_csr_destroy(&Mn);
+  fmbd_free(kept), fmbd_free(rows), fmbd_free(kdofs);
+  return rc;
+}
+
+// A node's translation and rotation on a full FE body: rows 6p.. of /expand on the coordinates
+// (T, R: 3 x n dense, zeroed here)
+static void fe_node_modes(const fmbd_scene_model *m, int bi, int64_t node, int64_t n, double *T,
+                          double *R) {
+  const fmbd_fe_body *fe = m->fe[bi];
+  const fmbd_csr *X = fe->expand;
+  memset(T, 0, sizeof(double) * (size_t)(3 * n));
+  memset(R, 0, sizeof(double) * (size_t)(3 * n));
+  for (int d = 0; d < 6; d++) {
+    int64_t row = 6 * node + d;
+    for (int64_t e = X->indptr[row]; e < X->indptr[row + 1]; e++) {
+      int64_t k = m->fe_col[bi][X->indices[e]];
+      if (k < 0) continue;
+      (d < 3 ? T : R)[d % 3 + 3 * k] = X->data[e];
+    }
+  }
+}
+
 // --- flexible bodies ---------------------------------------------------------------------
 static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need_stress) {
   int rc = 0;
@@ -238,10 +452,19 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   } else if (format && !strcmp(format, FMBD_CB_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR);
     if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
+  } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {
+    rc = fmbd_h5_check_format(f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR);
+    if (!rc) {
+      FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
+      FMBD_GCALL(load_fe(m, s, bi, f));
+      FMBD_GCALL(add_input(m, b->file, fmbd_h5_sha256(f)));
+      m->E[bi] = m->fe[bi]->E, m->nu[bi] = m->fe[bi]->nu;
+      goto done;
+    }
   } else {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
-          "body '%s': %s is %s%s%s; a flexible body needs a fmbd-rflex file (cbcheck) or a fmbd-cb "
-          "file (fe2cb)",
+          "body '%s': %s is %s%s%s; a flexible body needs a fmbd-rflex file (cbcheck), a fmbd-cb "
+          "file (fe2cb) or a fmbd-fe file (mesh2fe: the full model)",
           b->name, b->file, format ? "a " : "not a toolchain file", format ? format : "",
           format ? " file" : "");
   }
@@ -342,6 +565,8 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
   FMBD_GALLOC(m->body_id = fmbd_calloc((size_t)nb + 1, sizeof(int)));
   FMBD_GALLOC(m->flex = fmbd_calloc((size_t)nb + 1, sizeof(fmbd_rflex *)));
   FMBD_GALLOC(m->file_kind = fmbd_calloc((size_t)nb + 1, sizeof(char *)));
+  FMBD_GALLOC(m->fe = fmbd_calloc((size_t)nb + 1, sizeof(fmbd_fe_body *)));
+  FMBD_GALLOC(m->fe_col = fmbd_calloc((size_t)nb + 1, sizeof(int64_t *)));
   FMBD_GALLOC(m->E = fmbd_calloc((size_t)nb + 1, sizeof(double)));
   FMBD_GALLOC(m->nu = fmbd_calloc((size_t)nb + 1, sizeof(double)));
   FMBD_GALLOC(m->joint_id = fmbd_calloc((size_t)s->njoints + 1, sizeof(int)));
@@ -437,7 +662,13 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
     m->out_body[o] = op->body;
     FMBD_GCALL(
         add_point(m, s, op->body, &op->at, NULL, op->loc, what, &m->out_point[o], &m->out_node[o]));
-    if (op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN)) {
+    if ((op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN)) &&
+        m->fe[op->body]) {
+      if (m->fe[op->body]->ntet == 0 && m->fe[op->body]->nbeam == 0) {
+        SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for stress, but %s has no elements", what,
+              s->bodies[op->body].file);
+      }
+    } else if (op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN)) {
       const fmbd_rflex *r = m->flex[op->body];
       if (!r->stress) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE,
@@ -465,9 +696,33 @@ done:
   return rc;
 }
 
+// the stress of a full FE body at a node: its nodal displacements as the one "mode" of
+// fmbd_fe_nodal_stress (element stresses averaged at the nodes)
+static int fe_output_stress(const fmbd_scene_model *m, int bi, int64_t node, double sigma[6]) {
+  int rc = FMBD_OK;
+  const fmbd_fe_body *fe = m->fe[bi];
+  double *u = NULL, *st = NULL;
+  const double *q = NULL;
+  fmbd_mbs_modal(m->mbs, m->body_id[bi], &q, NULL, NULL);
+  FMBD_GALLOC(u = fmbd_calloc((size_t)fe->ndof, sizeof(double)));
+  FMBD_GALLOC(st = fmbd_calloc((size_t)(6 * fe->nnodes), sizeof(double)));
+  for (int64_t i = 0; i < fe->ndof; i++) {
+    int64_t k = m->fe_col[bi][i];
+    u[i] = k >= 0 ? q[k] : 0.0;
+  }
+  FMBD_GCALL(fmbd_fe_nodal_stress(fe, 1, u, st));
+  memcpy(sigma, st + 6 * node, 6 * sizeof(double));
+done:
+  fmbd_free(u), fmbd_free(st);
+  return rc;
+}
+
 int fmbd_scene_output_stress(const fmbd_scene_model *m, int o, double sigma[6]) {
-  FMBD_CHECK(o >= 0 && o < m->noutputs && m->out_sigma[o], FMBD_ERR_VALUE,
-             "output %d has no stress", o);
+  FMBD_CHECK(o >= 0 && o < m->noutputs, FMBD_ERR_VALUE, "output %d has no stress", o);
+  int bi = m->out_body[o];
+  if (bi >= 0 && m->fe[bi] && m->out_node[o] >= 0)
+    return fe_output_stress(m, bi, m->out_node[o], sigma);
+  FMBD_CHECK(m->out_sigma[o], FMBD_ERR_VALUE, "output %d has no stress", o);
   const double *q = NULL;
   int64_t nm = fmbd_mbs_modal(m->mbs, m->body_id[m->out_body[o]], &q, NULL, NULL);
   const double *S = m->out_sigma[o];
@@ -496,6 +751,8 @@ void fmbd_scene_model_destroy(fmbd_scene_model **mp) {
   for (int i = 0; i < m->nbodies; i++) {
     if (m->flex) fmbd_rflex_destroy(&m->flex[i]);
     if (m->file_kind) fmbd_free(m->file_kind[i]);
+    if (m->fe) fmbd_fe_body_destroy(&m->fe[i]);
+    if (m->fe_col) fmbd_free(m->fe_col[i]);
   }
   for (int o = 0; o < m->noutputs; o++) {
     if (m->out_sigma) fmbd_free(m->out_sigma[o]);
@@ -506,6 +763,8 @@ void fmbd_scene_model_destroy(fmbd_scene_model **mp) {
   fmbd_free(m->body_id);
   fmbd_free(m->flex);
   fmbd_free(m->file_kind);
+  fmbd_free(m->fe);
+  fmbd_free(m->fe_col);
   fmbd_free(m->E);
   fmbd_free(m->nu);
   fmbd_free(m->joint_id);

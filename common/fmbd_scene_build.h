@@ -10,6 +10,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "fmbd_fe.h"
 #include "fmbd_h5.h"
 #include "fmbd_mbs.h"
 #include "fmbd_rflex.h"
@@ -22,7 +23,10 @@ typedef struct fmbd_scene_model {
   int *body_id;       ///< scene body -> mbs body id
   fmbd_rflex **flex;  ///< per body: the modal body (NULL for rigid), owned
   double *E, *nu;     ///< per body: material of a flexible body (strain outputs)
-  char **file_kind;   ///< per body: "fmbd-rflex" / "fmbd-cb" / NULL (rigid)
+  char **file_kind;   ///< per body: "fmbd-rflex" / "fmbd-cb" / "fmbd-fe" / NULL (rigid)
+  fmbd_fe_body **fe;  ///< per body: a full FE body (fmbd-fe file; flex[i] then holds only its
+                      ///< nodes and interfaces, nm = 0), else NULL; owned
+  int64_t **fe_col;   ///< per FE body: active dof -> coordinate (-1: fixed by the frame)
   int *joint_id;      ///< scene joint -> mbs joint id
   int noutputs;
   int *out_point;         ///< per output: mbs point id
@@ -34,15 +38,18 @@ typedef struct fmbd_scene_model {
   char (*input_sha)[65];  ///< their SHA-256
 } fmbd_scene_model;
 
-/// @brief Build the multibody system of a scene: open every body file (.rflex.h5 or .cb.h5;
-/// another kind is an error naming the scene line of `file`), keep the first N modes if
+/// @brief Build the multibody system of a scene: open every body file (.rflex.h5, .cb.h5, or
+/// .fe.h5 for a full FE body, docs/THEORY.md section 4b; another kind is an error naming the
+/// scene line of `file`), keep the first N modes if
 /// asked, place points of joints, loads and outputs (a joint point that is not on its
 /// flexible body is an error naming the joint's line and the nearest node), add joints,
 /// drivers, loads and gravity. Modal stress is kept only for outputs asking for it.
 /// @param[out] out caller destroys with fmbd_scene_model_destroy
 int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out);
 /// @brief Stress (xx yy zz xy yz zx, Pa) at output `o` now (out_sigma times the body's
-/// modal coordinates). FMBD_ERR_VALUE if that output has no stress.
+/// modal coordinates; for a full FE body the nodal average of the element stresses of the
+/// current nodal displacements, fmbd_fe_nodal_stress). FMBD_ERR_VALUE if that output has no
+/// stress.
 int fmbd_scene_output_stress(const fmbd_scene_model *m, int o, double sigma[6]);
 /// @brief Linear elastic strain (tensor components xx yy zz xy yz zx) of a stress, and its
 /// von Mises equivalent 2 (1 + nu) sigma_vm / (3 E) (returned).

@@ -5,7 +5,7 @@ set -euo pipefail
 PKGS=(gcc g++ make pkg-config
       libgmsh-dev gmsh libhdf5-dev hdf5-tools libopenblas-dev liblapacke-dev libarpack2-dev
       libsuitesparse-dev libcgal-dev libyaml-dev
-      python3-h5py python3-numpy python3-scipy python3-matplotlib calculix-ccx valgrind
+      python3-h5py python3-numpy python3-scipy python3-matplotlib python3-meshio calculix-ccx valgrind
       clang-format bsdutils util-linux man-db groff-base)
 missing=()
 for p in "${PKGS[@]}"; do

@@ -193,7 +193,7 @@ check(d.returncode == 0 and "mesh2fe" in d.stdout and "fe2cb" in d.stdout and "c
 ref = os.path.join(TMP, "slider_crank.run.h5")
 out2 = os.path.join(TMP, "slider_crank_self.run.h5")
 p = run([scene, "-o", out2, "--reference", ref])
-check(p.returncode == 0 and re.search(r"slider: RMS position error 0\.0000e\+00 m", p.stderr) is not None,
+check(p.returncode == 0 and re.search(r"\n?fmbd-run: +slider +position +0\.0000e\+00 +0\.0000e\+00 ", p.stderr) is not None,
       "--reference against itself: zero RMS")
 with h5py.File(out2, "r") as f:
     check(f["reference/slider"].attrs["rms_position"] == 0 and f["reference/slider"].attrs["instants"] == len(f["time"]),

@@ -23,7 +23,7 @@ BIN = os.path.join(ROOT, BUILD, "bin")
 TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_format_doc")
 # collections whose member names are the user's: the placeholder FORMAT.md uses for a member
 COLLECTIONS = {"interfaces": "<name>", "clamped": "<name>", "groups": "<name>", "outputs": "NAME",
-               "reactions": "JOINT", "reference": "NAME"}
+               "reactions": "JOINT", "reference": "NAME", "body": "NAME", "frames": "K"}
 CSR_MEMBERS = ("data", "indices", "indptr")
 
 
@@ -50,7 +50,8 @@ def main():
     run("cbcheck", "rod.cb.h5", "--tol", "0.1", "--range", "4", "--for-scene", scene + ":rod",
         "-o", "rodsub.rflex.h5", "-q")  # a subset body (/subset)
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "-o", "ref.run.h5", "-q")
-    run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "--reference", "ref.run.h5", "-o", "run.h5", "-q")
+    run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "--reference", "ref.run.h5", "-o", "run.h5",
+        "--xdmf", "-q")
 
     doc = open(os.path.join(ROOT, "docs", "FORMAT.md")).read()
     paths = set(re.findall(r"`(/[^`\s]*)`", doc))

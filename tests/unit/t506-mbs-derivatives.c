@@ -184,6 +184,11 @@ int main(void) {
     }
     q->nj = m->b[q->b[0]].n + (q->b[1] >= 0 ? m->b[q->b[1]].n : 0);
     q->jac = fmbd_calloc((size_t)q->nj, 8);
+    q->cols = fmbd_calloc((size_t)q->nj, 8);  // all coordinates of its bodies (modal bodies)
+    for (int k = 0, o = 0; k < 2; k++) {
+      if (q->b[k] < 0) continue;
+      for (int i = 0; i < m->b[q->b[k]].n; i++) q->cols[o++] = m->b[q->b[k]].off + i;
+    }
   }
   double *phi0 = fmbd_calloc((size_t)neq, 8), *jfd = fmbd_calloc((size_t)neq * (size_t)n, 8);
   mbs_eval_constraints(m, x, 0.3, true);
