@@ -19,10 +19,8 @@
 #          reduced and selected for free interfaces, as the papers do (their Nd is for that).
 # Every run has the scene's solver settings, so the integrator's error is the same in all and
 # the differences are those of the models. Errors of the point output OUTPUT against REF:
-# RMS and largest over the run of position, velocity, acceleration (fmbd-run --reference,
-# /reference/OUTPUT) and von Mises stress (from /reference when fmbd-run writes it; until then
-# computed here from both run files by the same rule: this run's instants within the
-# reference's span, the reference interpolated linearly). Run time: the CPU time of the
+# RMS and largest over the run of position, velocity, acceleration and von Mises stress, from
+# fmbd-run --reference (/reference/OUTPUT). Run time: the CPU time of the
 # integration (/stats run_cpu_time_s), beside the whole run's; speed-up = the reference's
 # integration CPU time over the model's, at the same integrator settings (equal accuracy of the
 # integration; the error column says what the model costs in accuracy).
@@ -32,8 +30,9 @@
 # --window (chaotic motion): the loosest tolerance's CB body run again with finer steps (the
 # tolerance / 10, or half the fixed step) finds where the trajectories separate: the first
 # instant at which the two runs' OUTPUT positions differ by more than 1 % of the motion's size
-# (the RMS distance of OUTPUT from its mean position over the run). Each model's error over
-# 0..that instant is reported beside the whole run's.
+# (the RMS distance of OUTPUT from its mean position over the run). Each model is run again to
+# that instant and its error over it (fmbd-run --reference --window) reported beside the whole
+# run's.
 #
 # Writes DIR/report.md, DIR/report.csv and DIR/report.svg (error against run time, one point
 # per model, labelled with its modes). Made files are reused when present (named after what
@@ -176,46 +175,15 @@ def tighter_what(text):
     return "fixed step %g s" % (float(m.group(1)) / 2) if m else "tolerance 1e-5"
 
 
-def interp_err(t, v, rt, rv):
-    """RMS and largest error of series v(t) against rv(rt), at t within rt's span."""
-    k = (t >= rt[0] - 1e-12) & (t <= rt[-1] + 1e-12)
-    if not k.any():
-        return float("nan"), float("nan")
-    if v.ndim == 1:
-        d = np.abs(v[k] - np.interp(t[k], rt, rv))
-    else:
-        r = np.stack([np.interp(t[k], rt, rv[:, a]) for a in range(v.shape[1])], axis=1)
-        d = np.linalg.norm(v[k] - r, axis=1)
-    return float(np.sqrt(np.mean(d ** 2))), float(d.max())
-
-
-def errors(run, ref, out):
-    """{quantity: (rms, max)} of output `out` of run against ref, and how each was found."""
-    res, how = {}, {}
-    with h5py.File(run, "r") as f, h5py.File(ref, "r") as g:
-        a = dict(f[f"reference/{out}"].attrs) if f"reference/{out}" in f else {}
-        for q in QUANT:
-            if f"rms_{q}" in a:
-                res[q] = (float(a[f"rms_{q}"]), float(a.get(f"max_{q}", np.nan)))
-                how[q] = "fmbd-run"
-            elif f"outputs/{out}/{q}" in f and f"outputs/{out}/{q}" in g:
-                # not (yet) compared by fmbd-run --reference: the same rule here
-                res[q] = interp_err(f["time"][()], f[f"outputs/{out}/{q}"][()],
-                                    g["time"][()], g[f"outputs/{out}/{q}"][()])
-                how[q] = PROG
-    return res, how
-
-
-def window_errors(run, ref, out, tsep):
-    """{quantity: (rms, max)} of output `out` of run against ref over this run's instants <= tsep."""
+def errors(run, out):
+    """{quantity: (rms, max)} of output `out` of run against its reference (/reference/OUT,
+    written by fmbd-run --reference)."""
     res = {}
-    with h5py.File(run, "r") as f, h5py.File(ref, "r") as g:
-        t = f["time"][()]
-        k = t <= tsep + 1e-12
-        for q in QUANT:
-            p = f"outputs/{out}/{q}"
-            if p in f and p in g:
-                res[q] = interp_err(t[k], f[p][()][k], g["time"][()], g[p][()])
+    with h5py.File(run, "r") as f:
+        a = dict(f[f"reference/{out}"].attrs) if f"reference/{out}" in f else {}
+    for q in QUANT:
+        if f"rms_{q}" in a:
+            res[q] = (float(a[f"rms_{q}"]), float(a.get(f"max_{q}", np.nan)))
     return res
 
 
@@ -376,15 +344,14 @@ def main():
         run = os.path.join(out, slug + ".run.h5")
         sh(["fmbd-run", variant(slug, mo["file"]), "-o", run, "-q", "--reference", ref] + trun, log)
         mo["cpu"], mo["cpu_total"], mo["steps"] = stats(run)
-        mo["err"], mo["how"] = errors(run, ref, a.output)
+        mo["err"] = errors(run, a.output)
         mo["speedup"] = ref_cpu / mo["cpu"] if mo["cpu"] > 0 else float("nan")
 
     # --- chaotic motion: the window before the trajectories separate ---------------------------
     # found from the cheapest CB body (the loosest tolerance's) run at the run's steps and at
     # finer ones: chaos separates any two solutions, and the first instant at which these two
-    # differ says how long a trajectory means anything at this step size. The window errors are
-    # computed here from the run files by fmbd-run --reference's rule over 0..t_sep (until
-    # fmbd-run --reference takes a window, another branch), not by running every model again.
+    # differ says how long a trajectory means anything at this step size. Each model is run
+    # again to that instant, its errors over the window from fmbd-run --reference --window.
     window = None
     if a.window:
         sep = next(mo for mo in models if mo["family"] == "CB")
@@ -400,7 +367,10 @@ def main():
         if tsep is not None:
             for mo in models:
                 slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
-                mo["werr"] = window_errors(os.path.join(out, slug + ".run.h5"), ref, a.output, tsep)
+                run = os.path.join(out, slug + "-window.run.h5")
+                sh(["fmbd-run", os.path.join(out, slug + ".yaml"), "-o", run, "-q", "--t-end", "%.6g" % tsep,
+                    "--reference", ref, "--window", "0:%.6g" % tsep], log)
+                mo["werr"] = errors(run, a.output)
 
     write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_steps, models,
                  window, nm_range, locals().get("fm_why"))
@@ -461,13 +431,7 @@ def write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_step
             e = mo["werr"].get("position")
             r += [fmt(e[0]) if e else "", fmt(e[1]) if e else ""]
         L.append("| " + " | ".join(r) + " |")
-    how = sorted({(q, h) for mo in models for q, h in mo["how"].items()})
-    byprog = {}
-    for q, h in how:
-        byprog.setdefault(h, []).append(q)
-    L += ["", "Errors from: " + "; ".join(f"{h}: {', '.join(v)}" for h, v in byprog.items())
-          + (" (fmbd-run --reference does not compare them yet: the same rule, in this script)"
-             if PROG in byprog else "") + "."]
+    L += ["", "Errors: fmbd-run --reference (/reference/OUTPUT: rms_*, max_*)."]
     if window:
         if window["t"] is None:
             L += ["", f"Window: the {window['model']} body at the run's steps and at finer ones "
@@ -477,8 +441,8 @@ def write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_step
             L += ["", f"Window: the {window['model']} body run at the run's steps and at finer ones "
                   f"({window['finer']}) first differ at `{a.output}` by more than 1 % of the motion's size "
                   f"({window['size']:.3g} m) at t = {window['t']:.4g} s: the trajectories "
-                  f"separate there, and the window errors are over 0..{window['t']:.4g} s (computed "
-                  f"by {PROG} from the run files, by fmbd-run --reference's rule)."]
+                  f"separate there, and the window errors are over 0..{window['t']:.4g} s (each model "
+                  f"run again to there, fmbd-run --reference --window)."]
     L += ["", f"Plot: report.svg. Reproduce: `{' '.join(shlex.quote(x) for x in sys.argv)}`", ""]
     open(os.path.join(out, "report.md"), "w").write("\n".join(L))
     plot(a, out, title, ref_label, ref_cpu, models, qs, window)

@@ -56,7 +56,9 @@ def must(args):
 
 
 def report(scene, out, *extra):
-    must([PY, os.path.join(EX, "report.py"), scene, "--body", "rod", "--out", os.path.join(TMP, out)]
+    # --no-fm: the reference is an all-modes CB body, not the full FE model, which would take
+    # minutes even on these meshes (tests/py/test_fm.py checks that the two agree)
+    must([PY, os.path.join(EX, "report.py"), scene, "--body", "rod", "--out", os.path.join(TMP, out), "--no-fm"]
          + list(extra))
     d = os.path.join(TMP, out)
     for f in ("report.md", "report.csv", "report.svg"):
@@ -114,6 +116,16 @@ check(p.returncode == 1 and "output 'B'" in p.stderr and "holds no stress at nod
 p = sh(["fmbd-run", "-M", sc, "--body-dir", "out"])
 check(f"--for-scene {sc}:rod -o $@" in p.stdout and f"out/rod.rflex.h5: out/rod.cb.h5 out/rod.fe.h5 {sc}\n"
       in p.stdout, "fmbd-run -M: the rflex rule passes --for-scene and depends on the scene")
+
+# `whole: true` in the make mapping: the rules make the whole body (for --xdmf fields)
+open(os.path.join(TMP, "wholemk.yaml"), "w").write(text.replace("      cbcheck: --tol", "      whole: true\n      cbcheck: --tol"))
+p = sh(["fmbd-run", "-M", "wholemk.yaml", "--body-dir", "out"])
+check(p.returncode == 0 and "cbcheck out/rod.cb.h5" in p.stdout and "--for-scene" not in p.stdout,
+      "fmbd-run -M with make: {whole: true}: no --for-scene")
+# --xdmf with a subset body: said, not a silent gap in the fields
+p = sh(["fmbd-run", "sub.yaml", "-o", "subx.run.h5", "--t-end", "0.002", "--xdmf"])
+check(p.returncode == 1 and "holds only what its scene reads" in p.stderr and "whole: true" in p.stderr,
+      "--xdmf with a subset body: refused with the way out: " + p.stderr.strip()[:150])
 
 # --- 2. the planar slider-crank -------------------------------------------------------------------
 d, rows, md = report(sc, "slidercrank", "--output", "A", "--size", "0.012", "--fe2cb-modes", "12",
