@@ -19,7 +19,8 @@
 #          reduced and selected for free interfaces, as the papers do (their Nd is for that).
 # Every run has the scene's solver settings, so the integrator's error is the same in all and
 # the differences are those of the models. Errors of the point output OUTPUT against REF:
-# RMS and largest over the run of position, velocity, acceleration and von Mises stress, from
+# RMS and largest over the run of position, velocity, acceleration, von Mises stress and
+# equivalent strain (those the output records), from
 # fmbd-run --reference (/reference/OUTPUT). Run time: the CPU time of the
 # integration (/stats run_cpu_time_s), beside the whole run's; speed-up = the reference's
 # integration CPU time over the model's, at the same integrator settings (equal accuracy of the
@@ -50,8 +51,9 @@ import h5py
 import numpy as np
 
 PROG = "report.py"
-QUANT = ("position", "velocity", "acceleration", "von_mises")
-UNIT = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2", "von_mises": "Pa"}
+QUANT = ("position", "velocity", "acceleration", "von_mises", "von_mises_strain")
+UNIT = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2", "von_mises": "Pa",
+        "von_mises_strain": "1"}
 
 
 def die(msg):
