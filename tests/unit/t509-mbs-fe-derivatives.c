@@ -131,8 +131,15 @@ int main(void) {
   fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
   double ax[3] = {0.3, -0.5, 0.8};
   fmbd_mbs_rotation_axis_angle(ax, 0.7, s0.rotation);
-  fmbd_mbs_fe_data fd = {.n = NF, .mass = mass, .M = cM, .K = cK, .D = NULL, .nnodes = NN,
-                         .node_xyz = xyz, .Mn = cMn, .E = cE};
+  fmbd_mbs_fe_data fd = {.n = NF,
+                         .mass = mass,
+                         .M = cM,
+                         .K = cK,
+                         .D = NULL,
+                         .nnodes = NN,
+                         .node_xyz = xyz,
+                         .Mn = cMn,
+                         .E = cE};
   memcpy(fd.first_moment, c0, sizeof c0);
   memcpy(fd.second_moment, J0, sizeof J0);
   rc = rc ? rc : fmbd_mbs_add_fe(m, "fe", &fd, &s0, &bf);
