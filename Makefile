@@ -29,8 +29,9 @@ CFLAGS   ?= -O2 -g
 CXXFLAGS ?= -O2 -g
 
 # --- dependencies (each overridable) ------------------------------------------------------
-HDF5_CFLAGS    ?= $(shell $(PKG_CONFIG) --cflags hdf5 2>/dev/null || echo -I/usr/include/hdf5/serial)
-HDF5_LIBS      ?= $(shell $(PKG_CONFIG) --libs hdf5 2>/dev/null || echo -L/usr/lib/x86_64-linux-gnu/hdf5/serial -lhdf5)
+# the serial HDF5 by name: installing PETSc points Debian's hdf5.pc at the MPI build
+HDF5_CFLAGS    ?= $(shell $(PKG_CONFIG) --cflags hdf5-serial 2>/dev/null || $(PKG_CONFIG) --cflags hdf5 2>/dev/null || echo -I/usr/include/hdf5/serial)
+HDF5_LIBS      ?= $(shell $(PKG_CONFIG) --libs hdf5-serial 2>/dev/null || $(PKG_CONFIG) --libs hdf5 2>/dev/null || echo -L/usr/lib/x86_64-linux-gnu/hdf5/serial -lhdf5)
 CHOLMOD_CFLAGS ?= -I/usr/include/suitesparse
 CHOLMOD_LIBS   ?= -lklu -lumfpack -lcholmod -lsuitesparseconfig
 LAPACK_LIBS    ?= -llapacke -llapack -lblas
@@ -150,5 +151,36 @@ info:
 	@echo "CPPFLAGS      $(FMBD_CPPFLAGS) $(CPPFLAGS)"
 	@echo "LDLIBS        $(FMBD_LDLIBS) $(LDLIBS)"
 	@echo "BUILD         $(BUILD)"
+
+# >>> batch and distributed (issue 13): make batch; fe2cb-mpi (docs/SCALE.md) >>>
+.PHONY: batch
+batch: deps
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -f examples/batch/Makefile BUILD=$(BUILD) PYTHON=$(PYTHON)
+# fe2cb-mpi: the distributed reduction, built only where PETSc and SLEPc are installed (Debian
+# libpetsc-real-dev libslepc-real-dev openmpi-bin; make deps installs them). Its objects are
+# compiled with mpicc and never enter libfmbd.a: fe2cb and the other programs link no MPI.
+MPICC        ?= mpicc
+PETSC_CFLAGS ?= $(shell $(PKG_CONFIG) --cflags slepc petsc 2>/dev/null)
+PETSC_LIBS   ?= $(shell $(PKG_CONFIG) --libs slepc petsc 2>/dev/null)
+MPI_OBJ      := $(BUILD)/mpi/fmbd_slepc.o $(BUILD)/fe2cb-mpi/main.o
+.PHONY: mpi
+mpi: $(BUILD)/bin/fe2cb-mpi
+$(BUILD)/mpi/%.o: mpi/%.c
+	$(call msg,MPICC,$<)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_CPPFLAGS) -Impi $(PETSC_CFLAGS) $(CPPFLAGS) $(FMBD_CFLAGS) $(CFLAGS) -c -o $@ $<
+$(BUILD)/fe2cb-mpi/%.o: fe2cb-mpi/%.c
+	$(call msg,MPICC,$<)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_CPPFLAGS) -Impi $(PETSC_CFLAGS) $(CPPFLAGS) $(FMBD_CFLAGS) $(CFLAGS) -c -o $@ $<
+$(BUILD)/bin/fe2cb-mpi: $(MPI_OBJ) $(LIB)
+	$(call msg,LD,$@)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(MPI_OBJ) $(LIB) $(PETSC_LIBS) $(FMBD_LDLIBS) $(LDLIBS)
+ifneq ($(strip $(PETSC_LIBS)),)
+check-build: $(BUILD)/bin/fe2cb-mpi
+endif
+# <<< batch and distributed <<<
 
 -include $(shell find $(BUILD) -name '*.d' -not -path '*/test-tmp/*' -not -path '*/demo/*' -not -path '*/bench/*' 2>/dev/null)

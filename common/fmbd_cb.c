@@ -278,6 +278,46 @@ static void csr_tmult(const fmbd_csr *S, int64_t m, const double *X, int64_t ns,
   }
 }
 
+// --- the boundary block of the reduced matrices (fe2cb and the distributed fe2cb-mpi) ----------
+int fmbd_cb_condense_boundary(fmbd_cb *cb, const fmbd_csr *Kc, const fmbd_csr *Mc,
+                              const fmbd_csr *Kb, const fmbd_csr *Mb) {
+  int rc = FMBD_OK;
+  int64_t ns = cb->ns, nb = cb->nb;
+  fmbd_free(cb->Kr);
+  fmbd_free(cb->Mr);
+  cb->Kr = cb->Mr = NULL;
+  // boundary blocks Kb + Kc' Psi and Psi' A + Mc' Psi + Mb, symmetrised (exactly symmetric in
+  // exact arithmetic: Kc' Psi = -Kc' Ks^-1 Kc)
+  FMBD_GALLOC(cb->Kr = alloc_f64(nb * nb));
+  FMBD_GALLOC(cb->Mr = alloc_f64(nb * nb));
+  memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
+  memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
+  for (int64_t i = 0; i < nb; i++) {
+    for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++)
+      cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
+    for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++)
+      cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
+    // eigenvalue scale of the body for rigid-mode detection without modes (before the
+    // condensation, whose round-off is about eps times these entries)
+    double kii = fmbd_csr_get(Kb, i, i), mii = fmbd_csr_get(Mb, i, i);
+    if (mii > 0.0 && kii / mii > cb->rigid_scale) cb->rigid_scale = kii / mii;
+  }
+  csr_tmult(Kc, nb, cb->Psi, ns, cb->Kr, nb);
+  csr_tmult(Mc, nb, cb->Psi, ns, cb->Mr, nb);
+  if (nb > 0) fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, cb->Psi, ns, cb->A, ns, 1.0, cb->Mr, nb);
+  for (int64_t j = 0; j < nb; j++) {
+    for (int64_t i = 0; i < j; i++) {
+      double k = 0.5 * (cb->Kr[i + j * nb] + cb->Kr[j + i * nb]);
+      double m = 0.5 * (cb->Mr[i + j * nb] + cb->Mr[j + i * nb]);
+      cb->Kr[i + j * nb] = cb->Kr[j + i * nb] = k;
+      cb->Mr[i + j * nb] = cb->Mr[j + i * nb] = m;
+    }
+  }
+  cb->nr = nb;  // the boundary block alone; fmbd_cb_update_reduced adds the modal part
+done:
+  return rc;
+}
+
 static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
                             const int64_t *dofs, int64_t nb) {
   int64_t r = fmbd_chol_failed_row(F);
@@ -565,35 +605,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
       FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
     }
-    // boundary blocks Kb + Kc' Psi and Psi' A + Mc' Psi + Mb, symmetrised (exactly symmetric in
-    // exact arithmetic: Kc' Psi = -Kc' Ks^-1 Kc)
-    int64_t nr0 = nb;
-    FMBD_GALLOC(cb->Kr = alloc_f64(nr0 * nr0));
-    FMBD_GALLOC(cb->Mr = alloc_f64(nr0 * nr0));
-    memset(cb->Kr, 0, (size_t)(nb * nb) * sizeof(double));
-    memset(cb->Mr, 0, (size_t)(nb * nb) * sizeof(double));
-    for (int64_t i = 0; i < nb; i++) {
-      for (int64_t p = Kb->indptr[i]; p < Kb->indptr[i + 1]; p++)
-        cb->Kr[i + Kb->indices[p] * nb] = Kb->data[p];
-      for (int64_t p = Mb->indptr[i]; p < Mb->indptr[i + 1]; p++)
-        cb->Mr[i + Mb->indices[p] * nb] = Mb->data[p];
-      // eigenvalue scale of the body for rigid-mode detection without modes (before the
-      // condensation, whose round-off is about eps times these entries)
-      double kii = fmbd_csr_get(Kb, i, i), mii = fmbd_csr_get(Mb, i, i);
-      if (mii > 0.0 && kii / mii > cb->rigid_scale) cb->rigid_scale = kii / mii;
-    }
-    csr_tmult(Kc, nb, cb->Psi, ns, cb->Kr, nb);
-    csr_tmult(Mc, nb, cb->Psi, ns, cb->Mr, nb);
-    if (nb > 0) fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, cb->Psi, ns, cb->A, ns, 1.0, cb->Mr, nb);
-    for (int64_t j = 0; j < nb; j++) {
-      for (int64_t i = 0; i < j; i++) {
-        double k = 0.5 * (cb->Kr[i + j * nb] + cb->Kr[j + i * nb]);
-        double m = 0.5 * (cb->Mr[i + j * nb] + cb->Mr[j + i * nb]);
-        cb->Kr[i + j * nb] = cb->Kr[j + i * nb] = k;
-        cb->Mr[i + j * nb] = cb->Mr[j + i * nb] = m;
-      }
-    }
-    cb->nr = nb;  // the boundary block alone; fmbd_cb_update_reduced adds the modal part
+    FMBD_GCALL(fmbd_cb_condense_boundary(cb, Kc, Mc, Kb, Mb));
     {
       fmbd_chol_stats st;
       fmbd_chol_get_stats(F, &st);

@@ -126,6 +126,13 @@ int fmbd_cb_reduce(const fmbd_csr *K, const fmbd_csr *M, const int64_t *dofs, in
 int fmbd_cb_reduce_take(fmbd_csr **K, fmbd_csr **M, const int64_t *dofs, int64_t nb,
                         const int64_t *boundary, const fmbd_cb_opts *o, fmbd_cb **out);
 
+/// @brief The boundary block of the reduced matrices from the constraint modes: Kr = Kb + Kc' Psi,
+/// Mr = Psi' A + Mc' Psi + Mb (nb x nb, symmetrised), cb->nr = nb, and cb->rigid_scale.
+/// Needs cb->ns, nb, Psi and A; the modal part is added by fmbd_cb_update_reduced.
+/// @param[in] Kc, Mc  ns x nb interior-boundary blocks; Kb, Mb nb x nb (borrowed)
+int fmbd_cb_condense_boundary(fmbd_cb *cb, const fmbd_csr *Kc, const fmbd_csr *Mc,
+                              const fmbd_csr *Kb, const fmbd_csr *Mb);
+
 /// @brief Recompute PhitA, the reduced matrices and the reduced eigensolution from kappa, Phi
 /// and the stored boundary blocks (after the modes changed). Needs no FE matrix.
 int fmbd_cb_update_reduced(fmbd_cb *cb, double rigid_rtol);

@@ -179,6 +179,12 @@ int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const
   }
   FMBD_CHECK(input && strcmp(input, "-") != 0, FMBD_ERR_USAGE,
              "reading standard input: give the output name with -o (or pipe the output)");
+  return fmbd_cli_derive_name(input, strip, suffix, out);
+}
+
+int fmbd_cli_derive_name(const char *input, const char *const *strip, const char *suffix,
+                         char **out) {
+  *out = NULL;
   // --- cut the longest matching ending of `strip`, else the last ".ext" of the base name ---
   size_t n = strlen(input), cut = n;
   size_t best = 0;

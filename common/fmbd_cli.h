@@ -34,6 +34,13 @@ void fmbd_cli_set_verbosity(int quiet, int verbose);
 int fmbd_cli_output_name(const char *input, const char *opt_o, const char *const *strip,
                          const char *suffix, char **out);
 
+/// @brief The name fmbd_cli_output_name derives from a file name: the longest of `strip` that
+/// ends it cut (else its last ".ext"), then `suffix` appended ("scene.yaml" -> "scene.run.h5",
+/// "pend.run.h5" with {".h5"} -> "pend.run.xdmf"). A result equal to the input: usage error.
+/// @param[out] out caller frees with fmbd_free
+int fmbd_cli_derive_name(const char *input, const char *const *strip, const char *suffix,
+                         char **out);
+
 /// @brief True when a and b name the same existing file (same device and inode: also through
 /// another path, a hard or a symbolic link). "-" (a stream) is never the same file.
 bool fmbd_cli_same_file(const char *a, const char *b);

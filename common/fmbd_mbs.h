@@ -53,6 +53,11 @@
 //   int rho S_l x S_k, H_k,ab = int rho S_k,a u_b; D = diag(2 zeta_k sqrt(K_kk)) modal
 //   damping (zeta = damping ratio). A rigid body is the case nm = 0 with c0 = m com,
 //   J0 = (tr(Ic)/2) 1 - Ic + m com com' (no flexible term is evaluated).
+//   FULL FE BODIES (fmbd_mbs_add_fe; docs/THEORY.md section 4b): q = every FE dof the frame
+//   does not fix, S_k the nodal interpolation of dof k; the same equations with the
+//   invariants evaluated as sparse products with the nodal map E and the scalar nodal mass Mn
+//   (never an n x n dense array), Mff, Kff, D the sparse FE matrices; the body's block in the
+//   iteration matrix is [7 x 7, 7 x n coupling, n x n on the pattern of M + K + D].
 //   Constraints Phi(x, t) = 0 of joints (below), drivers and normalisations:
 //     M(x) x'' + Phi_x' lambda = Q(x, x', t),  Phi(x, t) = 0.                 [H8, C6]
 // INTEGRATOR: generalized-alpha for the index-3 system in the form of Arnold & Bruls (2007,
@@ -69,7 +74,8 @@
 //   gamma' = gamma/(beta h). Tangent: M exact (plus a mass mu p p' on the Euler parameters,
 //   mu = snorm/4: it makes the block regular and leaves the physics unchanged since G p = 0;
 //   the normalisation multiplier absorbs it); C_t the complete derivative of the quadratic
-//   velocity vector with respect to [R', wb, q'] and the modal damping; K_t = Kff only.
+//   velocity vector with respect to [R', wb, q'] and the modal damping (FE bodies: the same,
+//   with their damping D and gyroscopic block); K_t = Kff only.
 //   Neglected (convergence is monitored every iteration): the derivatives with respect to x
 //   of M x'', of the quadratic velocity vector, of gravity and loads (follower loads too), and
 //   the geometric stiffness (Phi_x' lambda)_x; they carry a factor h^2 relative to M.

@@ -196,13 +196,17 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
       for (int64_t pp = 0; pp < nn; pp++) z[pp + nn * a] += f->m1[pp] * s;
     }
     et_apply(f, z, rf);
-    pat_mv(f->P, f->Kv, q, f->v1);
-    for (int64_t k = 0; k < n; k++) rf[k] += f->v1[k];
-    pat_mv(f->P, f->Dv, qd, f->v1);
-    for (int64_t k = 0; k < n; k++) rf[k] += f->v1[k];
-    if (qdd) {
-      pat_mv(f->P, f->Mv, qdd, f->v1);
-      for (int64_t k = 0; k < n; k++) rf[k] += f->v1[k];
+    // + K q + D q' + M q'' in one pass over the pattern
+    const fmbd_csr *P = f->P;
+    for (int64_t i = 0; i < n; i++) {
+      double sk = 0, sd = 0, sm = 0;
+      for (int64_t e = P->indptr[i]; e < P->indptr[i + 1]; e++) {
+        int64_t j = P->indices[e];
+        sk += f->Kv[e] * q[j];
+        sd += f->Dv[e] * qd[j];
+        if (qdd) sm += f->Mv[e] * qdd[j];
+      }
+      rf[i] += sk + sd + sm;
     }
   }
   // loads on the body's points

@@ -779,7 +779,10 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       }
       if (b->chain.mesh2fe_args && !b->chain.geometry)
         return fail_at(c, x, "make: 'mesh2fe' options need 'geometry'");
-      if (b->chain.geometry && !b->chain.fe)
+      // a full-model body (.fe.h5) is the file mesh2fe makes
+      size_t fl = strlen(b->file);
+      bool full = fl >= 6 && !strcmp(b->file + fl - 6, ".fe.h5");
+      if (b->chain.geometry && !b->chain.fe && !full)
         return fail_at(c, x, "make: 'geometry' needs 'fe' (the fe file it makes)");
       if (b->chain.fe2cb_args && !b->chain.fe)
         return fail_at(c, x, "make: 'fe2cb' options need 'fe'");
@@ -1369,11 +1372,6 @@ static void sb_add(sbuf *b, const char *fmt, ...) {
   b->n += (size_t)k;
 }
 
-static bool ends_with(const char *s, const char *suf) {
-  size_t a = strlen(s), b = strlen(suf);
-  return a >= b && !strcmp(s + a - b, suf);
-}
-
 void fmbd_scene_held_interfaces(const fmbd_scene *s, const char *file, int body, char *buf,
                                 size_t n) {
   if (n) buf[0] = '\0';
@@ -1404,6 +1402,11 @@ bool fmbd_scene_list_has(const char *list, const char *name) {
   return false;
 }
 
+static bool ends_with(const char *s, const char *suf) {
+  size_t a = strlen(s), b = strlen(suf);
+  return a >= b && !strcmp(s + a - b, suf);
+}
+
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) {
   sbuf b = {0};
   *text = NULL;
@@ -1425,6 +1428,14 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
     if (seen) continue;
     const fmbd_scene_chain *ch = &bd->chain;
     bool is_cb = ends_with(bd->file, ".cb.h5");
+    if (ends_with(bd->file, ".fe.h5")) {  // a full-model body: mesh2fe only
+      if (ch->geometry) {
+        sb_add(&b, "\n%s: %s\n\tmesh2fe %s%s%s -o $@\n", bd->file, ch->geometry, ch->geometry,
+               ch->mesh2fe_args && ch->mesh2fe_args[0] ? " " : "",
+               ch->mesh2fe_args ? ch->mesh2fe_args : "");
+      }
+      continue;
+    }
     if (!is_cb && ch->cb) {
       // the interfaces the scene's joints hold: the body is reduced for them (cbcheck --hold),
       // unless the scene's own cbcheck options say how

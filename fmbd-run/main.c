@@ -161,14 +161,7 @@ int main(int argc, char **argv) {
     if (opt_o) {
       FMBD_GALLOC(out_name = fmbd_strdup(opt_o));
     } else {
-      size_t n = strlen(scene_file), cut = n;
-      for (int i = 0; strip[i]; i++) {
-        size_t k = strlen(strip[i]);
-        if (n > k && !strcmp(scene_file + n - k, strip[i])) cut = n - k;
-      }
-      FMBD_GALLOC(out_name = fmbd_malloc(cut + 8));
-      memcpy(out_name, scene_file, cut);
-      strcpy(out_name + cut, ".run.h5");
+      FMBD_GCALL(fmbd_cli_derive_name(scene_file, strip, ".run.h5", &out_name));
     }
     FMBD_GCALL(fmbd_scene_make_rules(s, out_name, &rules));
     fputs(rules, stdout);
@@ -177,6 +170,12 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_cli_output_name(scene_file, opt_o, strip, ".run.h5", &out_name));
   FMBD_GCALL(fmbd_cli_check_not_input(out_name, ref));
   if (ref) FMBD_GCALL(fmbd_runfile_check_reference(ref));  // before the work
+  if (xdmf) {
+    static const char *const h5[] = {".h5", NULL};
+    FMBD_GCHECK(strcmp(out_name, "-"), FMBD_ERR_USAGE,
+                "--xdmf needs a named run file beside it, not standard output: give -o RUN.h5");
+    FMBD_GCALL(fmbd_cli_derive_name(out_name, h5, ".xdmf", &xdmf_name));
+  }
 
   // --- runaway runs: say so before the work (a 1e-12 s step to 1e3 s is 1e15 steps) ------------
   {
@@ -219,13 +218,6 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_runfile_scene(rf, scene_file, s->title, s->text, s->solver.t_end));
   for (int i = 0; i < m->ninputs; i++)
     FMBD_GCALL(fmbd_h5_add_input(fmbd_runfile_h5(rf), m->input_name[i], m->input_sha[i]));
-  if (xdmf) {
-    size_t n = strlen(out_name);
-    if (n > 3 && !strcmp(out_name + n - 3, ".h5")) n -= 3;
-    FMBD_GALLOC(xdmf_name = fmbd_malloc(n + 6));
-    memcpy(xdmf_name, out_name, n);
-    strcpy(xdmf_name + n, ".xdmf");
-  }
   FMBD_GCALL(fmbd_scene_recorder_create(s, m, rf, xdmf_name, &r.rec));
 
   // --- run ------------------------------------------------------------------------------------

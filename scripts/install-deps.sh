@@ -6,7 +6,10 @@ PKGS=(gcc g++ make pkg-config
       libgmsh-dev gmsh libhdf5-dev hdf5-tools libopenblas-dev liblapacke-dev libarpack2-dev
       libsuitesparse-dev libcgal-dev libyaml-dev
       python3-h5py python3-numpy python3-scipy python3-matplotlib python3-meshio calculix-ccx valgrind
-      clang-format bsdutils util-linux man-db groff-base)
+      clang-format bsdutils util-linux man-db groff-base
+      # issue 13: the batch example (/usr/bin/time; bc for bench/batch.sh) and fe2cb-mpi
+      # (PETSc/SLEPc with MUMPS over OpenMPI: 85 packages, 62 MB download, 259 MB installed)
+      time bc libpetsc-real-dev libslepc-real-dev openmpi-bin)
 missing=()
 for p in "${PKGS[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then

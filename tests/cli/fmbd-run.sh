@@ -188,8 +188,10 @@ fi
 if mesh2fe "$ROOT/examples/geometry/rodbeam.geo" --circle 0.015 --interface end0 --interface end1 -o rod.fe.h5 -q 2>mesh.err &&
   fe2cb rod.fe.h5 --modes 10 -o rod.cb.h5 -q 2>cb.err &&
   cbcheck rod.cb.h5 --fe rod.fe.h5 -o rod.rflex.h5 -q >/dev/null 2>check.err; then
-  printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.fe.h5}\n' >wrongkind.yaml
-  expect wrong-kind 1 "wrongkind.yaml:3:39: body 'rod': rod.fe.h5 is a fmbd-fe file" -- fmbd-run wrongkind.yaml -o out.run.h5
+  # (a .fe.h5 is a full-model body, tests/py/test_fm.py; a run file is of no body kind)
+  fmbd-run "$pend" -o wk.run.h5 -q
+  printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: wk.run.h5}\n' >wrongkind.yaml
+  expect wrong-kind 1 "wrongkind.yaml:3:39: body 'rod': wk.run.h5 is a fmbd-run file" -- fmbd-run wrongkind.yaml -o out.run.h5
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5}\njoints:\n  - {name: j, type: spherical, body1: ground, body2: rod, point: [0.1, 0.02, 0]}\n' >offbody.yaml
   expect off-body 1 "offbody.yaml:5:66: joint 'j': the point \(0.1, 0.02, 0\) \(body frame\) is not on body 'rod'" -- fmbd-run offbody.yaml -o out.run.h5
   printf 'solver: {t_end: 1}\nbodies:\n  - {name: rod, type: flexible, file: rod.rflex.h5}\njoints:\n  - {name: j, type: fixed, body1: ground, body2: rod, at2: {interface: middle}}\n' >noif.yaml

@@ -7,7 +7,7 @@
 #      scipy's static solution on the same K (the file's /K, /M with the interface node's dofs
 #      removed), its first frequency against scipy's lowest eigenvalue of that clamped K, M;
 #      a beam mesh under a tip load against P L^3 / (3 E I);
-#  (c) the scene's errors for a full-model body (`modes:`, no interface node).
+#  (c) the scene's errors for a full-model body (`modes:`, no interface node) and its -M rule.
 # The residual derivatives of an FE body are checked in tests/unit/t509-mbs-fe-derivatives.c.
 import os
 import shutil
@@ -131,6 +131,7 @@ joints:
 outputs:
   every: EVERY
   energy: true
+  reactions: [clamp]
   points:
     - {name: tip, body: rod, node: TIP, quantities: [position, von_mises]}
 """
@@ -148,6 +149,13 @@ check(abs(y_tip / u_tip - 1) < 1e-5, f"static tip deflection {y_tip:.6e} m vs sc
 with h5py.File(os.path.join(TMP, "static.run.h5"), "r") as f:
     vm = f["outputs/tip/von_mises"][:]
     es = f["energy/strain"][-1]
+    Fr = f["reactions/clamp/force"][-1]
+with h5py.File(fe, "r") as f:
+    mass = float(f["body"].attrs["mass"])
+# settled: the clamp carries the weight (the reaction on side 1, ground, is minus the force on
+# the rod); the same Newton and transient bounds as the deflection: 1e-6 relative
+check(abs(Fr[1] / (-mass * 9.81) - 1) < 1e-6 and abs(Fr[0]) + abs(Fr[2]) < 1e-6 * mass * 9.81,
+      f"clamp reaction {Fr} N carries the weight {mass * 9.81:.6f} N")
 # the strain energy of the static solution is u'K u / 2
 es_ref = 0.5 * u @ (Kf @ u)
 check(abs(es / es_ref - 1) < 1e-3, f"strain energy {es:.6e} J vs scipy {es_ref:.6e} J")
@@ -208,6 +216,27 @@ d_exact = 100 * 0.3 ** 3 / (3 * E * Iz)
 check(abs(-x[-1, 1] / d_exact - 1) < 1e-5, f"beam tip deflection {-x[-1, 1]:.6e} m vs P L^3/(3EI) "
       f"{d_exact:.6e} m (rel {-x[-1, 1] / d_exact - 1:.1e})")
 
+# --- free-floating and spinning (no gravity, no joint): momentum conservation ---------------
+write("spin.yaml", """title: spinning rod, full model
+solver: {t_end: 0.02, first_step: 1e-6, max_step: 2e-4, tolerance: 1e-6}
+bodies:
+  - {name: rod, type: flexible, file: rod.fe.h5, velocity: [1, 0.5, 0], angular_velocity: [2, 40, 10]}
+outputs:
+  every: 0.001
+  energy: true
+  momentum: true
+""")
+p = run("fmbd-run", "spin.yaml", "-o", "spin.run.h5")
+check(p.returncode == 0, "free spinning FM runs")
+with h5py.File(os.path.join(TMP, "spin.run.h5"), "r") as f:
+    Lm, H, es = f["momentum/linear"][()], f["momentum/angular"][()], f["energy/strain"][()]
+dL = np.max(np.linalg.norm(Lm - Lm[0], axis=1)) / np.linalg.norm(Lm[0])
+dH = np.max(np.linalg.norm(H - H[0], axis=1)) / np.linalg.norm(H[0])
+# invariants of the equations, and of the scheme up to the Newton tolerance (1e-8 relative
+# increments): 1e-8; a missing or wrong inertia term of the FE body breaks it by orders
+check(dL < 1e-8 and dH < 1e-8, f"FM momentum conserved: linear {dL:.1e}, angular {dH:.1e} (relative)")
+check(es.max() > 0, f"the spin deforms the FM rod: strain energy up to {es.max():.3e} J")
+
 # --- (c) scene errors ---------------------------------------------------------------------
 write("modes.yaml", pend.replace("BODY", "rod.fe.h5").replace("TIP", str(tip))
       .replace("file: rod.fe.h5}", "file: rod.fe.h5, modes: 4}"))
@@ -225,6 +254,19 @@ p = run("fmbd-run", "noitf.yaml", "-o", "noitf.run.h5", ok=False)
 check(p.returncode != 0 and "noitf.yaml:4" in p.stderr and "interface node" in p.stderr
       and not os.path.exists(os.path.join(TMP, "noitf.run.h5")),
       f"a full-model body without an interface node is refused: {p.stderr.strip()}")
+
+# fmbd-run -M: a full-model body's file is made by mesh2fe alone
+write("mk.yaml", """title: made
+solver: {t_end: 0.01}
+bodies:
+  - name: rod
+    type: flexible
+    file: made.fe.h5
+    make: {geometry: GEO/rod.geo, mesh2fe: --size 0.05 --order 1 --interface end0}
+""".replace("GEO", GEO))
+p = run("fmbd-run", "-M", "mk.yaml", "-o", "mk.run.h5")
+check(p.returncode == 0 and "made.fe.h5: " in p.stdout and "\tmesh2fe " in p.stdout and "fe2cb" not in p.stdout
+      and "cbcheck" not in p.stdout, "-M for a .fe.h5 body: the mesh2fe rule only")
 
 print(f"{len(failures)} failure(s)")
 sys.exit(1 if failures else 0)

@@ -194,6 +194,17 @@ for args, what in ((["--window", "0:1"], "needs --reference"), (["--reference", 
     check(p.returncode == 2 and what in p.stderr and not os.path.exists(os.path.join(TMP, "bad.run.h5")),
           f"usage: {' '.join(args)}: exit {p.returncode}, '{what}'")
 
+# --xdmf needs a run file beside it, and a flexible body with solid elements: else no output
+p = subprocess.run([os.path.join(BIN, "fmbd-run"), "qp.yaml", "-o", "-", "--xdmf"], cwd=TMP,
+                   capture_output=True)
+check(p.returncode == 2 and b"--xdmf needs a named run file" in p.stderr and not p.stdout,
+      f"--xdmf -o -: exit {p.returncode}")
+p = subprocess.run([os.path.join(BIN, "fmbd-run"), os.path.join(ex, "scenes", "pendulum.yaml"), "-o", "rigid.run.h5",
+                    "--xdmf"], cwd=TMP, capture_output=True, text=True)
+left = [n for n in os.listdir(TMP) if n.startswith("rigid.")]
+check(p.returncode == 1 and "no flexible body with solid elements" in p.stderr and not left,
+      f"--xdmf on a rigid scene: exit {p.returncode}, nothing left ({left})")
+
 if failures:
     print(f"{len(failures)} failure(s)")
     sys.exit(1)

@@ -8,7 +8,8 @@
 //     the rigid and coupling terms and the deformation-deformation gyroscopic block
 //     2 w . int rho S_l x S_k, plus the damping D). The stiffness part is K alone by design
 //     (fmbd_mbs.h, the position derivatives of the inertia and load terms are not in the
-//     tangent), so it is checked against K, not against finite differences.
+//     tangent), so it is checked against K, not against finite differences;
+// (3) fmbd_mbs_linearise with the FE body: its M, C, K rows are those blocks, in CSR.
 // SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdio.h>
@@ -242,6 +243,41 @@ int main(void) {
     // round-off (~1e-10 of the scale with h = 1e-6)
     EXPECT(d < 1e-6 * fmax(1, maxabs(Bfd, nb * nb)), "%s: max |analytic - FD| %.3g (scale %.3g)",
            which == 0 ? "mass matrix" : "velocity tangent", d, maxabs(Bfd, nb * nb));
+  }
+  // (3) fmbd_mbs_linearise at (x, x'): the FE body's rows of M, C, K (CSR, the body's sparse
+  // block, never dense) equal its blocks above, and Q = -(residual at zero accelerations)
+  {
+    fmbd_mbs_linear L;
+    rc = fmbd_mbs_linearise(m, 0.2, x, xd, &L);
+    EXPECT(rc == 0, "linearise: %s", fmbd_err_get()->msg);
+    const fmbd_csr *LM[3] = {L.M, L.C, L.K};
+    const char *nm3[3] = {"M", "C", "K"};
+    int64_t nnz_fe = L.M ? L.M->indptr[b0->off + nb] - L.M->indptr[b0->off] : -1;
+    EXPECT(nnz_fe == mbs_fe_nnz(b0),
+           "linearise: the FE body's rows hold %lld entries, its block %lld", (long long)nnz_fe,
+           (long long)mbs_fe_nnz(b0));
+    mbs_fe_eval(m, bf, 0.2, x, xd, NULL, r0 + b0->off, NULL, 0, 0, 0);
+    double dq = 0;
+    for (int64_t i = 0; !rc && i < nb; i++) dq = fmax(dq, fabs(L.Q[b0->off + i] + r0[b0->off + i]));
+    EXPECT(dq <= 1e-12 * fmax(1, maxabs(r0 + b0->off, nb)), "linearise: Q vs -residual %.3g", dq);
+    for (int which = 0; which < 3 && !rc; which++) {
+      memset(Ax, 0, sizeof(double) * (size_t)m->nnz);
+      mbs_fe_eval(m, bf, 0.2, x, xd, NULL, r0 + b0->off, Ax, which == 0, which == 1, which == 2);
+      double d = 0, s2 = 0;
+      for (int64_t j = 0; j < nb; j++) {
+        memset(e, 0, sizeof(double) * (size_t)nb);
+        e[j] = 1;
+        memset(B, 0, sizeof(double) * (size_t)nb);
+        mbs_fe_block_mul(&m->b[bf], Ax, e, B);
+        for (int64_t i = 0; i < nb; i++) {
+          double v = fmbd_csr_get(LM[which], b0->off + i, b0->off + j);
+          d = fmax(d, fabs(v - B[i])), s2 = fmax(s2, fabs(B[i]));
+        }
+      }
+      EXPECT(d <= 1e-14 * fmax(1, s2), "linearise: %s block vs the iteration block %.3g",
+             nm3[which], d);
+    }
+    fmbd_mbs_linear_free(&L);
   }
   fmbd_free(x), fmbd_free(xd), fmbd_free(xdd), fmbd_free(r0), fmbd_free(r1), fmbd_free(Ax),
       fmbd_free(B), fmbd_free(Bfd), fmbd_free(e);

@@ -1,0 +1,72 @@
+#!/bin/bash
+# bench/mpi.sh: the distributed reduction fe2cb-mpi (PETSc/SLEPc/MUMPS) against the serial
+# fe2cb side by side on tet10 rods (examples/geometry/rod.geo, one interface at each end):
+#   fe2cb, 1 BLAS thread and 2 threads        (the serial path: CHOLMOD + ARPACK)
+#   fe2cb-mpi on 1 process and with mpirun -np 2 (1 BLAS thread per process)
+# Reports wall time, CPU time of the serial runs, peak memory (serial: GNU time; MPI: the
+# largest process and process 0, from fe2cb-mpi -v), and fe2cb-mpi's measured factor and solve
+# costs (MUMPS factor entries, flops, time; Krylov-Schur time and solves), the input of the
+# scaling model in docs/SCALE.md. Checks that every run's eigenvalues agree (1e-10 relative).
+# Environment: BUILD, PYTHON, BENCH_OUT, BENCH_SIZES="0.0047 0.0029" (element sizes, m),
+# BENCH_LARGE=1 adds 0.0023 (about 380 k dofs), BENCH_MODES=20.
+set -u
+ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}
+BUILD=${BUILD:-build}
+PYTHON=${PYTHON:-/usr/bin/python3}
+BENCH_OUT=${BENCH_OUT:-$ROOT/$BUILD/bench}
+export PATH="$ROOT/$BUILD/bin:$PATH"
+if ! command -v mpirun > /dev/null || [ ! -x "$ROOT/$BUILD/bin/fe2cb-mpi" ]; then
+  echo "bench/mpi.sh: no mpirun or no $BUILD/bin/fe2cb-mpi (make deps && make mpi): not run"
+  exit 0
+fi
+W=$BENCH_OUT/mpi-work
+mkdir -p "$W" && cd "$W" || exit 1
+SIZES=${BENCH_SIZES:-"0.0047 0.0029"}
+[ "${BENCH_LARGE:-0}" = 1 ] && SIZES="$SIZES 0.0023"
+N=${BENCH_MODES:-20}
+MPIRUN=(mpirun --allow-run-as-root --oversubscribe)
+export OMPI_MCA_btl_vader_single_copy_mechanism=none
+echo "$(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg) at the start; $N modes"
+
+run() {  # NAME THREADS CMD...: wall/cpu/rss of the command (GNU time) into globals
+  local name=$1 th=$2; shift 2
+  OPENBLAS_NUM_THREADS=$th OMP_NUM_THREADS=$th /usr/bin/time -f "%e %U %S %M" -o "$name.time" \
+    "$@" > "$name.out" 2> "$name.err" || { echo "  $name failed: $(tail -n 3 "$name.err")"; return 1; }
+  read -r wall usr sys rss < <(tail -n 1 "$name.time")
+  cpu=$(printf '%.1f' "$(echo "$usr + $sys" | bc)")
+  rss_mb=$((rss / 1024))
+}
+mpi_figures() {  # NAME: fe2cb-mpi -v figures
+  sed -n 's/.*peak memory: process 0 \([0-9]*\) MB, largest process \([0-9]*\) MB.*/p0 \1 MB, largest \2 MB/p' "$1.err"
+}
+
+printf '%-7s %8s | %-22s | %-22s | %-30s | %-30s\n' h dofs "fe2cb 1 thread" "fe2cb 2 threads" \
+  "fe2cb-mpi 1 process" "fe2cb-mpi -np 2"
+printf '%-7s %8s | %-22s | %-22s | %-30s | %-30s\n' "" "" "wall cpu RSS(MB)" "wall cpu RSS(MB)" \
+  "wall, peak per process" "wall, peak per process"
+for h in $SIZES; do
+  fe=rod-$h.fe.h5
+  [ -f "$fe" ] || mesh2fe "$ROOT/examples/geometry/rod.geo" --size "$h" --interface end0 \
+    --interface end1 -o "$fe" -q || exit 1
+  ndof=$("$PYTHON" -c "import h5py; print(h5py.File('$fe','r')['dofs'].shape[0])")
+  run s1-$h 1 fe2cb "$fe" --modes "$N" -o s1-$h.cb.h5 -v || continue
+  a="$wall $cpu $rss_mb"
+  run s2-$h 2 fe2cb "$fe" --modes "$N" -o s2-$h.cb.h5 -v || continue
+  b="$wall $cpu $rss_mb"
+  run p1-$h 1 fe2cb-mpi "$fe" --modes "$N" -o p1-$h.cb.h5 -v || continue
+  c="$wall s, $(mpi_figures p1-$h)"
+  run p2-$h 1 "${MPIRUN[@]}" -np 2 fe2cb-mpi "$fe" --modes "$N" -o p2-$h.cb.h5 -v || continue
+  d="$wall s, $(mpi_figures p2-$h)"
+  printf '%-7s %8s | %-22s | %-22s | %-30s | %-30s\n' "$h" "$ndof" "$a" "$b" "$c" "$d"
+  for p in p1 p2; do
+    grep -E 'MUMPS factor of Ks|time:' $p-$h.err | sed "s/^fe2cb-mpi: /    $p: /"
+  done
+  grep -E 'time:' s1-$h.err | sed 's/^fe2cb: /    s1: /'
+  "$PYTHON" - s1-$h.cb.h5 s2-$h.cb.h5 p1-$h.cb.h5 p2-$h.cb.h5 <<'PY'
+import sys, h5py, numpy as np
+k = [h5py.File(f, "r")["cb/kappa"][()] for f in sys.argv[1:]]
+e = max(np.max(np.abs(x - k[0]) / k[0]) for x in k[1:])
+print(f"    eigenvalues of the four runs agree to {e:.1e} relative" + ("" if e <= 1e-10 else "  ** ABOVE 1e-10 **"))
+PY
+done
+echo "load average $(cut -d' ' -f1-3 /proc/loadavg) at the end"
