@@ -108,7 +108,8 @@ $(BUILD)/tools/%: $(BUILD)/tests/tools/%.o $(LIB)
 	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $< $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
 
 # --- targets ------------------------------------------------------------------------------
-.PHONY: all deps check check-build demo bench install uninstall clean info format reports
+.PHONY: all deps check check-build demo bench install uninstall clean info format reports \
+        report-quadpend report-slidercrank report-spatial-slidercrank
 deps:
 	@bash scripts/install-deps.sh
 
