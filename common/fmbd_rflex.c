@@ -27,6 +27,8 @@ void fmbd_rflex_destroy(fmbd_rflex **pr) {
   fmbd_free(r->node_xyz);
   fmbd_free(r->node_mass);
   fmbd_free(r->dofs);
+  fmbd_free(r->held);
+  fmbd_free(r->stress_row);
   fmbd_csr_destroy(&r->expand);
   for (int i = 0; i < r->ninterfaces && r->interfaces; i++) {
     fmbd_free(r->interfaces[i].name);
@@ -74,6 +76,10 @@ int64_t fmbd_rflex_nearest_node(const fmbd_rflex *r, const double x[3], double *
 int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double *T, double *R) {
   FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
              (long long)node, (long long)r->nnodes);
+  FMBD_CHECK(!r->held || (r->held[node] & FMBD_RFLEX_HELD_MOTION), FMBD_ERR_VALUE,
+             "node %lld is not in this subset body, which holds only the nodes its scene read "
+             "(/subset); make the body for this scene (fmbd-run -M passes cbcheck --for-scene)",
+             (long long)node);
   if (x0) {
     memcpy(x0, r->node_xyz + 3 * node, 3 * sizeof(double));
   }
@@ -103,12 +109,124 @@ int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma) {
   FMBD_CHECK(r->stress, FMBD_ERR_VALUE, "the body has no modal stress (/modes/stress)");
   FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
              (long long)node, (long long)r->nnodes);
+  int64_t row = r->stress_row ? r->stress_row[node] : node;
+  FMBD_CHECK(row >= 0, FMBD_ERR_VALUE,
+             "this subset body holds no stress at node %lld: only where its scene asked for "
+             "stress (/subset/stress_nodes); make the body for this scene (fmbd-run -M passes "
+             "cbcheck --for-scene)",
+             (long long)node);
+  int64_t ns = r->stress_row ? r->nstress : r->nnodes;
   for (int64_t k = 0; k < r->nm; k++) {
     for (int i = 0; i < 6; i++) {
-      sigma[i + 6 * k] = r->stress[i + 6 * node + 6 * r->nnodes * k];
+      sigma[i + 6 * k] = r->stress[i + 6 * row + 6 * ns * k];
     }
   }
   return FMBD_OK;
+}
+
+int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int64_t nstress,
+                      const int64_t *stress) {
+  int rc = FMBD_OK;
+  int64_t nn = r->nnodes, nm = r->nm, nd = r->ndof;
+  unsigned char *held = NULL;
+  int64_t *dmap = NULL, *srow = NULL, *dofs = NULL;
+  if (!r->held) r->whole_ndof = nd;
+  double *shapes = NULL, *sig = NULL;
+  fmbd_csr *E = NULL;
+  FMBD_GALLOC(held = xcalloc((size_t)nn + 1, 1));
+  for (int64_t i = 0; i < nmotion + nstress; i++) {
+    int64_t p = i < nmotion ? motion[i] : stress[i - nmotion];
+    FMBD_GCHECK(p >= 0 && p < nn, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
+                (long long)p, (long long)nn);
+    held[p] |=
+        i < nmotion ? FMBD_RFLEX_HELD_MOTION : (FMBD_RFLEX_HELD_MOTION | FMBD_RFLEX_HELD_STRESS);
+  }
+  for (int i = 0; i < r->ninterfaces; i++) held[r->interfaces[i].node] |= FMBD_RFLEX_HELD_MOTION;
+  for (int64_t p = 0; p < nn; p++) {  // a subset of a subset: what it holds, no more
+    if (r->held) held[p] &= r->held[p];
+    if ((held[p] & FMBD_RFLEX_HELD_STRESS) &&
+        !(r->stress_row ? r->stress_row[p] >= 0 : !!r->stress))
+      held[p] &= (unsigned char)~FMBD_RFLEX_HELD_STRESS;
+  }
+  FMBD_GCHECK(nstress == 0 || r->stress, FMBD_ERR_VALUE,
+              "stress asked at %lld nodes, but the body has no modal stress", (long long)nstress);
+  // the dofs the held nodes' /expand rows read, renumbered in their order
+  const fmbd_csr *X = r->expand;
+  FMBD_GALLOC(dmap = fmbd_malloc(sizeof(int64_t) * (size_t)(nd + 1)));
+  for (int64_t i = 0; i < nd; i++) dmap[i] = -1;
+  int64_t nnz = 0;
+  for (int64_t p = 0; p < nn; p++) {
+    if (!(held[p] & FMBD_RFLEX_HELD_MOTION)) continue;
+    for (int64_t q = X->indptr[6 * p]; q < X->indptr[6 * p + 6]; q++) dmap[X->indices[q]] = 0;
+    nnz += X->indptr[6 * p + 6] - X->indptr[6 * p];
+  }
+  int64_t nk = 0;
+  for (int64_t i = 0; i < nd; i++) {
+    if (dmap[i] == 0) dmap[i] = nk++;
+  }
+  FMBD_GALLOC(dofs = fmbd_malloc(sizeof(int64_t) * (size_t)(2 * nk + 1)));
+  FMBD_GALLOC(shapes = fmbd_malloc(sizeof(double) * (size_t)(nk * nm + 1)));
+  for (int64_t i = 0; i < nd; i++) {
+    if (dmap[i] < 0) continue;
+    dofs[2 * dmap[i]] = r->dofs[2 * i];
+    dofs[2 * dmap[i] + 1] = r->dofs[2 * i + 1];
+    for (int64_t k = 0; k < nm; k++) shapes[dmap[i] + nk * k] = r->shapes[i + nd * k];
+  }
+  FMBD_GCALL(fmbd_csr_create(6 * nn, nk, nnz, &E));
+  int64_t e = 0;
+  E->indptr[0] = 0;
+  for (int64_t row = 0; row < 6 * nn; row++) {
+    if (held[row / 6] & FMBD_RFLEX_HELD_MOTION) {
+      for (int64_t q = X->indptr[row]; q < X->indptr[row + 1]; q++) {
+        E->indices[e] = dmap[X->indices[q]];  // increasing: dmap keeps the order
+        E->data[e++] = X->data[q];
+      }
+    }
+    E->indptr[row + 1] = e;
+  }
+  // the stress rows of the nodes that keep it
+  int64_t ns = 0;
+  if (r->stress) {
+    FMBD_GALLOC(srow = fmbd_malloc(sizeof(int64_t) * (size_t)(nn + 1)));
+    for (int64_t p = 0; p < nn; p++) srow[p] = (held[p] & FMBD_RFLEX_HELD_STRESS) ? ns++ : -1;
+    FMBD_GALLOC(sig = fmbd_malloc(sizeof(double) * (size_t)(6 * ns * nm + 1)));
+    int64_t ns0 = r->stress_row ? r->nstress : nn;
+    for (int64_t p = 0; p < nn; p++) {
+      if (srow[p] < 0) continue;
+      int64_t from = r->stress_row ? r->stress_row[p] : p;
+      for (int64_t k = 0; k < nm; k++) {
+        memcpy(sig + 6 * srow[p] + 6 * ns * k, r->stress + 6 * from + 6 * ns0 * k,
+               6 * sizeof(double));
+      }
+    }
+  }
+  fmbd_free(r->held);
+  fmbd_free(r->dofs);
+  fmbd_free(r->shapes);
+  fmbd_free(r->stress_row);
+  fmbd_free(r->stress);
+  fmbd_csr_destroy(&r->expand);
+  r->held = held;
+  r->dofs = dofs;
+  r->shapes = shapes;
+  r->expand = E;
+  r->ndof = nk;
+  r->stress = sig;
+  r->stress_row = srow;
+  r->nstress = ns;
+  held = NULL;
+  dofs = srow = NULL;
+  shapes = sig = NULL;
+  E = NULL;
+done:
+  fmbd_free(held);
+  fmbd_free(dmap);
+  fmbd_free(srow);
+  fmbd_free(dofs);
+  fmbd_free(shapes);
+  fmbd_free(sig);
+  fmbd_csr_destroy(&E);
+  return rc;
 }
 
 double fmbd_von_mises(const double s[6]) {
@@ -267,7 +385,9 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     }
   }
   // --- modal stress ---
-  if (stress && nm > 0) {
+  // from the solid elements only: without any (beams, springs, a lost /mesh/elements) it would
+  // be zero everywhere, so none is made (r->stress = NULL; callers say so)
+  if (stress && nm > 0 && b->ntet > 0) {
     FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
     FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, r->stress));
   }
@@ -433,6 +553,30 @@ done:
 }
 
 // --- file I/O --------------------------------------------------------------------------------
+// /subset/{nodes,stress_nodes} and the subset's /dofs and /expand (docs/FORMAT.md)
+static int write_subset(fmbd_h5 *f, const fmbd_rflex *r) {
+  int rc = FMBD_OK;
+  int64_t *list = NULL, n = 0, ns = 0;
+  FMBD_GALLOC(list = fmbd_malloc(sizeof(int64_t) * (size_t)(r->nnodes + 1)));
+  for (int64_t p = 0; p < r->nnodes; p++) {
+    if (r->held[p] & FMBD_RFLEX_HELD_MOTION) list[n++] = p;
+  }
+  int64_t d1[1] = {n};
+  FMBD_GCALL(fmbd_h5_write_i64(f, "/subset/nodes", 1, d1, list));
+  for (int64_t p = 0; p < r->nnodes; p++) {
+    if (r->stress_row && r->stress_row[p] >= 0) list[ns++] = p;  // rows in node order
+  }
+  d1[0] = ns;
+  FMBD_GCALL(fmbd_h5_write_i64(f, "/subset/stress_nodes", 1, d1, list));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/subset", "whole_ndof", 1, &r->whole_ndof));
+  int64_t dd[2] = {r->ndof, 2};
+  FMBD_GCALL(fmbd_h5_write_i64(f, "/dofs", 2, dd, r->dofs));
+  FMBD_GCALL(fmbd_h5_write_csr(f, "/expand", r->expand));
+done:
+  fmbd_free(list);
+  return rc;
+}
+
 int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
   int rc = FMBD_OK;
   double *buf = NULL;
@@ -442,6 +586,9 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
   FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/eigenvalue", 1, d1, r->eigenvalue));
   FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/frequency_hz", 1, d1, r->frequency_hz));
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/modes/shapes", r->ndof, nm, r->shapes));
+  if (r->held) {  // a subset body: its own /dofs, /expand, and the nodes it holds
+    nn = r->stress_row ? r->nstress : 0;
+  }
   size_t big = (size_t)(9 * nm * nm);
   if (r->stress && (size_t)(6 * nn * nm) > big) {
     big = (size_t)(6 * nn * nm);
@@ -458,6 +605,7 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
     int64_t d3[3] = {nn, 6, nm};
     FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/stress", 3, d3, buf));
   }
+  if (r->held) FMBD_GCALL(write_subset(f, r));
   for (int i = 0; i < r->ninterfaces; i++) {
     const fmbd_rflex_interface *it = &r->interfaces[i];
     snprintf(path, sizeof path, "/interfaces/%s/translation", it->name);
@@ -534,14 +682,44 @@ int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out) {
   FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/frequency_hz", 1, de, &r->frequency_hz));
   int64_t rows = ndof, cols = nm;
   FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/modes/shapes", &rows, &cols, &r->shapes));
+  int64_t nsr = nn;                    // rows of /modes/stress
+  if (fmbd_h5_exists(f, "/subset")) {  // a subset body: the nodes it holds
+    int64_t dk[1] = {-1};
+    FMBD_GCALL(fmbd_h5_read_i64(f, "/subset/nodes", 1, dk, &itmp));
+    FMBD_GALLOC(r->held = xcalloc((size_t)nn + 1, 1));
+    for (int64_t i = 0; i < dk[0]; i++) {
+      fmbd_err_context(fmbd_h5_name(f), "/subset/nodes");
+      FMBD_GCHECK(itmp[i] >= 0 && itmp[i] < nn, FMBD_ERR_FORMAT, "node %lld out of range",
+                  (long long)itmp[i]);
+      r->held[itmp[i]] = FMBD_RFLEX_HELD_MOTION;
+    }
+    fmbd_free(itmp);
+    itmp = NULL;
+    dk[0] = -1;
+    FMBD_GCALL(fmbd_h5_read_i64(f, "/subset/stress_nodes", 1, dk, &itmp));
+    FMBD_GALLOC(r->stress_row = fmbd_malloc(sizeof(int64_t) * (size_t)(nn + 1)));
+    for (int64_t p = 0; p < nn; p++) r->stress_row[p] = -1;
+    for (int64_t i = 0; i < dk[0]; i++) {
+      fmbd_err_context(fmbd_h5_name(f), "/subset/stress_nodes");
+      FMBD_GCHECK(itmp[i] >= 0 && itmp[i] < nn && r->held[itmp[i]], FMBD_ERR_FORMAT,
+                  "node %lld out of range or not in /subset/nodes", (long long)itmp[i]);
+      r->stress_row[itmp[i]] = i;
+      r->held[itmp[i]] |= FMBD_RFLEX_HELD_STRESS;
+    }
+    fmbd_err_context("", "");
+    nsr = r->nstress = dk[0];
+    FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/subset", "whole_ndof", 1, &r->whole_ndof));
+    fmbd_free(itmp);
+    itmp = NULL;
+  }
   if (fmbd_h5_exists(f, "/modes/stress")) {
-    int64_t ds[3] = {nn, 6, nm};
+    int64_t ds[3] = {nsr, 6, nm};
     FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/stress", 3, ds, &buf));
-    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nsr * nm + 1), sizeof(double)));
     for (int64_t k = 0; k < nm; k++) {
-      for (int64_t p = 0; p < nn; p++) {
+      for (int64_t p = 0; p < nsr; p++) {
         for (int i = 0; i < 6; i++) {
-          r->stress[i + 6 * p + 6 * nn * k] = buf[(p * 6 + i) * nm + k];
+          r->stress[i + 6 * p + 6 * nsr * k] = buf[(p * 6 + i) * nm + k];
         }
       }
     }

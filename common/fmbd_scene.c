@@ -761,8 +761,11 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       b->damping_set = true;
     }
     if ((x = get(c, n, "make"))) {
-      static const char *const mk[] = {"geometry", "mesh2fe", "fe", "fe2cb", "cb", "cbcheck", NULL};
+      static const char *const mk[] = {"geometry", "mesh2fe", "fe",    "fe2cb",
+                                       "cb",       "cbcheck", "whole", NULL};
       TRY(check_map(c, x, "make", mk));
+      yaml_node_t *w = get(c, x, "whole");
+      if (w) TRY(as_bool(c, w, "whole", &b->chain.whole));
       struct {
         const char *k;
         char **p;
@@ -1467,10 +1470,21 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
           p = e ? e + 1 : p + l;
         }
       }
-      sb_add(&b, "\n%s: %s%s%s\n\tcbcheck %s%s%s%s%s%s -o $@\n", bd->file, ch->cb,
-             ch->fe ? " " : "", ch->fe ? ch->fe : "", ch->cb, ch->fe ? " --fe " : "",
-             ch->fe ? ch->fe : "", ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
+      // a body file of one body holds only what this scene reads of it (cbcheck --for-scene,
+      // docs/FORMAT.md /subset), so it depends on the scene too; a file two bodies share, a
+      // chain with `whole: true` or whose options say --for-scene already, is left as it is
+      bool shared = false;
+      for (int k = 0; k < s->nbodies; k++)
+        shared |= k != i && s->bodies[k].file && !strcmp(s->bodies[k].file, bd->file);
+      bool subset =
+          !shared && !ch->whole && !(ch->cbcheck_args && strstr(ch->cbcheck_args, "--for-scene"));
+      sb_add(&b, "\n%s: %s%s%s%s%s\n\tcbcheck %s%s%s%s%s%s", bd->file, ch->cb, ch->fe ? " " : "",
+             ch->fe ? ch->fe : "", subset ? " " : "", subset ? s->file : "", ch->cb,
+             ch->fe ? " --fe " : "", ch->fe ? ch->fe : "",
+             ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
              ch->cbcheck_args ? ch->cbcheck_args : "", holds);
+      if (subset) sb_add(&b, " --for-scene %s:%s", s->file, bd->name);
+      sb_add(&b, " -o $@\n");
     }
     const char *cb = is_cb ? bd->file : ch->cb;
     if (cb && ch->fe) {

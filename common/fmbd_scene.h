@@ -33,6 +33,7 @@ typedef struct fmbd_scene_chain {
   char *geometry, *mesh2fe_args;  ///< geometry file and mesh2fe options (NULL: not named)
   char *fe, *fe2cb_args;          ///< fe file and fe2cb options
   char *cb, *cbcheck_args;        ///< cb file and cbcheck options (rflex bodies)
+  bool whole;  ///< `whole: true`: the whole body, not one made for this scene (--for-scene)
 } fmbd_scene_chain;
 
 typedef struct fmbd_scene_body {

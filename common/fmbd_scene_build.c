@@ -26,6 +26,16 @@
 static void fe_node_modes(const fmbd_scene_model *m, int bi, int64_t node, int64_t n, double *T,
                           double *R);
 
+// the initial state of a scene body
+static fmbd_mbs_state0 body_state0(const fmbd_scene_body *b) {
+  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
+  memcpy(s0.position, b->position, sizeof s0.position);
+  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
+  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
+  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  return s0;
+}
+
 // --- keeping the first n modes of a modal body ----------------------------------------------
 static int truncate_modes(fmbd_rflex *r, int64_t n) {
   int64_t nm = r->nm;
@@ -209,7 +219,8 @@ static int add_point(fmbd_scene_model *m, const fmbd_scene *s, int bi, const fmb
   int64_t nm = r->nm;
   FMBD_GALLOC(T = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
   FMBD_GALLOC(R = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
-  FMBD_GCALL(fmbd_rflex_node_modes(r, node, x0, T, R));
+  rc = fmbd_rflex_node_modes(r, node, x0, T, R);
+  if (rc) SFAIL(s, loc, rc, "%s: body '%s' (%s): %s", what, b->name, b->file, fmbd_err_get()->msg);
   FMBD_GCALL(fmbd_mbs_add_point(m->mbs, m->body_id[bi], x0, T, R, pid));
   if (node_out) *node_out = node;
 done:
@@ -488,11 +499,7 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
       }
     }
   }
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  memcpy(s0.position, b->position, sizeof s0.position);
-  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_fe(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
   fmbd_log(FMBD_LOG_INFO,
@@ -587,7 +594,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     char msg[1100], where[600];
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     snprintf(where, sizeof where, "%s", fmbd_err_get()->where);
-    SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
+    SFAIL(s, b->file_loc, rc, "body '%s': %s%s%s: %s", b->name, b->file, where[0] ? ":" : "", where,
+          msg);
   }
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
   if (!strcmp(format, FMBD_RFLEX_FORMAT)) {
@@ -656,11 +664,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
                           .damping_ratio = b->damping_ratio};
   memcpy(d.first_moment, r->first_moment, sizeof d.first_moment);
   memcpy(d.second_moment, r->second_moment, sizeof d.second_moment);
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  memcpy(s0.position, b->position, sizeof s0.position);
-  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_flex(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
 done:
@@ -694,11 +698,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
   for (int i = 0; i < nb; i++) {
     const fmbd_scene_body *b = &s->bodies[i];
     if (b->kind == FMBD_SCENE_RIGID) {
-      fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-      memcpy(s0.position, b->position, sizeof s0.position);
-      memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-      memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-      memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+      fmbd_mbs_state0 s0 = body_state0(b);
       rc = fmbd_mbs_add_rigid(m->mbs, b->name, b->mass, b->com, b->inertia, &s0, &m->body_id[i]);
       if (rc) SFAIL(s, b->loc, rc, "body '%s': %s", b->name, fmbd_err_get()->msg);
     } else {
@@ -787,18 +787,22 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
       const fmbd_rflex *r = m->flex[op->body];
       if (!r->stress) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE,
-              "%s asks for stress or strain, but %s has no /modes/stress (%s)", what,
+              "%s asks for stress or strain, but %s has no modal stress (%s)", what,
               s->bodies[op->body].file,
               !strcmp(m->file_kind[op->body], FMBD_CB_FORMAT)
-                  ? "a cb file never has it; use the .rflex.h5 of cbcheck"
-                  : "cbcheck writes it when the fe file is at hand");
+                  ? "it is recovered from solid elements, and its /mesh/elements has no tet4 or "
+                    "tet10"
+                  : "no /modes/stress: cbcheck writes it for bodies with solid elements");
       }
       if ((op->quantities & FMBD_OUT_STRAIN) && !(m->E[op->body] > 0)) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for strain, but %s has no /material E and nu",
               what, s->bodies[op->body].file);
       }
       FMBD_GALLOC(m->out_sigma[o] = fmbd_malloc(sizeof(double) * (size_t)(6 * r->nm + 1)));
-      FMBD_GCALL(fmbd_rflex_node_stress(r, m->out_node[o], m->out_sigma[o]));
+      rc = fmbd_rflex_node_stress(r, m->out_node[o], m->out_sigma[o]);
+      if (rc)
+        SFAIL(s, op->loc, rc, "%s: body '%s' (%s): %s", what, s->bodies[op->body].name,
+              s->bodies[op->body].file, fmbd_err_get()->msg);
     }
   }
   *out = m;
@@ -886,4 +890,83 @@ void fmbd_scene_model_destroy(fmbd_scene_model **mp) {
   fmbd_free(m->out_sigma);
   fmbd_free(m);
   *mp = NULL;
+}
+
+// --- the nodes a scene reads on one body (cbcheck --for-scene: a subset body) ----------------
+// The places are resolved on r exactly as fmbd_scene_build resolves them (flex_node), so that
+// the subset holds the very nodes the run will ask for.
+static int push_node(int64_t **v, int64_t *n, int64_t p) {
+  int64_t *q = fmbd_realloc(*v, sizeof(int64_t) * (size_t)(*n + 1));
+  if (!q) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  *v = q;
+  q[(*n)++] = p;
+  return 0;
+}
+
+int fmbd_scene_body_nodes(const fmbd_scene *s, int bi, const fmbd_rflex *r, int64_t **motion,
+                          int64_t *nmotion, int64_t **stress, int64_t *nstress) {
+  int rc = 0;
+  *motion = *stress = NULL;
+  *nmotion = *nstress = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  for (int k = 0; k < s->njoints; k++) {
+    const fmbd_scene_joint *j = &s->joints[k];
+    char what[200];
+    snprintf(what, sizeof what, "joint '%s'", j->name);
+    for (int sd = 0; sd < 2; sd++) {
+      if (j->body[sd] != bi) continue;
+      const fmbd_scene_at *at = &j->at[sd];
+      double x0[3] = {0, 0, 0}, P[3];
+      if (at->kind == FMBD_AT_POINT) {
+        memcpy(x0, at->p, sizeof x0);
+      } else if (at->kind == FMBD_AT_DEFAULT) {  // the joint's point, in this body's frame
+        int first = j->at[0].kind != FMBD_AT_DEFAULT ? 0 : 1;
+        int ob = j->body[first];
+        if (j->has_point) {
+          memcpy(P, j->point, sizeof P);
+        } else if (ob < 0) {
+          memcpy(P, j->at[first].p, sizeof P);
+        } else if (s->bodies[ob].kind == FMBD_SCENE_RIGID) {
+          to_world(&s->bodies[ob], j->at[first].p, P);
+        } else {
+          SFAIL(s, j->loc, FMBD_ERR_SCENE,
+                "%s: its point on body '%s' comes from flexible body '%s''s file; give the joint "
+                "a point (or name the place on '%s') to make a body that holds only what the "
+                "scene reads",
+                what, b->name, s->bodies[ob].name, b->name);
+        }
+        to_body(b, P, x0);
+      }
+      int64_t node;
+      FMBD_GCALL(flex_node(s, bi, r, at, x0, j->has_point ? j->point_loc : j->loc, what, &node));
+      FMBD_GCALL(push_node(motion, nmotion, node));
+    }
+  }
+  for (int k = 0; k < s->nloads; k++) {
+    const fmbd_scene_load *l = &s->loads[k];
+    if (l->body != bi || l->at.kind == FMBD_AT_DEFAULT) continue;  // default: the body origin
+    char what[200];
+    snprintf(what, sizeof what, "load '%s'", l->name);
+    int64_t node;
+    FMBD_GCALL(flex_node(s, bi, r, &l->at, l->at.p, l->loc, what, &node));
+    FMBD_GCALL(push_node(motion, nmotion, node));
+  }
+  for (int o = 0; o < s->noutputs; o++) {
+    const fmbd_scene_output *op = &s->outputs[o];
+    if (op->body != bi || op->at.kind == FMBD_AT_DEFAULT) continue;
+    char what[200];
+    snprintf(what, sizeof what, "output '%s'", op->name);
+    int64_t node;
+    FMBD_GCALL(flex_node(s, bi, r, &op->at, op->at.p, op->loc, what, &node));
+    bool sig = op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN);
+    FMBD_GCALL(push_node(sig ? stress : motion, sig ? nstress : nmotion, node));
+  }
+done:
+  if (rc) {
+    fmbd_free(*motion);
+    fmbd_free(*stress);
+    *motion = *stress = NULL;
+    *nmotion = *nstress = 0;
+  }
+  return rc;
 }

@@ -48,6 +48,8 @@ def main():
     run("fe2cb", "rod.fe.h5", "--modes", "12", "-o", "rod.cb.h5", "-q")
     run("cbcheck", "rod.cb.h5", "--tol", "0.1", "--range", "4", "-o", "rod.rflex.h5", "-q")
     scene = os.path.join(ex, "quadpend", "quadpend.yaml")
+    run("cbcheck", "rod.cb.h5", "--tol", "0.1", "--range", "4", "--for-scene", scene + ":rod",
+        "-o", "rodsub.rflex.h5", "-q")  # a subset body (/subset)
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "-o", "ref.run.h5", "-q")
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "--reference", "ref.run.h5", "-o", "run.h5",
         "--xdmf", "-q")
@@ -57,7 +59,7 @@ def main():
     paths = set(re.findall(r"`(/[^`\s]*)`", doc))
     words = set(re.findall(r"`([^`\s/]+)`", doc))
     missing = []
-    for name in ("rod.fe.h5", "rod.cb.h5", "rod.rflex.h5", "run.h5", "quadpend.gm.h5"):
+    for name in ("rod.fe.h5", "rod.cb.h5", "rod.rflex.h5", "rodsub.rflex.h5", "run.h5", "quadpend.gm.h5"):
         with h5py.File(os.path.join(TMP, name), "r") as f:
             objects = ["/"]
             f.visit(lambda n: objects.append("/" + n))
