@@ -240,6 +240,7 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
     memcpy(m->xddp, m->xddn, sizeof(double) * (size_t)m->n);  // x'' of the previous step
     m->h_prev = h;
     mbs_update_scales(m);
+    mbs_spin_check(m);  // docs/STABILITY.md, the spin-up beam (fmbd_mbs_spin.c)
     bool hit_out = oe <= 0;
     if (oe > 0 && clipped && out_lim) {
       m->k_out++;
