@@ -7,6 +7,8 @@
 #   make demo       the main job end to end (examples/)
 #   make bench      benchmarks under bench/ (minutes; see bench/README.md)
 #   make fuzz       libFuzzer on every file reader, FUZZ_SECONDS (60) each (clang; fuzz/run.sh)
+#   make reports    error-against-run-time reports of the papers' benchmarks (examples/report.mk;
+#                   also report-quadpend, report-slidercrank, report-spatial-slidercrank)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make format     reformat the C/C++ sources with .clang-format (make check checks it)
 #   make info       resolved flags;  V=1 full command lines
@@ -125,7 +127,8 @@ $(BUILD)/fuzz/fuzz-%: $(BUILD)/fuzz/fuzz_%.o $(LIB)
 	$(Q)$(CC) -fsanitize=fuzzer $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $< $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
 
 # --- targets ------------------------------------------------------------------------------
-.PHONY: all deps check check-build demo bench fuzz fuzz-build install uninstall clean info format
+.PHONY: all deps check check-build demo bench fuzz fuzz-build install uninstall clean info format reports \
+        report-quadpend report-slidercrank report-spatial-slidercrank
 deps:
 	@bash scripts/install-deps.sh
 
@@ -138,6 +141,10 @@ check: deps
 demo: deps
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory -f examples/demo.mk BUILD=$(BUILD) PYTHON=$(PYTHON)
+
+reports report-quadpend report-slidercrank report-spatial-slidercrank: deps
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -f examples/report.mk BUILD=$(BUILD) PYTHON=$(PYTHON) $@
 
 bench: deps
 	@$(MAKE) --no-print-directory all $(TOOLS)

@@ -303,6 +303,18 @@ void mbs_spin_check(fmbd_mbs *m);
 // major); see the comment at the definition
 void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
                    const double *xddg, double *r, double *B, double cm, double cc, double ck);
+// parts shared by modal and FE bodies (fmbd_mbs_body.c; see there)
+void mbs_frame_kin(mbody *b, const double *p, const double *pd, const double *pdd, double *w,
+                   double *wd);
+void mbs_rigid_rows(const mbody *b, const double *rb, const double *p, const double *pdd,
+                    double *r);
+void mbs_rigid_qv(const double *A, const double *w, const double *c, const double *s1qd,
+                  const double *I, const double *H, double trH, double *rb, double *Iw);
+void mbs_rigid_vel_tangent(const double *A, const double *w, const double *c, const double *Sc,
+                           const double *s1qd, const double *I, const double *Iw, const double *H,
+                           double trH, double *AM, double *WW);
+void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const double *q,
+                    double *rb, double *rf);
 // fmbd_mbs_constraint.c
 void mbs_eq_describe(const fmbd_mbs *m, const meq *e, char *buf, size_t len);
 void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2);

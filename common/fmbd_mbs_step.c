@@ -44,6 +44,10 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
       else if (k < 7)
         snprintf(what, sizeof what, "body '%s' rotational equation of motion (row e%d)", b->name,
                  k - 3);
+      else if (b->fe && b->fe->dofs)
+        snprintf(what, sizeof what, "body '%s' equation of FE dof %d (node %lld, direction %lld)",
+                 b->name, k - 6, (long long)b->fe->dofs[2 * (k - 7)],
+                 (long long)b->fe->dofs[2 * (k - 7) + 1]);
       else
         snprintf(what, sizeof what, "body '%s' modal equation %d", b->name, k - 6);
     }
