@@ -1439,6 +1439,14 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
     for (int k = 0; k < i; k++) seen |= s->bodies[k].file && !strcmp(s->bodies[k].file, bd->file);
     if (!seen) sb_add(&b, " \\\n  %s", bd->file);
   }
+  for (int i = 0; i < s->nbodies; i++) {        // global-mode bases (gmsolve makes them, from the
+    const fmbd_scene_body *bd = &s->bodies[i];  // scene it is given: no rule here)
+    if (bd->kind != FMBD_SCENE_FLEXIBLE || !bd->basis) continue;
+    bool seen = false;
+    for (int k = 0; k < i; k++)
+      seen |= s->bodies[k].basis && !strcmp(s->bodies[k].basis, bd->basis);
+    if (!seen) sb_add(&b, " \\\n  %s", bd->basis);
+  }
   sb_add(&b, "\n");
   // the chain of each distinct body file, upstream first is not needed by make: one rule each
   for (int i = 0; i < s->nbodies; i++) {

@@ -103,6 +103,10 @@ gmsolve good.yaml -o plot.gm.h5 --modes 2 --plot pl -q || bad "--plot failed"
   || bad "--plot: pl-mode1.svg, pl-mode2.svg expected (and no third)"
 gmsolve -M good.yaml > rules.mk 2> err.txt || bad "-M failed: $(cat err.txt)"
 grep -q '^good\.gm\.h5: good\.yaml' rules.mk && grep -q 'coupler\.cb\.h5' rules.mk || bad "-M rules: $(cat rules.mk)"
+# a scene that uses a GMc basis depends on its gm file (fmbd-run -M)
+scene usesgm.yaml "0.4, 0.1, 0" ", basis: good.gm.h5"
+fmbd-run -M usesgm.yaml > usesgm.mk 2> err.txt || bad "fmbd-run -M with a basis failed: $(cat err.txt)"
+grep -q 'good\.gm\.h5' usesgm.mk || bad "fmbd-run -M: the basis file is not a dependency: $(cat usesgm.mk)"
 
 # --- bad input (exit 1) ---------------------------------------------------------------------------
 gmsolve far.yaml -o far.gm.h5 --modes 2 -q || bad "far.yaml at t = 0 (reachable) failed"
