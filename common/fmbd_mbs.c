@@ -11,6 +11,10 @@
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
 
+void fmbd_mbs_rotation_quat(const double p[4], double A[9]) {
+  quat_to_A(p, A);
+}
+
 void fmbd_mbs_rotation_axis_angle(const double axis[3], double angle, double A[9]) {
   double n = norm3(axis);
   double u[3] = {0, 0, 1};

@@ -433,6 +433,9 @@ int fmbd_mbs_redundant(const fmbd_mbs *m, int k, int *joint, int *eq, const char
 // --- rotation helpers ----------------------------------------------------------------------
 /// @brief Rotation matrix (row-major) of the rotation by angle (rad) about axis (any length > 0).
 void fmbd_mbs_rotation_axis_angle(const double axis[3], double angle, double A[9]);
+/// @brief Rotation matrix (row-major) of the Euler parameters p = (e0, e1, e2, e3), evaluated at
+/// p/|p| as the integrator does (body -> world; Nikravesh 1988, eq. 6.19).
+void fmbd_mbs_rotation_quat(const double p[4], double A[9]);
 
 // --- the mechanism's equations outside the integrator (for linearisation, global modes) ---
 /// The equations of motion linearised at a state, M x'' + C x' + K x = Q (the terms the
