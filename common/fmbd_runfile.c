@@ -241,6 +241,7 @@ int fmbd_runfile_commit(fmbd_runfile **rfp) {
   for (int i = 0; i < rf->n; i++) fmbd_h5_series_close(&rf->ser[i].s);
   rc = fmbd_h5_commit(&rf->f, fmbd_cli_wall_s(), fmbd_cli_cpu_s());
 done:
+  for (int i = 0; i < rf->n; i++) fmbd_h5_series_close(&rf->ser[i].s);  // before the file
   fmbd_h5_close(&rf->f);
   free_all(rf);
   *rfp = NULL;

@@ -23,9 +23,10 @@ struct fmbd_scene_recorder {
   fmbd_runfile *rf;
   int (*out)[NQ];  // per output: series id, -1 when not asked
   int energy[3], momentum[2];
-  int (*react)[2];  // per reaction: force, torque
-  fmbd_xdmf *xdmf;  // the fields of the flexible bodies (xdmf_name given)
-  int nx, *xbody;   // their mbs body ids
+  int (*react)[2];      // per reaction: force, torque
+  fmbd_xdmf *xdmf;      // the fields of the flexible bodies (xdmf_name given)
+  int nx, *xbody;       // their mbs body ids
+  struct fe_field *fe;  // per field body: what a full FE body's fields need (fe NULL: modal)
 };
 typedef fmbd_scene_recorder run;
 
@@ -149,6 +150,25 @@ int fmbd_scene_record(fmbd_scene_recorder *r) {
   return FMBD_OK;
 }
 
+// A full FE body's fields: its active dofs from the coordinates (0 where the frame fixes them),
+// the nodal translations through /expand, the element stresses averaged at the nodes.
+struct fe_field {
+  const fmbd_fe_body *fe;
+  const int64_t *col;  // active dof -> coordinate, -1: fixed by the frame
+  double *ua, *uall;   // ndof, 6 nnodes
+};
+
+static int fe_fields(void *user, const double *q, double *u, double *sigma) {
+  struct fe_field *d = user;
+  const fmbd_fe_body *fe = d->fe;
+  for (int64_t i = 0; i < fe->ndof; i++) d->ua[i] = d->col[i] >= 0 ? q[d->col[i]] : 0.0;
+  fmbd_csr_matvec(fe->expand, d->ua, d->uall);
+  for (int64_t p = 0; p < fe->nnodes; p++) {
+    for (int a = 0; a < 3; a++) u[a + 3 * p] = d->uall[6 * p + a];
+  }
+  return fmbd_fe_nodal_stress(fe, 1, d->ua, sigma);
+}
+
 // XDMF: every flexible body with solid elements, its modal stresses read again (the model
 // keeps them only where an output asks).
 static int add_fields(run *r, const char *xdmf_name) {
@@ -159,33 +179,55 @@ static int add_fields(run *r, const char *xdmf_name) {
   fmbd_rflex *rf = NULL;
   FMBD_CALL(fmbd_xdmf_create(r->rf, xdmf_name, &r->xdmf));
   FMBD_GALLOC(r->xbody = fmbd_calloc((size_t)s->nbodies + 1, sizeof(int)));
+  FMBD_GALLOC(r->fe = fmbd_calloc((size_t)s->nbodies + 1, sizeof *r->fe));
   for (int b = 0; b < s->nbodies; b++) {
     if (!m->file_kind || !m->file_kind[b]) continue;  // rigid
     const char *file = s->bodies[b].file, *kind = m->file_kind[b];
-    if (!m->flex[b] || (strcmp(kind, FMBD_RFLEX_FORMAT) && strcmp(kind, FMBD_CB_FORMAT))) {
+    bool full = m->fe && m->fe[b] && !strcmp(kind, FMBD_FE_FORMAT);
+    if (!full &&
+        (!m->flex[b] || (strcmp(kind, FMBD_RFLEX_FORMAT) && strcmp(kind, FMBD_CB_FORMAT)))) {
       fmbd_log(FMBD_LOG_WARN,
-               "XDMF fields: body '%s' (%s, %s) is not a modal body: not in the fields",
+               "XDMF fields: body '%s' (%s, %s) is neither a modal nor a full FE body: not in the "
+               "fields",
                s->bodies[b].name, file, kind);
       continue;
     }
     FMBD_GCALL(fmbd_h5_open(file, &f));
     fmbd_err_context(file, "");
-    if (!fmbd_h5_exists(f, "/mesh/elements/tet4") && !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
+    if (fmbd_h5_exists(f, "/subset")) {  // made for its scene: no elements, a few nodes' motion
+      fmbd_log(FMBD_LOG_WARN,
+               "XDMF fields: body '%s' (%s) holds only what its scene reads (cbcheck "
+               "--for-scene): not in the fields; make it whole (`whole: true` in its make "
+               "mapping, or cbcheck without --for-scene)",
+               s->bodies[b].name, file);
+    } else if (!fmbd_h5_exists(f, "/mesh/elements/tet4") &&
+               !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
       fmbd_log(FMBD_LOG_WARN,
                "XDMF fields: body '%s' (%s) has no solid elements: not in the fields",
                s->bodies[b].name, file);
     } else {
       FMBD_GCHECK(r->nx < 64, FMBD_ERR_VALUE, "XDMF fields: more than 64 flexible bodies");
-      if (!strcmp(m->file_kind[b], FMBD_RFLEX_FORMAT)) {
-        FMBD_GCALL(fmbd_rflex_read(f, &rf));
-      } else {
-        FMBD_GCALL(fmbd_scene_rflex_from_cb(f, true, &rf));
-      }
       int id = m->body_id[b];
-      FMBD_GCALL(fmbd_xdmf_add_body(r->xdmf, s->bodies[b].name, file, rf, f,
-                                    fmbd_mbs_body_nm(m->mbs, id)));
+      if (full) {  // the full model: every node's displacement and averaged element stress
+        const fmbd_fe_body *fe = m->fe[b];
+        struct fe_field *d = &r->fe[r->nx];
+        d->fe = fe;
+        d->col = m->fe_col[b];
+        FMBD_GALLOC(d->ua = fmbd_calloc((size_t)fe->ndof + 1, sizeof(double)));
+        FMBD_GALLOC(d->uall = fmbd_calloc((size_t)(6 * fe->nnodes) + 1, sizeof(double)));
+        FMBD_GCALL(fmbd_xdmf_add_body_fn(r->xdmf, s->bodies[b].name, file, fe->nnodes, fe->xyz, f,
+                                         fmbd_mbs_body_nm(m->mbs, id), fe_fields, d));
+      } else {
+        if (!strcmp(kind, FMBD_RFLEX_FORMAT)) {
+          FMBD_GCALL(fmbd_rflex_read(f, &rf));
+        } else {
+          FMBD_GCALL(fmbd_scene_rflex_from_cb(f, true, &rf));
+        }
+        FMBD_GCALL(fmbd_xdmf_add_body(r->xdmf, s->bodies[b].name, file, rf, f,
+                                      fmbd_mbs_body_nm(m->mbs, id)));
+        fmbd_rflex_destroy(&rf);
+      }
       r->xbody[r->nx++] = id;
-      fmbd_rflex_destroy(&rf);
     }
     fmbd_h5_close(&f);
   }
@@ -231,6 +273,11 @@ void fmbd_scene_recorder_destroy(fmbd_scene_recorder **rp) {
   run *r = *rp;
   if (!r) return;
   fmbd_xdmf_close(&r->xdmf);
+  for (int i = 0; r->fe && i < r->s->nbodies; i++) {
+    fmbd_free(r->fe[i].ua);
+    fmbd_free(r->fe[i].uall);
+  }
+  fmbd_free(r->fe);
   fmbd_free(r->xbody);
   fmbd_free(r->out);
   fmbd_free(r->react);

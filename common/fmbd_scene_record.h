@@ -24,9 +24,10 @@ typedef struct fmbd_scene_recorder fmbd_scene_recorder;
 /// @brief Declare in rf the series of the scene's outputs (docs/FORMAT.md: /outputs/NAME/*,
 /// compared with a reference, with the attributes body and node; /energy/*, /momentum/*,
 /// /reactions/JOINT/*), make rf's /stats come from m's integrator, and with xdmf_name (not NULL)
-/// the fields of every flexible body with solid elements (fmbd_xdmf.h; the body files are read
-/// again for their modal stresses; bodies without solid elements are left out with a warning,
-/// none at all is an error naming the scene). s, m and rf must outlive the recorder.
+/// the fields of every flexible body with solid elements (fmbd_xdmf.h; modal bodies' files are
+/// read again for their modal stresses, full FE bodies give their nodal displacements and the
+/// element stresses averaged at the nodes; bodies without solid elements are left out with a
+/// warning, none at all is an error naming the scene). s, m and rf must outlive the recorder.
 int fmbd_scene_recorder_create(const fmbd_scene *s, fmbd_scene_model *m, fmbd_runfile *rf,
                                const char *xdmf_name, fmbd_scene_recorder **out);
 /// @brief One run-file row of the model's state now.

@@ -15,7 +15,9 @@ typedef struct xbody {
   double *x0;             // 3 x nn reference positions
   double *T;              // 3 x nm per node: T[a + 3k + 3 nm p]
   double *S;              // 6 x nm per node: S[i + 6k + 6 nm p]
-  int pose_id, q_id;      // run-file series
+  fmbd_xdmf_field_fn fn;  // instead of T and S: the fields from q (fn(user, q, u, sigma))
+  void *user;
+  int pose_id, q_id;  // run-file series
 } xbody;
 
 struct fmbd_xdmf {
@@ -29,6 +31,8 @@ struct fmbd_xdmf {
   double *t;       // frames' times
   int64_t nframes, cap;
   double *pos, *disp, *vm;  // one frame's arrays (N x 3, N x 3, N)
+  double *u, *sig;          // a callback body's u (3 x nn) and sigma (6 x nn), largest body
+  int64_t nbuf;             // nodes they hold
 };
 
 void fmbd_xdmf_close(fmbd_xdmf **xp) {
@@ -48,6 +52,8 @@ void fmbd_xdmf_close(fmbd_xdmf **xp) {
   fmbd_free(x->pos);
   fmbd_free(x->disp);
   fmbd_free(x->vm);
+  fmbd_free(x->u);
+  fmbd_free(x->sig);
   fmbd_free(x);
   *xp = NULL;
 }
@@ -90,17 +96,13 @@ int fmbd_xdmf_create(fmbd_runfile *rf, const char *xdmf_name, fmbd_xdmf **out) {
   return FMBD_OK;
 }
 
-int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const fmbd_rflex *r,
-                       fmbd_h5 *f, int64_t nm) {
+// The common part of adding a body: checks, the cells (from f), the run file's record and series.
+// *out is the new body (x0 allocated, T/S/fn left to the caller).
+static int add_common(fmbd_xdmf *x, const char *name, const char *file, int64_t nn, fmbd_h5 *f,
+                      int64_t nq, xbody **out) {
   int rc = FMBD_OK;
   int64_t *el = NULL;
   FMBD_CHECK(x->nframes == 0, FMBD_ERR_VALUE, "body '%s' added after the first frame", name);
-  FMBD_CHECK(r->stress, FMBD_ERR_VALUE,
-             "body '%s': %s has no modal stress (/modes/stress): the XDMF fields need it "
-             "(cbcheck without --no-stress)",
-             name, file);
-  FMBD_CHECK(nm >= 0 && nm <= r->nm, FMBD_ERR_VALUE, "body '%s': %lld modes of %lld", name,
-             (long long)nm, (long long)r->nm);
   // the elements: tet10 or tet4, one kind for the whole run
   int k = fmbd_h5_exists(f, "/mesh/elements/tet10")  ? 10
           : fmbd_h5_exists(f, "/mesh/elements/tet4") ? 4
@@ -116,7 +118,7 @@ int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const f
   int64_t dims[2] = {-1, k};
   FMBD_GCALL(
       fmbd_h5_read_i64(f, k == 10 ? "/mesh/elements/tet10" : "/mesh/elements/tet4", 2, dims, &el));
-  int64_t ne = dims[0], nn = r->nnodes;
+  int64_t ne = dims[0];
   xbody *nb = fmbd_realloc(x->b, sizeof(xbody) * (size_t)(x->nb + 1));
   FMBD_GCHECK(nb, FMBD_ERR_NOMEM, "out of memory");
   x->b = nb;
@@ -124,26 +126,10 @@ int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const f
   memset(b, 0, sizeof *b);
   x->nb++;
   b->nn = nn;
-  b->nm = nm;
+  b->nm = nq;
   b->first = x->nnodes;
   FMBD_GALLOC(b->name = fmbd_strdup(name));
-  FMBD_GALLOC(b->x0 = fmbd_malloc(sizeof(double) * (size_t)(3 * nn)));
-  FMBD_GALLOC(b->T = fmbd_malloc(sizeof(double) * (size_t)(3 * nm * nn + 1)));
-  FMBD_GALLOC(b->S = fmbd_malloc(sizeof(double) * (size_t)(6 * nm * nn + 1)));
-  {
-    double *Tp = fmbd_malloc(sizeof(double) * (size_t)(3 * r->nm + 1));
-    FMBD_GCHECK(Tp, FMBD_ERR_NOMEM, "out of memory");
-    for (int64_t p = 0; p < nn && !rc; p++) {
-      rc = fmbd_rflex_node_modes(r, p, b->x0 + 3 * p, Tp, NULL);
-      for (int64_t m = 0; m < nm; m++) {
-        for (int a = 0; a < 3; a++) b->T[a + 3 * m + 3 * nm * p] = Tp[a + 3 * m];
-        for (int i = 0; i < 6; i++)
-          b->S[i + 6 * m + 6 * nm * p] = r->stress[i + 6 * p + 6 * nn * m];
-      }
-    }
-    fmbd_free(Tp);
-    if (rc) goto done;
-  }
+  FMBD_GALLOC(b->x0 = fmbd_malloc(sizeof(double) * (size_t)(3 * nn + 1)));
   // the cells, in XDMF's node order (Tetrahedron_10: edges 01 12 20 03 13 23; the gmsh order of
   // the fe file has 30 32 31 for the last three: its local nodes 8 and 9 swap)
   for (int64_t e = 0; e < ne; e++) {
@@ -174,13 +160,61 @@ int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const f
   snprintf(path, sizeof path, "/fields/body/%s/pose", name);
   FMBD_GCALL(fmbd_runfile_series(x->rf, path, 12, "m, 1", 0, &b->pose_id));
   snprintf(path, sizeof path, "/fields/body/%s/q", name);
-  FMBD_GCALL(fmbd_runfile_series(x->rf, path, (int)(nm ? nm : 1), "1", 0, &b->q_id));
+  FMBD_GCALL(fmbd_runfile_series(x->rf, path, (int)(nq ? nq : 1), "1", 0, &b->q_id));
   x->ncells += ne;
   x->nnodes += nn;
   x->cell_nodes = k;
+  *out = b;
 done:
   fmbd_free(el);
   return rc;
+}
+
+int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const fmbd_rflex *r,
+                       fmbd_h5 *f, int64_t nm) {
+  FMBD_CHECK(r->stress, FMBD_ERR_VALUE,
+             "body '%s': %s has no modal stress (/modes/stress): the XDMF fields need it "
+             "(cbcheck without --no-stress)",
+             name, file);
+  FMBD_CHECK(nm >= 0 && nm <= r->nm, FMBD_ERR_VALUE, "body '%s': %lld modes of %lld", name,
+             (long long)nm, (long long)r->nm);
+  xbody *b = NULL;
+  int64_t nn = r->nnodes;
+  FMBD_CALL(add_common(x, name, file, nn, f, nm, &b));
+  double *Tp = fmbd_malloc(sizeof(double) * (size_t)(3 * r->nm + 1));
+  b->T = fmbd_malloc(sizeof(double) * (size_t)(3 * nm * nn + 1));
+  b->S = fmbd_malloc(sizeof(double) * (size_t)(6 * nm * nn + 1));
+  int rc = Tp && b->T && b->S
+               ? FMBD_OK
+               : fmbd_err_set(FMBD_ERR_NOMEM, __FILE__, __LINE__, __func__, "out of memory");
+  for (int64_t p = 0; p < nn && !rc; p++) {
+    rc = fmbd_rflex_node_modes(r, p, b->x0 + 3 * p, Tp, NULL);
+    for (int64_t m = 0; m < nm && !rc; m++) {
+      for (int a = 0; a < 3; a++) b->T[a + 3 * m + 3 * nm * p] = Tp[a + 3 * m];
+      for (int i = 0; i < 6; i++) b->S[i + 6 * m + 6 * nm * p] = r->stress[i + 6 * p + 6 * nn * m];
+    }
+  }
+  fmbd_free(Tp);
+  return rc;
+}
+
+int fmbd_xdmf_add_body_fn(fmbd_xdmf *x, const char *name, const char *file, int64_t nnodes,
+                          const double *x0, fmbd_h5 *f, int64_t nq, fmbd_xdmf_field_fn fn,
+                          void *user) {
+  xbody *b = NULL;
+  FMBD_CALL(add_common(x, name, file, nnodes, f, nq, &b));
+  memcpy(b->x0, x0, sizeof(double) * (size_t)(3 * nnodes));
+  b->fn = fn;
+  b->user = user;
+  if (nnodes > x->nbuf) {
+    fmbd_free(x->u);
+    fmbd_free(x->sig);
+    x->u = fmbd_malloc(sizeof(double) * (size_t)(3 * nnodes));
+    x->sig = fmbd_malloc(sizeof(double) * (size_t)(6 * nnodes));
+    x->nbuf = x->u && x->sig ? nnodes : 0;
+    FMBD_CHECK(x->nbuf, FMBD_ERR_NOMEM, "out of memory");
+  }
+  return FMBD_OK;
 }
 
 // The concatenated reference nodes and cells, written before the first frame.
@@ -219,12 +253,18 @@ int fmbd_xdmf_frame(fmbd_xdmf *x, double t, const double *const *R, const double
   for (int i = 0; i < x->nb; i++) {
     const xbody *b = &x->b[i];
     const double *Ab = A[i], *Rb = R[i], *qb = q[i];
+    if (b->fn) FMBD_CALL(b->fn(b->user, qb, x->u, x->sig));
     for (int64_t p = 0; p < b->nn; p++) {
       double u[3] = {0, 0, 0}, s[6] = {0, 0, 0, 0, 0, 0};
-      const double *T = b->T + 3 * b->nm * p, *S = b->S + 6 * b->nm * p;
-      for (int64_t m = 0; m < b->nm; m++) {
-        for (int a = 0; a < 3; a++) u[a] += T[a + 3 * m] * qb[m];
-        for (int j = 0; j < 6; j++) s[j] += S[j + 6 * m] * qb[m];
+      if (b->fn) {
+        memcpy(u, x->u + 3 * p, sizeof u);
+        memcpy(s, x->sig + 6 * p, sizeof s);
+      } else {
+        const double *T = b->T + 3 * b->nm * p, *S = b->S + 6 * b->nm * p;
+        for (int64_t m = 0; m < b->nm; m++) {
+          for (int a = 0; a < 3; a++) u[a] += T[a + 3 * m] * qb[m];
+          for (int j = 0; j < 6; j++) s[j] += S[j + 6 * m] * qb[m];
+        }
       }
       double y[3], *pos = x->pos + 3 * (b->first + p), *disp = x->disp + 3 * (b->first + p);
       for (int a = 0; a < 3; a++) y[a] = b->x0[3 * p + a] + u[a];

@@ -45,6 +45,15 @@ int fmbd_xdmf_create(fmbd_runfile *rf, const char *xdmf_name, fmbd_xdmf **out);
 /// elements.
 int fmbd_xdmf_add_body(fmbd_xdmf *x, const char *name, const char *file, const fmbd_rflex *r,
                        fmbd_h5 *f, int64_t nm);
+/// The fields of a body that is not modal (a full FE body): from its coordinates q, the
+/// elastic translations u[a + 3p] and stresses sigma[i + 6p] (xx yy zz xy yz zx) of its nodes.
+typedef int (*fmbd_xdmf_field_fn)(void *user, const double *q, double *u, double *sigma);
+/// @brief Add a body whose fields fn computes (nnodes nodes at x0[a + 3p], body frame; nq
+/// coordinates, written as its q series): the same as fmbd_xdmf_add_body otherwise. fn and user
+/// must live until the last frame.
+int fmbd_xdmf_add_body_fn(fmbd_xdmf *x, const char *name, const char *file, int64_t nnodes,
+                          const double *x0, fmbd_h5 *f, int64_t nq, fmbd_xdmf_field_fn fn,
+                          void *user);
 /// @brief One frame at time t (call after fmbd_runfile_row, once per row): per body b in the
 /// order added, its origin R[b] (3), rotation A[b] (9, body -> world, row-major) and modal
 /// coordinates q[b] (nm).
