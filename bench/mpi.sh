@@ -54,9 +54,9 @@ for h in $SIZES; do
   run s2-$h 2 fe2cb "$fe" --modes "$N" -o s2-$h.cb.h5 -v || continue
   b="$wall $cpu $rss_mb"
   run p1-$h 1 fe2cb-mpi "$fe" --modes "$N" -o p1-$h.cb.h5 -v || continue
-  c="$wall s, $(mpi_figures p1-$h)"
+  c="$wall s, cpu $cpu, $(mpi_figures p1-$h)"
   run p2-$h 1 "${MPIRUN[@]}" -np 2 fe2cb-mpi "$fe" --modes "$N" -o p2-$h.cb.h5 -v || continue
-  d="$wall s, $(mpi_figures p2-$h)"
+  d="$wall s, cpu $cpu, $(mpi_figures p2-$h)"
   printf '%-7s %8s | %-22s | %-22s | %-30s | %-30s\n' "$h" "$ndof" "$a" "$b" "$c" "$d"
   for p in p1 p2; do
     grep -E 'MUMPS factor of Ks|time:' $p-$h.err | sed "s/^fe2cb-mpi: /    $p: /"

@@ -475,3 +475,30 @@ int fmbd_cli_numbers(const char *opt, const char *text, int n, char sep, double 
   }
   return 0;
 }
+
+void fmbd_cli_names_free(fmbd_cli_names *l) {
+  if (!l) return;
+  fmbd_free(l->name);
+  fmbd_free(l->text);
+  memset(l, 0, sizeof *l);
+}
+
+int fmbd_cli_names_parse(const char *opt, const char *text, fmbd_cli_names *l) {
+  fmbd_cli_names_free(l);
+  int cap = 1;
+  for (const char *p = text; *p; p++) cap += *p == ',';
+  l->text = fmbd_strdup(text);
+  l->name = fmbd_calloc((size_t)cap, sizeof(char *));
+  if (!l->text || !l->name) {
+    fmbd_cli_names_free(l);
+    return fmbd_cli_usage_error("out of memory");
+  }
+  for (char *s = l->text, *save = NULL, *t; (t = strtok_r(s, ",", &save)); s = NULL) {
+    l->name[l->n++] = t;
+  }
+  if (l->n == 0) {
+    fmbd_cli_names_free(l);
+    return fmbd_cli_usage_error("%s '%s': no name", opt, text);
+  }
+  return 0;
+}

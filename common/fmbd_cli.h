@@ -161,4 +161,17 @@ int fmbd_cli_long(fmbd_cli_args *p, long lo, long hi, long *out);
 /// list of 6 numbers separated by ','".
 int fmbd_cli_numbers(const char *opt, const char *text, int n, char sep, double *v);
 
+/// A comma-separated list of names from one option's value (e.g. `--boundary end0,end1`).
+typedef struct fmbd_cli_names {
+  int n;        ///< number of names (>= 1 after a successful parse)
+  char **name;  ///< n names, pointing into text (owned by the struct)
+  char *text;   ///< the value's copy, split in place
+} fmbd_cli_names;
+/// @brief Split text at ',' into l (replacing what l held: a repeated option keeps the last
+/// value). Empty names are skipped; no name at all is a usage error naming opt (printed,
+/// returns 2). l starts zeroed; release with fmbd_cli_names_free.
+int fmbd_cli_names_parse(const char *opt, const char *text, fmbd_cli_names *l);
+/// @brief Release l's arrays and zero it; a zeroed l is fine.
+void fmbd_cli_names_free(fmbd_cli_names *l);
+
 #endif

@@ -240,15 +240,8 @@ static void rigid_beam(const double *x0, const double *x1, const double *Me, dou
   const double *x[2] = {x0, x1};
   for (int a = 0; a < 2; a++) {
     double *r = R + a * 36;
-    const double *p = x[a];
-    for (int k = 0; k < 6; k++) r[k * 6 + k] = 1.0;
-    // -[p]x = [[0, pz, -py], [-pz, 0, px], [py, -px, 0]]
-    r[0 * 6 + 4] = p[2];
-    r[0 * 6 + 5] = -p[1];
-    r[1 * 6 + 3] = -p[2];
-    r[1 * 6 + 5] = p[0];
-    r[2 * 6 + 3] = p[1];
-    r[2 * 6 + 4] = -p[0];
+    fmbd_fe_rigid_rows(x[a], r);  // rows 0..2 (row stride 6)
+    for (int k = 3; k < 6; k++) r[k * 6 + k] = 1.0;
   }
   double MR[72];  // Me R (12 x 6)
   for (int i = 0; i < 12; i++) {

@@ -239,4 +239,9 @@ int fmbd_fe_beam_lumped(const double x0[3], const double x1[3], const double v[3
 /// @param[in] Me (n x n) row-major scalar mass; @param[out] d (n,)
 void fmbd_fe_hrz_scalar(int n, const double *Me, double m, double *d);
 
+/// @brief The 3 x 6 map from a rigid motion (translation t, small rotation w) of a frame to
+/// the displacement of a point at offset r from its origin: u = t + w x r = [I, -[r]x] (t; w).
+/// @param[out] A row-major 3 x 6 (A[6 i + j])
+void fmbd_fe_rigid_rows(const double r[3], double A[18]);
+
 #endif

@@ -336,6 +336,18 @@ int fmbd_fe_tet_matrices(int nn, const double *xyz, double E, double nu, double 
   return FMBD_OK;
 }
 
+void fmbd_fe_rigid_rows(const double r[3], double A[18]) {
+  memset(A, 0, 18 * sizeof *A);
+  for (int k = 0; k < 3; k++) A[k * 6 + k] = 1.0;
+  // -[r]x = [[0, rz, -ry], [-rz, 0, rx], [ry, -rx, 0]]
+  A[0 * 6 + 4] = r[2];
+  A[0 * 6 + 5] = -r[1];
+  A[1 * 6 + 3] = -r[2];
+  A[1 * 6 + 5] = r[0];
+  A[2 * 6 + 3] = r[1];
+  A[2 * 6 + 4] = -r[0];
+}
+
 void fmbd_fe_hrz_scalar(int n, const double *Me, double m, double *d) {
   double s = 0.0;
   for (int a = 0; a < n; a++) s += Me[a * n + a];

@@ -192,15 +192,8 @@ static int rbe3_setup(tie_ctx *c, int ii) {
   for (int64_t i = 0; i < n; i++) {
     const double *x = b->xyz + 3 * it->nodes[i];
     double r[3] = {x[0] - xr[0], x[1] - xr[1], x[2] - xr[2]};
-    // A_i (3x6) = [I, -[r]x];  -[r]x = [[0, rz, -ry], [-rz, 0, rx], [ry, -rx, 0]]
-    double A[18] = {0};  // row-major 3 x 6
-    for (int k = 0; k < 3; k++) A[k * 6 + k] = 1.0;
-    A[0 * 6 + 4] = r[2];
-    A[0 * 6 + 5] = -r[1];
-    A[1 * 6 + 3] = -r[2];
-    A[1 * 6 + 5] = r[0];
-    A[2 * 6 + 3] = r[1];
-    A[2 * 6 + 4] = -r[0];
+    double A[18];  // A_i = [I, -[r]x], row-major 3 x 6
+    fmbd_fe_rigid_rows(r, A);
     for (int p = 0; p < 6; p++) {
       for (int q = 0; q < 6; q++) {
         double s = 0.0;

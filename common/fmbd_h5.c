@@ -747,6 +747,17 @@ static int open_numeric(fmbd_h5 *f, const char *path, int rank, int64_t *dims, h
       }
       total *= hd[k];
     }
+    // nor claim more than its bytes in the file can hold: a small corrupt file may declare a
+    // dataset of 1e15 elements (chunks never written read as fill values). Deflate expands at
+    // most ~1032:1, so 2048 x the storage (+ 1 MiB for small or compact datasets) bounds real
+    // data; beyond it the header is corrupt, not the memory short
+    hsize_t st = H5Dget_storage_size(d);
+    if (total > ((uint64_t)st * 2048 + (1u << 20)) / 8) {
+      FMBD_GFAIL(FMBD_ERR_FORMAT,
+                 "the dataset claims %llu elements, but holds %llu bytes in the file (a corrupt "
+                 "header?)",
+                 (unsigned long long)total, (unsigned long long)st);
+    }
   }
   *out = d;
   d = -1;

@@ -54,28 +54,9 @@ static const char *usage_text =
 typedef struct args {
   const char *input, *output;
   fmbd_slepc_opts o;
-  int ngroups;
-  char **groups;
-  char *groups_text;
+  fmbd_cli_names groups;  ///< --boundary
   int quiet, verbose;
 } args;
-
-static int split_groups(args *a, const char *text) {
-  fmbd_free(a->groups_text);
-  fmbd_free(a->groups);
-  a->groups = NULL;
-  a->ngroups = 0;
-  a->groups_text = fmbd_strdup(text);
-  int n = 1;
-  for (const char *p = text; *p; p++) n += *p == ',';
-  a->groups = fmbd_calloc((size_t)n, sizeof(char *));
-  if (!a->groups_text || !a->groups) return fmbd_cli_usage_error("out of memory");
-  for (char *s = a->groups_text, *save = NULL, *t; (t = strtok_r(s, ",", &save)); s = NULL) {
-    a->groups[a->ngroups++] = t;
-  }
-  if (a->ngroups == 0) return fmbd_cli_usage_error("--boundary '%s': no group name", text);
-  return 0;
-}
 
 enum { OPT_OUTPUT = 1, OPT_MODES, OPT_BOUNDARY, OPT_NO_STURM, OPT_SERIAL_ONLY };
 static const fmbd_cli_option options[] = {
@@ -108,7 +89,7 @@ static int parse_args(int argc, char **argv, args *a) {
         break;
       }
       case OPT_BOUNDARY: {
-        int st = split_groups(a, val);
+        int st = fmbd_cli_names_parse("--boundary", val, &a->groups);
         if (st) return st;
         break;
       }
@@ -138,8 +119,7 @@ int main(int argc, char **argv) {
   // options first (every process the same; usage errors before MPI starts)
   int st = parse_args(argc, argv, &a);
   if (st != 0) {
-    fmbd_free(a.groups);
-    fmbd_free(a.groups_text);
+    fmbd_cli_names_free(&a.groups);
     return fmbd_cli_finish(st < 0 ? 0 : st);
   }
   int rc = fmbd_slepc_init();
@@ -173,7 +153,8 @@ int main(int argc, char **argv) {
   fmbd_cb_defaults(&defaults);
   FMBD_GCALL(fmbd_cb_check_body(body, defaults.sym_rtol));
   fmbd_err_context(a.input, "/interfaces");
-  FMBD_GCALL(fmbd_cb_boundary(body, a.ngroups, (const char *const *)a.groups, &nb, &boundary));
+  FMBD_GCALL(
+      fmbd_cb_boundary(body, a.groups.n, (const char *const *)a.groups.name, &nb, &boundary));
   if (nb == 0) {
     fmbd_log(FMBD_LOG_WARN,
              "%s: no interface and no --boundary group: the fixed-interface modes "
@@ -239,8 +220,7 @@ finish:
   fmbd_cb_destroy(&cb);
   fmbd_free(boundary);
   fmbd_free(oname);
-  fmbd_free(a.groups);
-  fmbd_free(a.groups_text);
+  fmbd_cli_names_free(&a.groups);
   fmbd_slepc_finalize();
   if (rank != 0) return fmbd_err_exit_status(rc);  // process 0 reports (PETSc: every one)
   return fmbd_cli_finish(rc);

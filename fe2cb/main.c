@@ -51,30 +51,11 @@ static const char *usage_text =
 typedef struct args {
   const char *input, *output;
   fmbd_cb_opts cb;
-  int ngroups;
-  char **groups;
-  char *groups_text;
+  fmbd_cli_names groups;  ///< --boundary
   int quiet, verbose;
   bool modes_given;
   const char *method;
 } args;
-
-static int split_groups(args *a, const char *text) {
-  fmbd_free(a->groups_text);
-  fmbd_free(a->groups);
-  a->groups = NULL;
-  a->ngroups = 0;
-  a->groups_text = fmbd_strdup(text);
-  int n = 1;
-  for (const char *p = text; *p; p++) n += *p == ',';
-  a->groups = fmbd_calloc((size_t)n, sizeof(char *));
-  if (!a->groups_text || !a->groups) return fmbd_cli_usage_error("out of memory");
-  for (char *s = a->groups_text, *save = NULL, *t; (t = strtok_r(s, ",", &save)); s = NULL) {
-    a->groups[a->ngroups++] = t;
-  }
-  if (a->ngroups == 0) return fmbd_cli_usage_error("--boundary '%s': no group name", text);
-  return 0;
-}
 
 enum { OPT_OUTPUT = 1, OPT_MODES, OPT_FMAX, OPT_METHOD, OPT_BOUNDARY, OPT_HOLD, OPT_NO_STURM };
 static const fmbd_cli_option options[] = {
@@ -118,7 +99,7 @@ static int parse_args(int argc, char **argv, args *a) {
         a->cb.nm = !strcmp(val, "nm");
         break;
       case OPT_BOUNDARY: {
-        int st = split_groups(a, val);
+        int st = fmbd_cli_names_parse("--boundary", val, &a->groups);
         if (st) return st;
         break;
       }
@@ -186,8 +167,7 @@ int main(int argc, char **argv) {
   fmbd_cb_defaults(&a.cb);
   int st = parse_args(argc, argv, &a);
   if (st != 0) {
-    fmbd_free(a.groups);
-    fmbd_free(a.groups_text);
+    fmbd_cli_names_free(&a.groups);
     return fmbd_cli_finish(st < 0 ? 0 : st);
   }
   fmbd_cli_set_verbosity(a.quiet, a.verbose);
@@ -210,7 +190,8 @@ int main(int argc, char **argv) {
   fmbd_err_context(a.input, "");
   FMBD_GCALL(fmbd_cb_check_body(body, a.cb.sym_rtol));
   fmbd_err_context(a.input, "/interfaces");
-  FMBD_GCALL(fmbd_cb_boundary(body, a.ngroups, (const char *const *)a.groups, &nb, &boundary));
+  FMBD_GCALL(
+      fmbd_cb_boundary(body, a.groups.n, (const char *const *)a.groups.name, &nb, &boundary));
   double t_read = fmbd_wall_s() - t0;
   fmbd_log(FMBD_LOG_DEBUG, "peak memory after reading: %.0f MB", peak_mb());
   if (nb == 0 && !(a.cb.nm && !a.cb.hold)) {
@@ -255,7 +236,6 @@ done:
   fmbd_cb_destroy(&cb);
   fmbd_free(boundary);
   fmbd_free(oname);
-  fmbd_free(a.groups);
-  fmbd_free(a.groups_text);
+  fmbd_cli_names_free(&a.groups);
   return fmbd_cli_finish(rc);
 }

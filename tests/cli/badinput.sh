@@ -77,6 +77,11 @@ variant("overlap.cb.h5", setds("cb/interior_dofs", i2))
 variant("short.cb.h5", setds("cb/interior_dofs", idf[:-1]))
 variant("noelem.cb.h5", lambda f: f["mesh"].__delitem__("elements"))
 variant("nodes.cb.h5", lambda f: f["mesh"].__delitem__("nodes"))
+# a dataset whose header claims 1e13 elements (chunks never written): no giant allocation
+shutil.copy("rod.fe.h5", "huge.fe.h5")
+with h5py.File("huge.fe.h5", "r+") as f:
+    del f["mesh/nodes"]
+    f.create_dataset("mesh/nodes", shape=(10**12, 3), dtype="f8", chunks=(4096, 3))
 PY
 
 # --- every reader on empty, truncated, text, foreign, newer files ------------------------------
@@ -102,6 +107,9 @@ for c in trunc foreign; do
   expect fmbd-run 1 "$r" o.run.h5 -- run.yaml -o o.run.h5 --reference $r
 done
 expect fmbd-run 1 "rod\.rflex\.h5.*expected fmbd-run" o.run.h5 -- run.yaml -o o.run.h5 --reference rod.rflex.h5
+
+expect fe2cb 1 "huge\.fe\.h5:/mesh/nodes: the dataset claims 3000000000000 elements, but holds 0 bytes" \
+  o.cb.h5 -- huge.fe.h5 -o o.cb.h5
 
 # --- cb files whose dof lists are inconsistent: the cb file is named, never the fe file -------
 for p in cbcheck fmbd-run; do

@@ -318,6 +318,28 @@ static int list_case(void *arg) {
   return fmbd_cli_numbers("--window", arg, 2, ':', v);
 }
 
+static int names_case(void *arg) {
+  fmbd_cli_names *l = ((void **)arg)[0];
+  return fmbd_cli_names_parse("--boundary", ((void **)arg)[1], l);
+}
+
+static void test_names(void) {
+  fmbd_cli_names l = {0};
+  int st;
+  void *a[2] = {&l, "end0,,end1,"};
+  const char *e = capture_stderr(names_case, a, &st);
+  EXPECT(st == 0 && !*e && l.n == 2 && !strcmp(l.name[0], "end0") && !strcmp(l.name[1], "end1"),
+         "names: %d '%s' n = %d", st, e, l.n);
+  a[1] = "clamp";  // a repeated option keeps the last value
+  e = capture_stderr(names_case, a, &st);
+  EXPECT(st == 0 && l.n == 1 && !strcmp(l.name[0], "clamp"), "names again: %d n = %d", st, l.n);
+  a[1] = ",,";
+  e = capture_stderr(names_case, a, &st);
+  EXPECT(st == 2 && strstr(e, "--boundary ',,': no name") && l.n == 0 && !l.name,
+         "no name: %d '%s'", st, e);
+  fmbd_cli_names_free(&l);
+}
+
 static void test_numbers(void) {
   fmbd_cli_args p = {.opt = "--tol"};
   int st;
@@ -370,6 +392,7 @@ int main(void) {
   test_reports();
   test_parser();
   test_numbers();
+  test_names();
   fmbd_cli_finish(0);
   // the shared options: counted, and anything else left to the program
   {
