@@ -578,8 +578,7 @@ static int64_t block_size(const fmbd_eig_opts *o, int64_t n, int64_t nreq, int64
   return mmax + p <= n ? p : 0;                            // nearly all of a small problem: ARPACK
 }
 
-// max_i K_ii / M_ii over dofs with mass: the upper end of the spectrum, a scale
-static double spectrum_scale(const fmbd_csr *K, const fmbd_csr *M) {
+double fmbd_eig_spectrum_scale(const fmbd_csr *K, const fmbd_csr *M) {
   double s = 0.0;
   for (int64_t i = 0; i < K->nrows; i++) {
     double k = fmbd_csr_get(K, i, i), m = fmbd_csr_get(M, i, i);
@@ -659,7 +658,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     res->nev = keep;
     FMBD_GALLOC(res->resid = fmbd_malloc((size_t)(keep ? keep : 1) * sizeof(double)));
     double t1 = fmbd_wall_s();
-    double top = fabs(spectrum_scale(K, M)), scale = top * 1e-12;
+    double top = fabs(fmbd_eig_spectrum_scale(K, M)), scale = top * 1e-12;
     for (int64_t j = 0; j < keep; j++) {
       double sj = fmax(fabs(r.lam[j]), scale);
       res->resid[j] = fmbd_eig_residual(K, M, r.lam[j], r.X + j * n, sj, work);
@@ -688,7 +687,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
       FMBD_GCALL(fmbd_chol_factor(own, 0.0));
       res->sigma = 0.0;
     } else {
-      double scale = spectrum_scale(K, M);
+      double scale = fmbd_eig_spectrum_scale(K, M);
       FMBD_GCHECK(scale > 0.0, FMBD_ERR_VALUE, "stiffness or mass matrix has no positive diagonal");
       double sigma0 = -1e-6 * scale;
       FMBD_GCALL(fmbd_chol_factor(own, sigma0));
@@ -723,7 +722,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   }
 
   // --- Lanczos passes with checks ------------------------------------------------------------
-  double top = spectrum_scale(K, M);
+  double top = fmbd_eig_spectrum_scale(K, M);
   int64_t want = bound ? 0 : o.nev;
   int64_t nreq = bound ? o.nev : o.nev + (o.nev / 10 > 3 ? o.nev / 10 : 3);
   int64_t ncv_extra = 0;

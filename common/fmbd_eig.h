@@ -95,6 +95,10 @@ typedef struct fmbd_eig_result {
   double t_check_s;     ///< residual computation
 } fmbd_eig_result;
 
+/// @brief max_i K_ii / M_ii over the dofs with mass: the upper end of the spectrum of
+/// K x = lambda M x (Rayleigh quotients of unit vectors), the scale of shifts and zero tests.
+double fmbd_eig_spectrum_scale(const fmbd_csr *K, const fmbd_csr *M);
+
 /// @brief Lowest eigenpairs of K x = lambda M x (see the file comment).
 /// @param[in] K, M  borrowed, ndof x ndof, symmetric (full storage; not checked here)
 /// @param[in] F     borrowed, may be NULL: a factor analysed for K (and M) and factored at a

@@ -304,15 +304,6 @@ void fmbd_gm_result_free(fmbd_gm_result *res) {
   memset(res, 0, sizeof *res);
 }
 
-static double spectrum_scale(const fmbd_csr *K, const fmbd_csr *M) {
-  double s = 0.0;
-  for (int64_t i = 0; i < K->nrows; i++) {
-    double k = fmbd_csr_get(K, i, i), m = fmbd_csr_get(M, i, i);
-    if (m > 0.0 && k / m > s) s = k / m;
-  }
-  return s;
-}
-
 int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, const bool *rigid,
                   const fmbd_gm_opts *oin, fmbd_gm_result *res, int64_t *bad_row) {
   int rc = FMBD_OK;
@@ -369,7 +360,7 @@ int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, cons
   FMBD_GCALL(fmbd_csr_ptap(K, N.Z, &Kr));
   FMBD_GCALL(fmbd_csr_ptap(M, N.Z, &Mr));
   res->t_project_s = fmbd_wall_s() - t0;
-  double scale = spectrum_scale(Kr, Mr);
+  double scale = fmbd_eig_spectrum_scale(Kr, Mr);
   res->zero_bound = o.zero_tol * scale;
   fmbd_eig_opts eo;
   fmbd_eig_defaults(&eo);
