@@ -240,7 +240,7 @@ double fmbd_von_mises(const double s[6]) {
 // M-orthogonal to rigid motion get S1 = 0 exactly. A consistent-mass body with beams (whose
 // consistent mass couples translations and rotations, so that no scalar nodal mass reproduces
 // it) gets its rigid-flexible coupling from the full consistent mass M instead
-// (fmbd_rflex_beam_consistent, docs/THEORY.md section 9): S1 = T' M S and the rotational
+// (beam_consistent below, docs/THEORY.md section 9): S1 = T' M S and the rotational
 // coupling R' M S through the rigid-body fields T, R; the symmetric part of XS and SS (the
 // deformation terms of J(q)) keep the lumped nodal masses. Lumped-mass bodies use the lumped
 // nodal masses throughout.
