@@ -237,8 +237,13 @@ double fmbd_von_mises(const double s[6]) {
 // --- the mass of the invariants -------------------------------------------------------------
 // A solid body meshed with consistent mass: its translational mass is the scalar consistent
 // mass of the elements repeated per direction, and the invariants use it too, so that modes
-// M-orthogonal to rigid motion get S1 = 0 exactly. Beams (whose consistent mass couples
-// translations and rotations) and lumped-mass bodies use the lumped nodal masses.
+// M-orthogonal to rigid motion get S1 = 0 exactly. A consistent-mass body with beams (whose
+// consistent mass couples translations and rotations, so that no scalar nodal mass reproduces
+// it) gets its rigid-flexible coupling from the full consistent mass M instead
+// (beam_consistent below, docs/THEORY.md section 9): S1 = T' M S and the rotational
+// coupling R' M S through the rigid-body fields T, R; the symmetric part of XS and SS (the
+// deformation terms of J(q)) keep the lumped nodal masses. Lumped-mass bodies use the lumped
+// nodal masses throughout.
 bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b) {
   return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->ntet > 0 && b->tet && b->nbeam == 0;
 }
@@ -267,6 +272,60 @@ static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *
   return FMBD_OK;
 }
 
+// True when the rigid-flexible coupling comes from the full consistent mass (beam elements).
+static bool beam_consistent(const fmbd_fe_body *b) {
+  return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->nbeam > 0 && b->beam &&
+         b->beam_orientation && b->has_section;
+}
+
+// W = M U for the nm columns of U (6 nn x nm, column-major, the nodal motion from /expand),
+// with M the unconstrained consistent mass of the mesh (never assembled): the scalar consistent
+// mass of each tet on the translations, the 12x12 consistent mass of each beam. The body's
+// active mass is expand' M expand (ties and clamps applied element by element), so that
+// f' M U = (expand' f)' S for every field f of the nodes.
+static int consistent_weighted_full(const fmbd_fe_body *b, int64_t nm, const double *U, double *W) {
+  int64_t nnodes = b->nnodes;
+  int64_t ld = 6 * nnodes;
+  memset(W, 0, sizeof(double) * (size_t)(ld * nm));
+  if (b->ntet > 0 && b->tet) {
+    int nn = b->tet_nodes;
+    double xyz[30], Me[100], vol;
+    for (int64_t e = 0; e < b->ntet; e++) {
+      const int64_t *nd = b->tet + (int64_t)nn * e;
+      for (int i = 0; i < nn; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
+      FMBD_CALL(fmbd_fe_tet_matrices(nn, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
+      for (int64_t k = 0; k < nm; k++) {
+        const double *u = U + ld * k;
+        double *w = W + ld * k;
+        for (int i = 0; i < nn; i++) {
+          for (int a = 0; a < 3; a++) {
+            double acc = 0.0;
+            for (int q = 0; q < nn; q++) acc += Me[nn * i + q] * u[6 * nd[q] + a];
+            w[6 * nd[i] + a] += acc;
+          }
+        }
+      }
+    }
+  }
+  double Me[144];
+  for (int64_t e = 0; e < b->nbeam; e++) {
+    const int64_t *nd = b->beam + 2 * e;
+    FMBD_CALL(fmbd_fe_beam_matrices(b->xyz + 3 * nd[0], b->xyz + 3 * nd[1],
+                                    b->beam_orientation + 3 * e, b->E, b->nu, b->rho, b->area,
+                                    b->Iy, b->Iz, b->J, e, NULL, Me));
+    for (int64_t k = 0; k < nm; k++) {
+      const double *u = U + ld * k;
+      double *w = W + ld * k;
+      for (int i = 0; i < 12; i++) {
+        double acc = 0.0;
+        for (int j = 0; j < 12; j++) acc += Me[12 * i + j] * u[6 * nd[j / 6] + j % 6];
+        w[6 * nd[i / 6] + i % 6] += acc;
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
 // --- a body from its shapes: the one place of the nodal motion and the invariants ---------
 // r already holds nm, ndof, nnodes and shapes (ndof x nm); Mff, Kff (nm x nm, column-major)
 // and eig (nm Ritz eigenvalues, > 0) are copied. Everything else is derived here: the
@@ -275,7 +334,7 @@ static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *
 static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
                         const double *eig, bool stress) {
   int rc = FMBD_OK;
-  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL;
+  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL;
   int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
   FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
   FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
@@ -316,7 +375,7 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
       }
     }
   }
-  // --- FFRF invariants (docs/THEORY.md section 9): lumped nodal masses m_p ---
+  // --- FFRF invariants (docs/THEORY.md section 9) ---
   r->mass = b->mass;
   for (int a = 0; a < 3; a++) {
     r->first_moment[a] = b->mass * b->center_of_mass[a];
@@ -371,6 +430,39 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
       }
     }
+    if (beam_consistent(b)) {
+      // the rigid-flexible coupling from the consistent mass M the modes come from (docs/THEORY.md
+      // section 9): with WM = M U, S1_k,a = T_a' WM_k (T_a: unit translation a at every node,
+      // no rotation) and v_k,a = R_a' WM_k (R_a: rotation about axis a through the frame
+      // origin, e_a x x0 at the translations, e_a at the rotations). v_k is M_wf[:,k] at q = 0,
+      // eps_abc XS_bc,k: it replaces the antisymmetric part of XS_k; the symmetric part stays
+      // the lumped one (it only enters J(q) - J0, at first order in q).
+      FMBD_GALLOC(WM = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+      FMBD_GCALL(consistent_weighted_full(b, nm, U, WM));
+      for (int64_t k = 0; k < nm; k++) {
+        const double *w = WM + 6 * nn * k;
+        double s1[3] = {0.0, 0.0, 0.0}, v[3] = {0.0, 0.0, 0.0};
+        for (int64_t p = 0; p < nn; p++) {
+          const double *x = r->node_xyz + 3 * p, *f = w + 6 * p;
+          for (int a = 0; a < 3; a++) s1[a] += f[a];
+          v[0] += x[1] * f[2] - x[2] * f[1] + f[3];
+          v[1] += x[2] * f[0] - x[0] * f[2] + f[4];
+          v[2] += x[0] * f[1] - x[1] * f[0] + f[5];
+        }
+        double *xs = r->XS + 9 * k;  // xs[a + 3 b] = XS_ab,k
+        for (int a = 0; a < 3; a++) {
+          r->S1[a + 3 * k] = s1[a];
+          for (int bb = a + 1; bb < 3; bb++) {
+            double sym = 0.5 * (xs[a + 3 * bb] + xs[bb + 3 * a]);
+            // antisymmetric part A_ab = eps_cab v_c / 2
+            int c = 3 - a - bb;
+            double eps = ((a + 1) % 3 == bb) ? 1.0 : -1.0;  // eps_c a bb = eps_a bb c
+            xs[a + 3 * bb] = sym + 0.5 * eps * v[c];
+            xs[bb + 3 * a] = sym - 0.5 * eps * v[c];
+          }
+        }
+      }
+    }
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
@@ -396,6 +488,7 @@ done:
   fmbd_free(Wa);
   fmbd_free(Ub);
   fmbd_free(Sab);
+  fmbd_free(WM);
   return rc;
 }
 

@@ -162,7 +162,10 @@ int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out);
 
 /// @brief True when fmbd_rflex_build evaluates the invariants S1, XS, SS with the body's
 /// scalar consistent mass (a solid body, tet4/tet10, meshed with consistent mass: the mass the
-/// modes come from), false when with the lumped nodal masses (lumped-mass bodies, beams).
+/// modes come from), false otherwise. A consistent-mass body with beams then takes S1 and the
+/// antisymmetric part of XS from its full consistent mass (T'MS, R'MS) and the symmetric part
+/// of XS and SS from the lumped nodal masses; a lumped-mass body uses the lumped nodal masses
+/// (docs/THEORY.md section 9).
 bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b);
 
 /// @brief Release r and its arrays; NULL and *r == NULL are fine; sets *r = NULL.

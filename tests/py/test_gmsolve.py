@@ -262,18 +262,20 @@ if ok:
     check(d > 0 and e < 1e-6 * d, f"clamped beam: GMc tip motion = own modes' ({e:.1e} m of {d:.2e} m)")
     with h5py.File(os.path.join(TMP, "gmc.run.h5"), "r") as f:
         check(any("clamp20.gm.h5" in str(x) for x in f.attrs["inputs"].ravel()), "the run names the gm file")
-# (b) the four-bar: GMc bases of the first 1, 7 and all 9 flexible global modes converge to the motion
-# with the coupler's own 12 modes (measured 3.1e-5, 2.5e-7, 1.6e-16 m: modes 2-6 add nothing
-# to this planar motion, mode 7 most of the rest)
+# (b) the four-bar: GMc bases of the first 1, 8 and all 9 flexible global modes converge to the motion
+# with the coupler's own 12 modes (measured 3.1e-5, 9.8e-8, 1.9e-16 m: modes 2-7 add nothing
+# to this planar motion, mode 8 (4124 Hz) most of the rest. That mode was 7th while the beam's
+# coupling used lumped masses: another mode, 4644 Hz then, is 4075 Hz with the coupling from the
+# consistent mass (docs/THEORY.md section 9) and now comes first)
 ok = run("gmsolve", "fb.yaml", "--modes", "9", "-o", "all.gm.h5", "-q").returncode == 0
 ok = ok and run("fmbd-run", "fb.yaml", "-o", "fb.run.h5", "-q").returncode == 0
 errs = []
-for k in (1, 7, 9):
+for k in (1, 8, 9):
     fb("fbg%d.yaml" % k, "coupler.cb.h5", ", basis: all.gm.h5, modes: %d" % k)
     ok = ok and run("fmbd-run", "fbg%d.yaml" % k, "-o", "g%d.run.h5" % k, "-q").returncode == 0
     if ok:
         errs.append(np.max(np.linalg.norm(point("g%d.run.h5" % k, "mid") - point("fb.run.h5", "mid"), axis=1)))
-check(ok and errs[0] > 10 * errs[1] > 100 * errs[2], "four-bar: GMc of the first 1, 7, 9 global modes: mid-span error "
+check(ok and errs[0] > 10 * errs[1] > 100 * errs[2], "four-bar: GMc of the first 1, 8, 9 global modes: mid-span error "
       + ", ".join("%.2e" % e for e in errs) + " m, decreasing")
 
 # --- 5. full FE bodies -----------------------------------------------------------------------
