@@ -178,8 +178,8 @@ static int dense_csr(int64_t nq, const double *A, fmbd_csr **out) {
 // start at off + 7: the modal coordinates of a modal body (shapes on the FE dofs through the
 // file's modes), or the FE dofs of a full FE body other than its frame node's (fe_col).
 int fmbd_gm_write_body(fmbd_h5 *f, const fmbd_scene *s, const fmbd_scene_model *md, int bi,
-                      int64_t off, int64_t nq, int64_t n, const double *Xf, int64_t nk,
-                      double rank_tol, const char *sha, int64_t *ncols) {
+                       int64_t off, int64_t nq, int64_t n, const double *Xf, int64_t nk,
+                       double rank_tol, const char *sha, int64_t *ncols) {
   int rc = FMBD_OK;
   const fmbd_rflex *r = md->flex[bi];
   const fmbd_fe_body *fe = md->fe ? md->fe[bi] : NULL;
@@ -293,7 +293,6 @@ void fmbd_gm_equation_name(const fmbd_scene *s, const fmbd_scene_model *md, int6
   eq_map(s, &q);
   eq_name(s, md, &q, e, buf, len);
 }
-
 
 int64_t fmbd_gm_equation_count(const fmbd_scene *s) {
   eqmap q;

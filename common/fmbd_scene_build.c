@@ -469,6 +469,14 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
   }
   FMBD_GCALL(fmbd_csr_submatrix(fe->expand, 3 * nn, rows, n, kept, &E));
   FMBD_GCALL(fe_nodal_mass(fe, &Mn));
+  if (fe->nbeam > 0) {
+    fmbd_log(FMBD_LOG_WARN,
+             "%s:%d: body '%s': %s has beam elements: as a full FE body its rigid-flexible "
+             "coupling uses the lumped nodal masses, not the consistent mass its M holds; exact "
+             "when the frame node is held, else the run may fail to converge (docs/THEORY.md "
+             "section 4b; a .cb.h5 or .rflex.h5 body of it has the consistent coupling)",
+             s->file, b->file_loc.line, b->name, b->file);
+  }
   if (b->damping_ratio > 0) {
     double w1 = 0;
     FMBD_GCALL(fe_damping(Kf, Mf, b->damping_ratio, &D, &w1));
