@@ -22,7 +22,7 @@
 
 static const char *const DIRNAME[6] = {"ux", "uy", "uz", "rx", "ry", "rz"};
 
-void fmbd_cb_defaults(fmbd_cb_opts *o) {
+void fmbd_cb_opts_defaults(fmbd_cb_opts *o) {
   memset(o, 0, sizeof *o);
   o->nm = false;
   o->hold = false;
@@ -30,7 +30,7 @@ void fmbd_cb_defaults(fmbd_cb_opts *o) {
   o->fmax_hz = 0.0;
   o->rigid_rtol = 1e-6;
   o->sym_rtol = 1e-10;
-  fmbd_eig_defaults(&o->eig);
+  fmbd_eig_opts_defaults(&o->eig);
 }
 
 void fmbd_cb_destroy(fmbd_cb **pcb) {
@@ -468,7 +468,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   if (oin) {
     o = *oin;
   } else {
-    fmbd_cb_defaults(&o);
+    fmbd_cb_opts_defaults(&o);
   }
   fmbd_cb *cb = NULL;
   fmbd_csr *Ks = NULL, *Kc = NULL, *Kb = NULL, *Ms = NULL, *Mc = NULL, *Mb = NULL;
@@ -751,7 +751,7 @@ int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, NULL, cb->nb));
   fmbd_cb_opts o;
-  fmbd_cb_defaults(&o);
+  fmbd_cb_opts_defaults(&o);
   if (eig) o.eig = *eig;
   FMBD_GCALL(modes(Ks, Ms, F, &o, nd_new, 0.0, false, &er));
   FMBD_GCHECK(er.nev == nd_new, FMBD_ERR_CONVERGE, "%lld of %lld modes computed", (long long)er.nev,

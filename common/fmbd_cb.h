@@ -31,7 +31,7 @@
 #include "fmbd_fe.h"
 #include "fmbd_h5.h"
 
-/// Options of fmbd_cb_reduce; fill with fmbd_cb_defaults.
+/// Options of fmbd_cb_reduce; fill with fmbd_cb_opts_defaults.
 typedef struct fmbd_cb_opts {
   bool nm;            ///< method "nm" instead of "cb". Default false
   bool hold;          ///< nm: hold the boundary dofs (else free-free). Default false
@@ -42,8 +42,8 @@ typedef struct fmbd_cb_opts {
   fmbd_eig_opts eig;  ///< eigensolver options (nev / lambda_max / free_body are set here)
 } fmbd_cb_opts;
 
-/// @brief Fill the defaults documented in fmbd_cb_opts (and fmbd_eig_defaults for eig).
-void fmbd_cb_defaults(fmbd_cb_opts *o);
+/// @brief Fill the defaults documented in fmbd_cb_opts (and fmbd_eig_opts_defaults for eig).
+void fmbd_cb_opts_defaults(fmbd_cb_opts *o);
 
 /// Where the time went (wall seconds), for the -v breakdown.
 typedef struct fmbd_cb_timing {

@@ -212,8 +212,8 @@ static int create_estimator(fmbd_check *c) {
       Kbb[i + nb * j] = cb->Kr[(nd + i) + nr * (nd + j)];
     }
   }
-  fmbd_est_options eopt;
-  fmbd_est_options_defaults(&eopt);
+  fmbd_est_opts eopt;
+  fmbd_est_opts_defaults(&eopt);
   int rc = fmbd_est_create(nb, Mbb, Kbb, &eopt, &c->est);
   fmbd_free(Mbb);
   fmbd_free(Kbb);
@@ -295,7 +295,7 @@ int fmbd_check_extend(void *ctx, fmbd_est *e, int64_t nd_wanted) {
            (long long)nd_new);
   double t0 = fmbd_wall_s();
   fmbd_eig_opts eo;
-  fmbd_eig_defaults(&eo);
+  fmbd_eig_opts_defaults(&eo);
   eo.progress = eig_progress;
   eo.progress_ctx = (void *)"more fixed-interface modes";
   fmbd_err_context(c->fe_name, "/K");
@@ -322,7 +322,7 @@ int fmbd_check_exact(fmbd_check *c, const fmbd_est_modes *m, int64_t nflex, doub
   FMBD_CALL(fmbd_check_load_fe(c, true, "--exact needs the full body"));
   int64_t nrig = c->cb->n_rigid;
   fmbd_eig_opts eo;
-  fmbd_eig_defaults(&eo);
+  fmbd_eig_opts_defaults(&eo);
   eo.nev = nrig + nflex;
   eo.free_body = nrig > 0;
   eo.progress = eig_progress;

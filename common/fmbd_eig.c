@@ -16,7 +16,7 @@
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 
-void fmbd_eig_defaults(fmbd_eig_opts *o) {
+void fmbd_eig_opts_defaults(fmbd_eig_opts *o) {
   memset(o, 0, sizeof *o);
   o->nev = 20;
   o->lambda_max = 0.0;
@@ -594,7 +594,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   if (oin) {
     o = *oin;
   } else {
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
   }
   memset(res, 0, sizeof *res);
   res->next_lambda = NAN;

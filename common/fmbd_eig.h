@@ -45,7 +45,7 @@
 /// stage, pairs wanted.
 typedef void (*fmbd_eig_progress_fn)(void *ctx, const char *stage, int64_t solves, int64_t nev);
 
-/// Options; fill with fmbd_eig_defaults, then change.
+/// Options; fill with fmbd_eig_opts_defaults, then change.
 typedef struct fmbd_eig_opts {
   int64_t nev;        ///< pairs wanted (count mode); in bound mode the first guess (0: 20)
   double lambda_max;  ///< > 0: bound mode, every eigenvalue <= lambda_max. Default 0
@@ -71,7 +71,7 @@ typedef struct fmbd_eig_opts {
 } fmbd_eig_opts;
 
 /// @brief The defaults documented above.
-void fmbd_eig_defaults(fmbd_eig_opts *o);
+void fmbd_eig_opts_defaults(fmbd_eig_opts *o);
 
 /// The solution and its cost. Free the arrays with fmbd_eig_result_free.
 typedef struct fmbd_eig_result {

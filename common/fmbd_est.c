@@ -13,7 +13,7 @@
 
 struct fmbd_est {
   int64_t nb, npool, nd;
-  fmbd_est_options opt;
+  fmbd_est_opts opt;
   double *Mbb, *Kbb;  // nb x nb
   double *kappa;      // npool
   double *PhitA;      // npool x nb (column-major, leading dimension npool)
@@ -21,7 +21,7 @@ struct fmbd_est {
   double kappa_next;  // kappa_(npool+1) or NAN
 };
 
-void fmbd_est_options_defaults(fmbd_est_options *o) {
+void fmbd_est_opts_defaults(fmbd_est_opts *o) {
   o->rigid_rtol = 1e-6;
   o->cluster_rtol = 1e-3;
   o->cluster_overlap = true;
@@ -160,7 +160,7 @@ done:
   return rc;
 }
 
-int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd_est_options *opt,
+int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd_est_opts *opt,
                     fmbd_est **out) {
   int rc = FMBD_OK;
   *out = NULL;
@@ -172,7 +172,7 @@ int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd
   if (opt) {
     e->opt = *opt;
   } else {
-    fmbd_est_options_defaults(&e->opt);
+    fmbd_est_opts_defaults(&e->opt);
   }
   size_t nn = (size_t)(nb * nb) + 1;
   FMBD_GALLOC(e->Mbb = fmbd_malloc(sizeof(double) * nn));

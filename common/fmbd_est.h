@@ -68,8 +68,8 @@ typedef struct fmbd_est_modes {
   double *g;                                    ///< b' Gb b (diagnostic)
 } fmbd_est_modes;
 
-/// Options of the estimator. Fill with fmbd_est_options_defaults.
-typedef struct fmbd_est_options {
+/// Options of the estimator. Fill with fmbd_est_opts_defaults.
+typedef struct fmbd_est_opts {
   double rigid_rtol;     ///< chibar <= rigid_rtol * kappa_1 is a rigid-body mode. Default 1e-6
                          ///< (a frequency 1e-3 of the first fixed-interface one)
   double cluster_rtol;   ///< |chibar_i - chibar_j| <= cluster_rtol * chibar_j groups modes into a
@@ -77,10 +77,10 @@ typedef struct fmbd_est_options {
                          ///< split pairs by ~1e-4)
   bool cluster_overlap;  ///< also cluster modes whose intervals [chibar / (1 + upper), chibar]
                          ///< overlap. Default true
-} fmbd_est_options;
+} fmbd_est_opts;
 
-/// @brief The defaults documented in fmbd_est_options.
-void fmbd_est_options_defaults(fmbd_est_options *o);
+/// @brief The defaults documented in fmbd_est_opts.
+void fmbd_est_opts_defaults(fmbd_est_opts *o);
 
 // --- the residual blocks at nd = npool ------------------------------------------------------
 /// @brief Xb, Gb at nd = npool from the cb file alone (the brief's formula):
@@ -114,7 +114,7 @@ int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
 ///            Mb_ = Psi' Ms Psi + Psi' Mc + Mc' Psi + Mb, Kb_ = Kb + Kc' Psi (copied)
 /// @param[in] opt NULL = defaults (copied)
 /// @param[out] out caller destroys with fmbd_est_destroy
-int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd_est_options *opt,
+int fmbd_est_create(int64_t nb, const double *Mbb, const double *Kbb, const fmbd_est_opts *opt,
                     fmbd_est **out);
 void fmbd_est_destroy(fmbd_est **e);
 

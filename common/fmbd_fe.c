@@ -15,7 +15,7 @@
 #include "fmbd_log.h"
 
 // --- small helpers ----------------------------------------------------------------------------
-void fmbd_fe_options_defaults(fmbd_fe_options *o) {
+void fmbd_fe_opts_defaults(fmbd_fe_opts *o) {
   memset(o, 0, sizeof *o);
   o->E = 210e9;
   o->nu = 0.3;
@@ -110,7 +110,7 @@ static void auto_orientation(const double *x0, const double *x1, double v[3]) {
 }
 
 // --- input checks -----------------------------------------------------------------------------
-static int check_inputs(const fmbd_mesh *m, const fmbd_fe_options *o) {
+static int check_inputs(const fmbd_mesh *m, const fmbd_fe_opts *o) {
   FMBD_CHECK(isfinite(o->E) && o->E > 0.0, FMBD_ERR_VALUE,
              "Young's modulus E = %g: must be positive", o->E);
   FMBD_CHECK(isfinite(o->rho) && o->rho > 0.0, FMBD_ERR_VALUE, "density rho = %g: must be positive",
@@ -663,11 +663,11 @@ done:
 }
 
 // --- assembly -----------------------------------------------------------------------------------
-int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_options *opt, fmbd_fe_body **out) {
+int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_opts *opt, fmbd_fe_body **out) {
   int rc = FMBD_OK;
-  fmbd_fe_options defaults;
+  fmbd_fe_opts defaults;
   if (!opt) {
-    fmbd_fe_options_defaults(&defaults);
+    fmbd_fe_opts_defaults(&defaults);
     opt = &defaults;
   }
   fmbd_fe_body *b = NULL;

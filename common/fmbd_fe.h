@@ -48,8 +48,8 @@ typedef struct fmbd_fe_interface_spec {
   double point[3];        ///< the interface node's position if has_point
 } fmbd_fe_interface_spec;
 
-/// Material, mass and model options. Fill with fmbd_fe_options_defaults, then change fields.
-typedef struct fmbd_fe_options {
+/// Material, mass and model options. Fill with fmbd_fe_opts_defaults, then change fields.
+typedef struct fmbd_fe_opts {
   double E;                ///< Young's modulus [Pa], > 0. Default 210e9 (steel)
   double nu;               ///< Poisson's ratio, in (-1, 0.5). Default 0.3
   double rho;              ///< density [kg/m^3], > 0. Default 7850
@@ -71,10 +71,10 @@ typedef struct fmbd_fe_options {
   /// Clamped group names (borrowed). A clamp name that is also an interface clamps the interface
   /// node (its 6 dofs); otherwise every dof of every node of the mesh group is removed.
   const char *const *clamps;
-} fmbd_fe_options;
+} fmbd_fe_opts;
 
-/// @brief Fill the defaults documented in fmbd_fe_options.
-void fmbd_fe_options_defaults(fmbd_fe_options *o);
+/// @brief Fill the defaults documented in fmbd_fe_opts.
+void fmbd_fe_opts_defaults(fmbd_fe_opts *o);
 
 // --- the body: everything an fmbd-fe file holds --------------------------------------------
 typedef struct fmbd_fe_interface {
@@ -158,7 +158,7 @@ typedef struct fmbd_fe_body {
 /// @param[out] out caller destroys with fmbd_fe_body_destroy
 /// @return FMBD_OK, FMBD_ERR_VALUE (bad input, message names the element/group/node),
 /// FMBD_ERR_NOMEM
-int fmbd_fe_assemble(const fmbd_mesh *mesh, const fmbd_fe_options *opt, fmbd_fe_body **out);
+int fmbd_fe_assemble(const fmbd_mesh *mesh, const fmbd_fe_opts *opt, fmbd_fe_body **out);
 
 /// @brief Release a body and set *b = NULL. NULL and *b == NULL are fine.
 void fmbd_fe_body_destroy(fmbd_fe_body **b);
@@ -222,7 +222,7 @@ int fmbd_fe_beam_frame(const double x0[3], const double x1[3], const double v[3]
 
 /// @brief Global 12x12 element matrices (row-major, dofs: node 0 ux uy uz rx ry rz, node 1 ...)
 /// of the Euler-Bernoulli beam; Me consistent (translational rho*A, torsional rho*J).
-/// @param[in] v orientation vector (see fmbd_fe_options.orientation)
+/// @param[in] v orientation vector (see fmbd_fe_opts.orientation)
 int fmbd_fe_beam_matrices(const double x0[3], const double x1[3], const double v[3], double E,
                           double nu, double rho, double A, double Iy, double Iz, double J,
                           int64_t elem, double *Ke, double *Me);

@@ -13,7 +13,7 @@
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 
-void fmbd_gm_defaults(fmbd_gm_opts *o) {
+void fmbd_gm_opts_defaults(fmbd_gm_opts *o) {
   memset(o, 0, sizeof *o);
   o->nmodes = 10;
   o->lambda_max = 0.0;
@@ -315,7 +315,7 @@ int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, cons
   if (oin) {
     o = *oin;
   } else {
-    fmbd_gm_defaults(&o);
+    fmbd_gm_opts_defaults(&o);
   }
   memset(res, 0, sizeof *res);
   int64_t n = M->nrows, m = Cq->nrows;
@@ -363,7 +363,7 @@ int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, cons
   double scale = fmbd_eig_spectrum_scale(Kr, Mr);
   res->zero_bound = o.zero_tol * scale;
   fmbd_eig_opts eo;
-  fmbd_eig_defaults(&eo);
+  fmbd_eig_opts_defaults(&eo);
   eo.free_body = res->mobility > 0;
   eo.dense_max = o.dense_max;
   eo.progress = o.progress;

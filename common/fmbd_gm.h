@@ -44,17 +44,17 @@
 #define FMBD_GM_FORMAT_VERSION "1.0"
 #define FMBD_GM_FORMAT_MAJOR 1
 
-/// Options: fill with fmbd_gm_defaults.
+/// Options: fill with fmbd_gm_opts_defaults.
 typedef struct fmbd_gm_opts {
   int64_t nmodes;     ///< flexible modes wanted (count mode), default 10
   double lambda_max;  ///< > 0: every flexible mode with w^2 <= lambda_max instead (bound mode)
   double zero_tol;    ///< zero-mode threshold relative to max(Kr_ii/Mr_ii), default 1e-11
   double rank_tol;    ///< pivot threshold of the partitioning and mobility QR, default 1e-10
-  int64_t dense_max;  ///< passed to fmbd_eig, default 1000 (see fmbd_gm_defaults)
+  int64_t dense_max;  ///< passed to fmbd_eig, default 1000 (see fmbd_gm_opts_defaults)
   fmbd_eig_progress_fn progress;
   void *progress_ctx;
 } fmbd_gm_opts;
-void fmbd_gm_defaults(fmbd_gm_opts *o);
+void fmbd_gm_opts_defaults(fmbd_gm_opts *o);
 
 /// A sparse null-space basis of Cq by coordinate partitioning.
 typedef struct fmbd_gm_null {

@@ -21,7 +21,7 @@
 #include "fmbd_fe.h"  // fmbd_fe_tet_shape, fmbd_fe_tet_rule
 #include "fmbd_log.h"
 
-void fmbd_mesh_options_defaults(fmbd_mesh_options *o) {
+void fmbd_mesh_opts_defaults(fmbd_mesh_opts *o) {
   o->order = 0;
   o->size = 0.0;
   o->gmsh_verbose = 0;
@@ -708,7 +708,7 @@ static void tag_map_free(tag_map *tm) {
 enum { GMSH_LINE2 = 1, GMSH_TET4 = 4, GMSH_POINT = 15, GMSH_LINE3 = 8, GMSH_TET10 = 11 };
 
 // the gmsh side of fmbd_mesh_read; gmsh is initialised and finalised by the caller
-static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_options *opt, fmbd_mesh *m) {
+static int read_gmsh(const char *path, int is_msh, const fmbd_mesh_opts *opt, fmbd_mesh *m) {
   int rc = FMBD_OK, ierr = 0;
   char gerr[512];
   size_t *ntag = NULL, nn = 0, ncoord = 0, npar = 0;
@@ -1264,7 +1264,7 @@ done:
   return rc;
 }
 
-static int mesh_surface(const char *path, const fmbd_mesh_options *opt, const surface *s,
+static int mesh_surface(const char *path, const fmbd_mesh_opts *opt, const surface *s,
                         fmbd_mesh *m) {
   // --- the surface's own checks: finite coordinates, no zero-area triangle ---
   for (int64_t i = 0; i < 3 * s->nv; i++) {
@@ -1319,11 +1319,11 @@ static int mesh_surface(const char *path, const fmbd_mesh_options *opt, const su
 
 // --- the entry point -----------------------------------------------------------------------------
 
-int fmbd_mesh_read(const char *path, const fmbd_mesh_options *opt, fmbd_mesh *m) {
+int fmbd_mesh_read(const char *path, const fmbd_mesh_opts *opt, fmbd_mesh *m) {
   int rc = FMBD_OK;
-  fmbd_mesh_options defaults;
+  fmbd_mesh_opts defaults;
   if (!opt) {
-    fmbd_mesh_options_defaults(&defaults);
+    fmbd_mesh_opts_defaults(&defaults);
     opt = &defaults;
   }
   memset(m, 0, sizeof *m);

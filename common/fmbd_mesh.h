@@ -49,18 +49,18 @@ typedef int (*fmbd_surface_mesher)(int64_t nv, const double *xyz, int64_t nf, co
                                    double size, int64_t *nn, double **nodes, int64_t *nt,
                                    int64_t **tet);
 
-/// Options of fmbd_mesh_read. Fill with fmbd_mesh_options_defaults, then change.
-typedef struct fmbd_mesh_options {
+/// Options of fmbd_mesh_read. Fill with fmbd_mesh_opts_defaults, then change.
+typedef struct fmbd_mesh_opts {
   int order;         ///< 1 (tet4) or 2 (tet10); 0 (default): 2 for geometry and surfaces, as
                      ///< stored for .msh. Beams are always 2-node (order ignored).
   double size;       ///< target element size in m; <= 0 (default): gmsh's own sizes from the
                      ///< geometry, and for .stl/.off the bounding-box diagonal / 25
   int gmsh_verbose;  ///< 0 (default): gmsh silent; 1: gmsh's Info lines on standard output (!)
   fmbd_surface_mesher surface_mesher;  ///< needed for .stl/.off (NULL default: FMBD_ERR_USAGE)
-} fmbd_mesh_options;
+} fmbd_mesh_opts;
 
 /// @brief Default options (order 0 = automatic, size 0 = from the geometry, gmsh silent).
-void fmbd_mesh_options_defaults(fmbd_mesh_options *o);
+void fmbd_mesh_opts_defaults(fmbd_mesh_opts *o);
 
 /// @brief Read or mesh GEOMETRY into m, then validate it (fmbd_mesh_check).
 /// @param[in] path  file name; its ending chooses the reader (case-insensitive)
@@ -71,7 +71,7 @@ void fmbd_mesh_options_defaults(fmbd_mesh_options *o);
 ///   elements, unsupported element types), FMBD_ERR_VALUE (bad elements, orphan nodes,
 ///   open surface), FMBD_ERR_EXTERNAL (gmsh/CGAL failure). The message names the file and
 ///   the element, node or group at fault.
-int fmbd_mesh_read(const char *path, const fmbd_mesh_options *opt, fmbd_mesh *m);
+int fmbd_mesh_read(const char *path, const fmbd_mesh_opts *opt, fmbd_mesh *m);
 
 /// @brief Validate a mesh: every tetrahedron has a positive Jacobian determinant (tet4: the
 /// constant one; tet10: at its corners, mid-edges, centroid and the 4-point Gauss points,

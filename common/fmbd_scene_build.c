@@ -392,7 +392,7 @@ done:
 static int fe_damping(const fmbd_csr *K, const fmbd_csr *M, double zeta, fmbd_csr **D,
                       double *omega1) {
   fmbd_eig_opts o;
-  fmbd_eig_defaults(&o);
+  fmbd_eig_opts_defaults(&o);
   o.nev = 1;
   o.sturm = false;
   fmbd_eig_result er;

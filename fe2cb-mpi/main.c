@@ -150,7 +150,7 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_fe_read(in, &body));
   fmbd_err_context(a.input, "");
   fmbd_cb_opts defaults;
-  fmbd_cb_defaults(&defaults);
+  fmbd_cb_opts_defaults(&defaults);
   FMBD_GCALL(fmbd_cb_check_body(body, defaults.sym_rtol));
   fmbd_err_context(a.input, "/interfaces");
   FMBD_GCALL(

@@ -164,7 +164,7 @@ int main(int argc, char **argv) {
   fmbd_cli_init("fe2cb", argc, argv);
   args a;
   memset(&a, 0, sizeof a);
-  fmbd_cb_defaults(&a.cb);
+  fmbd_cb_opts_defaults(&a.cb);
   int st = parse_args(argc, argv, &a);
   if (st != 0) {
     fmbd_cli_names_free(&a.groups);

@@ -290,7 +290,7 @@ int main(int argc, char **argv) {
   a.rank_tol = 1e-3;
   {
     fmbd_gm_opts go;
-    fmbd_gm_defaults(&go);
+    fmbd_gm_opts_defaults(&go);
     a.dense_max = (long)go.dense_max;
   }
   int st = parse_args(argc, argv, &a);
@@ -390,7 +390,7 @@ int main(int argc, char **argv) {
 
   // --- the global modes ---
   fmbd_gm_opts go;
-  fmbd_gm_defaults(&go);
+  fmbd_gm_opts_defaults(&go);
   go.nmodes = a.modes;
   if (a.fmax_hz > 0) go.lambda_max = pow(2 * M_PI * a.fmax_hz, 2);
   go.dense_max = a.dense_max;

@@ -87,8 +87,8 @@ typedef struct box_group {
 
 typedef struct args {
   const char *input, *output;
-  fmbd_mesh_options mesh;
-  fmbd_fe_options fe;
+  fmbd_mesh_opts mesh;
+  fmbd_fe_opts fe;
   int nif, nclamp, nbox;
   fmbd_fe_interface_spec *ifs;
   char **if_group;  // owned copies of the group names
@@ -420,9 +420,9 @@ static int check_groups(const args *a, const fmbd_mesh *m) {
 int main(int argc, char **argv) {
   fmbd_cli_init("mesh2fe", argc, argv);
   args a = {0};
-  fmbd_mesh_options_defaults(&a.mesh);
+  fmbd_mesh_opts_defaults(&a.mesh);
   a.mesh.surface_mesher = cgal_mesher;
-  fmbd_fe_options_defaults(&a.fe);
+  fmbd_fe_opts_defaults(&a.fe);
   bool done_early = false;
   int st = parse_args(argc, argv, &a, &done_early);
   fmbd_cli_set_verbosity(a.quiet, a.verbose);

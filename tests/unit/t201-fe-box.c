@@ -189,8 +189,8 @@ static void structure_checks(const fmbd_fe_body *b, const char *what) {
 }
 
 int main(void) {
-  fmbd_fe_options o;
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
   o.E = E;
   o.nu = NU;
   o.rho = RHO;

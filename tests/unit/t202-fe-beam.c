@@ -71,8 +71,8 @@ static void run(bool cantilever, bool lumped) {
   const char *what = cantilever ? (lumped ? "cantilever lumped" : "cantilever") : "free-free";
   fmbd_mesh mesh;
   beam_mesh(&mesh, p0, p1, NEL);
-  fmbd_fe_options o;
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
   o.E = E;
   o.nu = NU;
   o.rho = RHO;

@@ -103,8 +103,8 @@ static void compare(const fmbd_fe_body *a, const fmbd_fe_body *b, bool matrices,
 static fmbd_fe_body *solid_body(void) {
   fmbd_mesh mesh;
   box_mesh(&mesh, 1.0, 0.5, 0.5, 2, 1, 1, 2);
-  fmbd_fe_options o;
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
   fmbd_fe_interface_spec it[2] = {
       {.group = "xmin", .kind = FMBD_FE_RBE2},
       {.group = "xmax", .kind = FMBD_FE_RBE3, .has_point = true, .point = {1.2, 0.2, 0.3}}};
@@ -123,8 +123,8 @@ static fmbd_fe_body *beam_body(void) {
   const double p0[3] = {0, 0, 0}, p1[3] = {0.3, 0.4, 0};
   fmbd_mesh mesh;
   beam_mesh(&mesh, p0, p1, 5);
-  fmbd_fe_options o;
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
   o.area = 1e-4;
   o.Iy = 1e-9;
   o.Iz = 2e-9;
@@ -226,8 +226,8 @@ static void read_errors(const fmbd_fe_body *a) {
 static void countdown(void) {
   fmbd_mesh mesh;
   box_mesh(&mesh, 1.0, 0.5, 0.5, 2, 1, 1, 1);
-  fmbd_fe_options o;
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
   fmbd_fe_interface_spec it[2] = {{.group = "xmin", .kind = FMBD_FE_RBE2},
                                   {.group = "xmax", .kind = FMBD_FE_RBE3}};
   const char *cl[1] = {"xmin"};

@@ -12,7 +12,7 @@
 #include "fmbd_fe.h"
 #include "t2_mesh.h"
 
-static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_options *o, const char *what,
+static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_opts *o, const char *what,
                          const char *s1, const char *s2) {
   fmbd_fe_body *b = NULL;
   fmbd_err_clear();
@@ -27,7 +27,7 @@ static void expect_error(const fmbd_mesh *mesh, const fmbd_fe_options *o, const 
 int main(void) {
   fmbd_mesh mesh;
   box_mesh(&mesh, 1.0, 1.0, 1.0, 2, 2, 2, 2);
-  fmbd_fe_options o;
+  fmbd_fe_opts o;
   // --- material ---
   const struct {
     double E, nu, rho;
@@ -39,14 +39,14 @@ int main(void) {
       {1e9, -1.0, 1000, "nu = -1", "(-1, 0.5)"}, {1e9, 0.7, 1000, "nu = 0.7", "(-1, 0.5)"},
   };
   for (size_t k = 0; k < sizeof mat / sizeof *mat; k++) {
-    fmbd_fe_options_defaults(&o);
+    fmbd_fe_opts_defaults(&o);
     o.E = mat[k].E;
     o.nu = mat[k].nu;
     o.rho = mat[k].rho;
     expect_error(&mesh, &o, mat[k].s1, mat[k].s1, mat[k].s2);
   }
   // nu just inside the bounds is accepted (nearly incompressible, auxetic)
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts_defaults(&o);
   o.nu = 0.499;
   fmbd_fe_body *b = NULL;
   EXPECT(fmbd_fe_assemble(&mesh, &o, &b) == FMBD_OK, "nu = 0.499: %s", fmbd_err_get()->msg);
@@ -56,7 +56,7 @@ int main(void) {
   fmbd_fe_body_destroy(&b);
   // --- inverted element: swap two corner nodes (and the matching mid-side nodes stay: the
   // element is inside out) of element 5 ---
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts_defaults(&o);
   {
     int64_t *t = mesh.tet + 5 * 10, s = t[1];
     t[1] = t[2];
@@ -101,7 +101,7 @@ int main(void) {
   // --- beams without a section, and a bad orientation ---
   const double p0[3] = {0, 0, 0}, p1[3] = {0, 0, 1};
   beam_mesh(&mesh, p0, p1, 4);
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts_defaults(&o);
   expect_error(&mesh, &o, "no section", "section properties A, Iy, Iz, J", "4 beam elements");
   o.area = 1e-4;
   o.Iy = 1e-9;

@@ -101,7 +101,7 @@ int main(void) {
     fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h),
              *M = tridiag(n, 4 * h / 6, h / 6, 4 * h / 6);
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 12;
     fmbd_eig_result r;
     int rc = fmbd_eig_solve(K, M, NULL, &o, &r);
@@ -121,7 +121,7 @@ int main(void) {
     fmbd_eig_result_free(&r);
 
     // by bound: every eigenvalue up to lambda_max
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 5;  // deliberately too few: the solver must grow the count
     o.lambda_max = 0.5 * (lam1d(31, h) + lam1d(32, h));
     rc = fmbd_eig_solve(K, M, NULL, &o, &r);
@@ -133,7 +133,7 @@ int main(void) {
     // with the caller's factor (sigma 0), reused
     fmbd_chol *F = NULL;
     rc = fmbd_chol_create_llt(K, &F);
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 3;
     rc = rc ? rc : fmbd_eig_solve(K, M, F, &o, &r);
     EXPECT(rc == 0 && r.nev == 3 && fabs(r.lambda[2] - lam1d(3, h)) <= 1e-9 * lam1d(3, h),
@@ -146,14 +146,14 @@ int main(void) {
     fmbd_chol_destroy(&F);
 
     // too many modes
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = n + 1;
     rc = fmbd_eig_solve(K, M, NULL, &o, &r);
     EXPECT(rc == FMBD_ERR_VALUE, "nev > n: rc %d", rc);
     fmbd_eig_result_free(&r);
     // singular K without free_body: an error naming a row, not a wrong answer
     fmbd_csr *Kf = tridiag(n, 2.0 / h, -1.0 / h, 1.0 / h);
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 4;
     rc = fmbd_eig_solve(Kf, M, NULL, &o, &r);
     EXPECT(rc == FMBD_ERR_SINGULAR, "singular K not refused: rc %d", rc);
@@ -171,7 +171,7 @@ int main(void) {
     fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 1.0 / h),
              *M = tridiag(n, 4 * h / 6, h / 6, 2 * h / 6);
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 10;
     o.free_body = true;
     fmbd_eig_result r;
@@ -208,7 +208,7 @@ int main(void) {
       for (int j = 0; j < m; j++) ex[i * m + j] = lam1d(i + 1, h) + lam1d(j + 1, h);
     qsort(ex, (size_t)(m * m), sizeof(double), cmpd);
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 24;
     fmbd_eig_result r;
     int rc = fmbd_eig_solve(K, M, NULL, &o, &r);

@@ -84,7 +84,7 @@ int main(void) {
   double *Kd = dense(K), *Md = dense(M);
   int64_t bnd[3] = {0, 29, 59};
   fmbd_cb_opts o;
-  fmbd_cb_defaults(&o);
+  fmbd_cb_opts_defaults(&o);
   o.nmodes = 5;
   fmbd_cb *cb = NULL;
   int rc = fmbd_cb_reduce(K, M, NULL, 3, bnd, &o, &cb);

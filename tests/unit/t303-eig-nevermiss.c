@@ -83,7 +83,7 @@ int main(void) {
   // --- the miss is real: without the check, bar 2's modes are absent --------------------------
   {
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = nev;
     o.dense_max = 10;  // Lanczos on this small problem
     o.block = 1;
@@ -117,7 +117,7 @@ int main(void) {
   // --- in-loop Sturm check: fails with no pass left, succeeds on the fresh repeat ------------
   {
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = nev;
     o.dense_max = 10;
     o.block = 1;
@@ -143,7 +143,7 @@ int main(void) {
   // --- the repeated spectrum, block method and ARPACK, no start vector -------------------------
   for (int64_t blk = 1; blk <= 8; blk *= 2) {
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 24;
     o.dense_max = 10;
     o.block = blk;
@@ -166,7 +166,7 @@ int main(void) {
     fmbd_csr *K1 = bars(1, one, 2.0 / h, -1.0 / h), *M1 = bars(1, one, 4 * h / 6, h / 6);
     const int Nb = (int)one[0] + 1;
     fmbd_eig_opts o;
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 12;
     o.dense_max = 10;
     o.block = 1;
@@ -192,7 +192,7 @@ int main(void) {
     fmbd_eig_result_free(&r);
     // the dense path reports (and enforces) its residuals: LAPACK's backward-stable solve
     // leaves about eps lambda_top / lambda, at most 1.4e4 * 4 / 1e1 * eps ~ 1e-12 here
-    fmbd_eig_defaults(&o);
+    fmbd_eig_opts_defaults(&o);
     o.nev = 12;
     rc = fmbd_eig_solve(K1, M1, NULL, &o, &r);
     EXPECT(rc == 0 && r.dense && r.nev == 12, "dense: rc %d", rc);
@@ -218,7 +218,7 @@ int main(void) {
       Mf->data[q] *= 0.5;
     }
     fmbd_cb_opts o;
-    fmbd_cb_defaults(&o);
+    fmbd_cb_opts_defaults(&o);
     o.nmodes = nev;
     o.eig.dense_max = 10;
     o.eig.block = 1;

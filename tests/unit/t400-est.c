@@ -173,8 +173,8 @@ int main(void) {
   }
   // per-mode values of the formulas: no clusters (the random body's errors are large, so the
   // overlap clusters would merge its modes); the cluster rule is tested on its own below
-  fmbd_est_options eo;
-  fmbd_est_options_defaults(&eo);
+  fmbd_est_opts eo;
+  fmbd_est_opts_defaults(&eo);
   eo.cluster_rtol = 0;
   eo.cluster_overlap = false;
   fmbd_est *e = NULL;

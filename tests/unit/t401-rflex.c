@@ -66,8 +66,8 @@ int main(void) {
   mesh.group_ptr[2] = 2;
   mesh.group_node[0] = 0;
   mesh.group_node[1] = NEL;
-  fmbd_fe_options o;
-  fmbd_fe_options_defaults(&o);
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
   double r = 0.015;
   o.area = M_PI * r * r;
   o.Iy = o.Iz = M_PI * r * r * r * r / 4;
@@ -87,7 +87,7 @@ int main(void) {
   EXPECT(fmbd_cb_boundary(b, 0, NULL, &nb, &bnd) == 0 && nb == 12, "boundary: %lld dofs",
          (long long)nb);
   fmbd_cb_opts co;
-  fmbd_cb_defaults(&co);
+  fmbd_cb_opts_defaults(&co);
   co.nmodes = 8;
   fmbd_cb *cb = NULL;
   EXPECT(fmbd_cb_reduce(b->K, b->M, b->dofs, nb, bnd, &co, &cb) == 0, "reduce: %s",

@@ -92,8 +92,8 @@ int main(void) {
     Mbb[i + NB * i] += 2.0;
     Kbb[i + NB * i] = 3e4 * (1 + i);
   }
-  fmbd_est_options eo;
-  fmbd_est_options_defaults(&eo);
+  fmbd_est_opts eo;
+  fmbd_est_opts_defaults(&eo);
   eo.cluster_rtol = 0;  // per-mode values: the selection's logic is under test, not clusters
   eo.cluster_overlap = false;
 
