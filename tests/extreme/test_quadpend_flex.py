@@ -21,33 +21,17 @@
 #    its weight (the chain's accelerations reach about 3 g in 0.5 s) bends q L^4 / (8 E I) =
 #    163 N/m x 0.35^4 / (8 x 3976 N m^2) = 7.7e-5 m at its end.
 import os
-import subprocess
 import sys
 
 import h5py
 import numpy as np
 from scipy.integrate import solve_ivp
 
-ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
-BUILD = os.environ.get("BUILD", "build")
-TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_quadpend_flex")
-os.makedirs(TMP, exist_ok=True)
-os.environ["PATH"] = os.path.join(ROOT, BUILD, "bin") + os.pathsep + os.environ["PATH"]
-failures = []
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "py"))
+from harness import ROOT, check, finish, runner, tmpdir  # noqa: E402
 
-
-def check(cond, msg):
-    print(("ok    " if cond else "FAIL  ") + msg)
-    if not cond:
-        failures.append(msg)
-
-
-def run(*cmd):
-    r = subprocess.run(list(cmd), cwd=TMP, capture_output=True, text=True)
-    if r.returncode != 0:
-        print(r.stdout, r.stderr)
-        raise SystemExit("command failed (%d): %s" % (r.returncode, " ".join(cmd)))
-    return r
+TMP = tmpdir("test_quadpend_flex")
+run = runner(TMP)
 
 
 T_END = 0.5
@@ -145,6 +129,4 @@ check(dev["stiff"] < 2e-6, "E x 100: A follows the rigid reference to %.1e m (< 
 check(dev["steel"] > 3 * dev["stiff"], "steel: A's deviation %.1e m is elastic: %.0fx the stiff rod's"
       % (dev["steel"], dev["steel"] / dev["stiff"]))
 check(dev["steel"] < 1e-4, "steel: A's elastic deviation below 1e-4 m (%.2e m)" % dev["steel"])
-if failures:
-    print("%d failure(s)" % len(failures))
-    sys.exit(1)
+finish()

@@ -35,7 +35,6 @@
 # models' bounds (chordwise above lambda_1 - Omega^2 and below Southwell + 1 %, flapwise from
 # lambda_1 - 1 % to Southwell + 1 %), so a change of behaviour is seen.
 import os
-import subprocess
 import sys
 
 import h5py
@@ -45,26 +44,10 @@ import scipy.linalg as sl
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "py"))
 import fegen  # noqa: E402
 
-ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
-BUILD = os.environ.get("BUILD", "build")
-TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_spin_up")
-os.makedirs(TMP, exist_ok=True)
-os.environ["PATH"] = os.path.join(ROOT, BUILD, "bin") + os.pathsep + os.environ["PATH"]
-failures = []
+from harness import check, finish, runner, tmpdir  # noqa: E402
 
-
-def check(cond, msg):
-    print(("ok    " if cond else "FAIL  ") + msg)
-    if not cond:
-        failures.append(msg)
-
-
-def run(*cmd):
-    r = subprocess.run(list(cmd), cwd=TMP, capture_output=True, text=True)
-    if r.returncode != 0:
-        print(r.stdout, r.stderr)
-        raise SystemExit("command failed (%d): %s" % (r.returncode, " ".join(cmd)))
-    return r
+TMP = tmpdir("test_spin_up")
+run = runner(TMP)
 
 
 L, R, E, RHO = 5.0, 0.02, 70e9, 2700.0
@@ -154,6 +137,4 @@ for W in (0.0, 3.0, 5.0, 6.5, 8.0):
         check("(%.4g Hz)" % held_hz in warned[0], "the warning names the held eigenvalue %.4g Hz: %s" % (held_hz, warned[0]))
 t, v, w, err = spin(0.5, T=1.0)
 check("spins at" not in err, "Omega 0.5 (ratio %.3f): no spin warning" % (0.25 / lam1))
-if failures:
-    print("%d failure(s)" % len(failures))
-    sys.exit(1)
+finish()

@@ -20,32 +20,16 @@
 #  - the tips end within 1e-5 m of each other (the second rod's elastic deflection, all that
 #    differs; measured 8e-7 m).
 import os
-import subprocess
 import sys
 
 import h5py
 import numpy as np
 
-ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
-BUILD = os.environ.get("BUILD", "build")
-TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_stiff_ratio")
-os.makedirs(TMP, exist_ok=True)
-os.environ["PATH"] = os.path.join(ROOT, BUILD, "bin") + os.pathsep + os.environ["PATH"]
-failures = []
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "py"))
+from harness import ROOT, check, finish, runner, tmpdir  # noqa: E402
 
-
-def check(cond, msg):
-    print(("ok    " if cond else "FAIL  ") + msg)
-    if not cond:
-        failures.append(msg)
-
-
-def run(*cmd):
-    r = subprocess.run(list(cmd), cwd=TMP, capture_output=True, text=True)
-    if r.returncode != 0:
-        print(r.stdout, r.stderr)
-        raise SystemExit("command failed (%d): %s" % (r.returncode, " ".join(cmd)))
-    return r
+TMP = tmpdir("test_stiff_ratio")
+run = runner(TMP)
 
 
 geo = os.path.join(ROOT, "examples", "geometry", "rod.geo")
@@ -89,6 +73,4 @@ ss, sh = out["soft-soft"][0], out["soft-hard"][0]
 check(sh <= 1.2 * ss, "the 1e6x stiffer body costs no steps: %d vs %d" % (sh, ss))
 d = np.max(np.abs(out["soft-soft"][2][-1] - out["soft-hard"][2][-1]))
 check(d < 1e-5, "the tips end %.1e m apart (the second rod's elasticity)" % d)
-if failures:
-    print("%d failure(s)" % len(failures))
-    sys.exit(1)
+finish()

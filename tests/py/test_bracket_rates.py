@@ -26,7 +26,6 @@
 #    90 % would mean a wrong formula, not the method's expected misses.
 import csv
 import os
-import subprocess
 import sys
 
 import h5py
@@ -37,26 +36,10 @@ import scipy.sparse.linalg as spl
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import fegen  # noqa: E402
 
-ROOT = os.environ.get("ROOT", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
-BUILD = os.environ.get("BUILD", "build")
-TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_bracket_rates")
-os.makedirs(TMP, exist_ok=True)
-os.environ["PATH"] = os.path.join(ROOT, BUILD, "bin") + os.pathsep + os.environ["PATH"]
-failures = []
+from harness import ROOT, check, finish, runner, tmpdir  # noqa: E402
 
-
-def check(cond, msg):
-    print(("ok:   " if cond else "FAIL: ") + msg)
-    if not cond:
-        failures.append(msg)
-
-
-def run(*cmd):
-    r = subprocess.run(list(cmd), cwd=TMP, capture_output=True, text=True)
-    if r.returncode != 0:
-        print(r.stdout, r.stderr)
-        raise SystemExit("command failed (%d): %s" % (r.returncode, " ".join(cmd)))
-    return r
+TMP = tmpdir("test_bracket_rates")
+run = runner(TMP)
 
 
 def read_csv(path):
@@ -160,6 +143,4 @@ print("pooled over %d modes: upper >= exact raw %.1f %%, clustered %.1f %%; lowe
 check(n >= 30, "at least 30 modes under 10 %% error (%d)" % n)
 check(tot["up_cl"] >= 0.95 * n and tot["lo_cl"] >= 0.95 * n, "clustered rates at least 95 %")
 check(tot["up_raw"] >= 0.90 * n and tot["lo_raw"] >= 0.90 * n, "raw rates at least 90 %")
-if failures:
-    print("%d failure(s)" % len(failures))
-    sys.exit(1)
+finish()
