@@ -248,26 +248,33 @@ bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b) {
   return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->ntet > 0 && b->tet && b->nbeam == 0;
 }
 
-// W = M_n U for the 3 nm columns of U (nn x 3nm, column-major), element by element with the
-// scalar consistent mass of each tet (never assembled).
-static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *U, double *W) {
-  int nn = b->tet_nodes;
-  int64_t nnodes = b->nnodes;
+// The scalar consistent mass of the solid elements, assembled (nnodes x nnodes): the mass of each
+// translation direction, M = Mn (x) I3 on the translations of a tet mesh.
+static int tet_scalar_mass(const fmbd_fe_body *b, fmbd_csr **out) {
+  int rc = FMBD_OK;
+  int k = b->tet_nodes;
+  *out = NULL;
+  FMBD_GCALL(fmbd_csr_pattern_from_elements(b->nnodes, b->ntet, k, b->tet, out));
   double xyz[30], Me[100], vol;
-  memset(W, 0, sizeof(double) * (size_t)(3 * nnodes * nm));
   for (int64_t e = 0; e < b->ntet; e++) {
-    const int64_t *nd = b->tet + (int64_t)nn * e;
-    for (int i = 0; i < nn; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
-    FMBD_CALL(fmbd_fe_tet_matrices(nn, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
-    for (int64_t j = 0; j < 3 * nm; j++) {
-      const double *u = U + nnodes * j;
-      double *w = W + nnodes * j;
-      for (int i = 0; i < nn; i++) {
-        double acc = 0.0;
-        for (int q = 0; q < nn; q++) acc += Me[nn * i + q] * u[nd[q]];
-        w[nd[i]] += acc;
-      }
-    }
+    const int64_t *nd = b->tet + (int64_t)k * e;
+    for (int i = 0; i < k; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
+    FMBD_GCALL(fmbd_fe_tet_matrices(k, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
+    FMBD_GCALL(fmbd_csr_add_block(*out, k, nd, Me));
+  }
+done:
+  if (rc) fmbd_csr_destroy(out);
+  return rc;
+}
+
+int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out) {
+  if (fmbd_rflex_consistent_invariants(b)) return tet_scalar_mass(b, out);
+  int64_t nn = b->nnodes;
+  FMBD_CALL(fmbd_csr_create(nn, nn, nn, out));
+  for (int64_t p = 0; p < nn; p++) {
+    (*out)->indptr[p + 1] = p + 1;
+    (*out)->indices[p] = p;
+    (*out)->data[p] = b->node_mass ? b->node_mass[p] : 0;
   }
   return FMBD_OK;
 }
@@ -288,24 +295,20 @@ static int consistent_weighted_full(const fmbd_fe_body *b, int64_t nm, const dou
   int64_t ld = 6 * nnodes;
   memset(W, 0, sizeof(double) * (size_t)(ld * nm));
   if (b->ntet > 0 && b->tet) {
-    int nn = b->tet_nodes;
-    double xyz[30], Me[100], vol;
-    for (int64_t e = 0; e < b->ntet; e++) {
-      const int64_t *nd = b->tet + (int64_t)nn * e;
-      for (int i = 0; i < nn; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
-      FMBD_CALL(fmbd_fe_tet_matrices(nn, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
-      for (int64_t k = 0; k < nm; k++) {
-        const double *u = U + ld * k;
-        double *w = W + ld * k;
-        for (int i = 0; i < nn; i++) {
-          for (int a = 0; a < 3; a++) {
-            double acc = 0.0;
-            for (int q = 0; q < nn; q++) acc += Me[nn * i + q] * u[6 * nd[q] + a];
-            w[6 * nd[i] + a] += acc;
-          }
-        }
+    fmbd_csr *Mn = NULL;
+    double *u = fmbd_malloc(sizeof(double) * (size_t)(2 * nnodes + 1)), *w = u + nnodes;
+    if (!u) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+    int rc = tet_scalar_mass(b, &Mn);
+    for (int64_t k = 0; rc == FMBD_OK && k < nm; k++) {
+      for (int a = 0; a < 3; a++) {
+        for (int64_t p = 0; p < nnodes; p++) u[p] = U[ld * k + 6 * p + a];
+        fmbd_csr_matvec(Mn, u, w);
+        for (int64_t p = 0; p < nnodes; p++) W[ld * k + 6 * p + a] = w[p];
       }
     }
+    fmbd_free(u);
+    fmbd_csr_destroy(&Mn);
+    FMBD_CALL(rc);
   }
   double Me[144];
   for (int64_t e = 0; e < b->nbeam; e++) {
@@ -335,6 +338,7 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
                         const double *eig, bool stress) {
   int rc = FMBD_OK;
   double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL;
+  fmbd_csr *Mn = NULL;
   int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
   FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
   FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
@@ -411,13 +415,8 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         for (int64_t p = 0; p < nn; p++) Ub[p + nn * (a * nm + k)] = U[6 * p + a + 6 * nn * k];
       }
     }
-    if (fmbd_rflex_consistent_invariants(b)) {
-      FMBD_GCALL(consistent_weighted(b, nm, Ub, Wa));
-    } else {
-      for (int64_t j = 0; j < 3 * nm; j++) {
-        for (int64_t p = 0; p < nn; p++) Wa[p + nn * j] = r->node_mass[p] * Ub[p + nn * j];
-      }
-    }
+    FMBD_GCALL(fmbd_rflex_nodal_mass(b, &Mn));
+    fmbd_csr_matmat(Mn, 3 * nm, Ub, nn, Wa, nn);
     for (int bb = 0; bb < 3; bb++) {
       for (int64_t k = 0; k < nm; k++) {
         const double *w = Wa + nn * (bb * nm + k);
@@ -487,6 +486,7 @@ done:
   fmbd_free(U);
   fmbd_free(Wa);
   fmbd_free(Ub);
+  fmbd_csr_destroy(&Mn);
   fmbd_free(Sab);
   fmbd_free(WM);
   return rc;

@@ -167,6 +167,11 @@ int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out);
 /// of XS and SS from the lumped nodal masses; a lumped-mass body uses the lumped nodal masses
 /// (docs/THEORY.md section 9).
 bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b);
+/// @brief The scalar nodal mass Mn of the invariants (nnodes x nnodes): the assembled scalar
+/// consistent mass of the solid elements when fmbd_rflex_consistent_invariants(b), else the
+/// lumped nodal masses on the diagonal. Shared by the reduced bodies and the full FE bodies.
+/// @param[out] out caller destroys with fmbd_csr_destroy
+int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out);
 
 /// @brief Release r and its arrays; NULL and *r == NULL are fine; sets *r = NULL.
 void fmbd_rflex_destroy(fmbd_rflex **r);

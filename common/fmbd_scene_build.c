@@ -357,35 +357,6 @@ done:
 }
 
 // --- full FE bodies (docs/THEORY.md section 4b) ---------------------------------------------
-// The scalar nodal mass of the invariants: the consistent mass of the solid elements (the mass
-// the FE matrices hold, fmbd_rflex_consistent_invariants) or the lumped nodal masses.
-static int fe_nodal_mass(const fmbd_fe_body *fe, fmbd_csr **out) {
-  int rc = FMBD_OK;
-  int64_t nn = fe->nnodes;
-  *out = NULL;
-  if (fmbd_rflex_consistent_invariants(fe)) {
-    int k = fe->tet_nodes;
-    FMBD_GCALL(fmbd_csr_pattern_from_elements(nn, fe->ntet, k, fe->tet, out));
-    double xyz[30], Me[100], vol;
-    for (int64_t e = 0; e < fe->ntet; e++) {
-      const int64_t *nd = fe->tet + (int64_t)k * e;
-      for (int i = 0; i < k; i++) memcpy(xyz + 3 * i, fe->xyz + 3 * nd[i], 3 * sizeof(double));
-      FMBD_GCALL(fmbd_fe_tet_matrices(k, xyz, fe->E, fe->nu, fe->rho, e, NULL, Me, &vol));
-      FMBD_GCALL(fmbd_csr_add_block(*out, k, nd, Me));
-    }
-  } else {
-    FMBD_GCALL(fmbd_csr_create(nn, nn, nn, out));
-    for (int64_t p = 0; p < nn; p++) {
-      (*out)->indptr[p + 1] = p + 1;
-      (*out)->indices[p] = p;
-      (*out)->data[p] = fe->node_mass ? fe->node_mass[p] : 0;
-    }
-  }
-done:
-  if (rc) fmbd_csr_destroy(out);
-  return rc;
-}
-
 // Stiffness-proportional damping D = (2 zeta / omega_1) K: ratio zeta at the body's first
 // frequency omega_1 held at its frame node (the lowest eigenvalue of K, M), zeta omega/omega_1
 // above (Rayleigh's beta K; the modal damping of a modal body has zeta on every mode).
@@ -468,7 +439,7 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
     for (int64_t p = 0; p < nn; p++) rows[p + nn * a] = 6 * p + a;
   }
   FMBD_GCALL(fmbd_csr_submatrix(fe->expand, 3 * nn, rows, n, kept, &E));
-  FMBD_GCALL(fe_nodal_mass(fe, &Mn));
+  FMBD_GCALL(fmbd_rflex_nodal_mass(fe, &Mn));
   if (fe->nbeam > 0) {
     fmbd_log(FMBD_LOG_WARN,
              "%s:%d: body '%s': %s has beam elements: as a full FE body its rigid-flexible "
