@@ -6,6 +6,9 @@
 #                   VALGRIND=1: the unit tests under valgrind memcheck)
 #   make demo       the main job end to end (examples/)
 #   make bench      benchmarks under bench/ (minutes; see bench/README.md)
+#   make fuzz       libFuzzer on every file reader, FUZZ_SECONDS (60) each (clang; fuzz/run.sh)
+#   make reports    error-against-run-time reports of the papers' benchmarks (examples/report.mk;
+#                   also report-quadpend, report-slidercrank, report-spatial-slidercrank)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make format     reformat the C/C++ sources with .clang-format (make check checks it)
 #   make info       resolved flags;  V=1 full command lines
@@ -43,6 +46,12 @@ CGAL_LIBS      ?= -lmpfr -lgmp -lstdc++
 FMBD_CFLAGS   := -std=c11 -Wall -Wextra -Wpedantic -Wno-unused-parameter -MMD -MP
 FMBD_CPPFLAGS := -D_XOPEN_SOURCE=700 -DFMBD_VERSION='"$(VERSION)"' -Icommon $(HDF5_CFLAGS) $(CHOLMOD_CFLAGS)
 FMBD_LDLIBS   := $(GMSH_LIBS) $(HDF5_LIBS) $(ARPACK_LIBS) $(CHOLMOD_LIBS) $(LAPACK_LIBS) $(YAML_LIBS) $(CGAL_LIBS) -lm
+ifeq ($(FUZZ),1)  # the libFuzzer build (make fuzz): clang, coverage and sanitizers everywhere
+  SAN := -fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+  FMBD_CFLAGS += $(SAN)
+  FMBD_LDFLAGS += -fsanitize=address,undefined
+  BUILD ?= build-fuzz
+endif
 ifeq ($(SANITIZE),1)
   SAN := -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
   FMBD_CFLAGS += $(SAN)
@@ -70,6 +79,9 @@ UNIT_SRC := $(sort $(wildcard tests/unit/t*.c))
 UNITS    := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 TOOL_SRC := $(sort $(wildcard tests/tools/*.c))
 TOOLS    := $(TOOL_SRC:tests/tools/%.c=$(BUILD)/tools/%)
+FUZZ_KINDS  := $(patsubst fuzz/fuzz_%.c,%,$(sort $(wildcard fuzz/fuzz_*.c)))
+FUZZ_REPLAY := $(FUZZ_KINDS:%=$(BUILD)/fuzz/replay-%)
+FUZZ_SECONDS ?= 60
 
 all: $(BINS)
 
@@ -105,12 +117,22 @@ $(BUILD)/tools/%: $(BUILD)/tests/tools/%.o $(LIB)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $< $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
 
+# fuzz targets: replayers (fuzz/replay.c main, any compiler; make check) and libFuzzer binaries
+$(BUILD)/fuzz/replay-%: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay.o $(LIB)
+	$(call msg,LD,$@)
+	$(Q)$(CC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(filter %.o,$^) $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
+
+$(BUILD)/fuzz/fuzz-%: $(BUILD)/fuzz/fuzz_%.o $(LIB)
+	$(call msg,LD,$@)
+	$(Q)$(CC) -fsanitize=fuzzer $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $< $(LIB) $(FMBD_LDLIBS) $(LDLIBS)
+
 # --- targets ------------------------------------------------------------------------------
-.PHONY: all deps check check-build demo bench install uninstall clean info format
+.PHONY: all deps check check-build demo bench fuzz fuzz-build install uninstall clean info format reports \
+        report-quadpend report-slidercrank report-spatial-slidercrank
 deps:
 	@bash scripts/install-deps.sh
 
-check-build: $(BINS) $(UNITS) $(TOOLS)
+check-build: $(BINS) $(UNITS) $(TOOLS) $(FUZZ_REPLAY)
 
 check: deps
 	@$(MAKE) --no-print-directory check-build
@@ -120,9 +142,21 @@ demo: deps
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory -f examples/demo.mk BUILD=$(BUILD) PYTHON=$(PYTHON)
 
+reports report-quadpend report-slidercrank report-spatial-slidercrank: deps
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -f examples/report.mk BUILD=$(BUILD) PYTHON=$(PYTHON) $@
+
 bench: deps
 	@$(MAKE) --no-print-directory all $(TOOLS)
 	@BUILD=$(BUILD) PYTHON=$(PYTHON) bash bench/run.sh
+
+fuzz-build: $(FUZZ_KINDS:%=$(BUILD)/fuzz/fuzz-%)
+
+fuzz:
+	@bash scripts/install-deps.sh && bash scripts/install-deps.sh --fuzz
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory FUZZ=1 CC=clang BUILD=build-fuzz fuzz-build
+	@FUZZ_BUILD=build-fuzz BUILD=$(BUILD) PYTHON=$(PYTHON) FUZZ_SECONDS=$(FUZZ_SECONDS) bash fuzz/run.sh
 
 install: $(BINS)
 	install -d $(DESTDIR)$(BINDIR) $(DESTDIR)$(MANDIR)/man1
@@ -133,7 +167,7 @@ uninstall:
 	for p in $(PROGRAMS); do rm -f $(DESTDIR)$(BINDIR)/$$p $(DESTDIR)$(MANDIR)/man1/$$p.1; done
 
 clean:
-	rm -rf build build-san
+	rm -rf build build-san build-fuzz
 
 format:
 	@bash scripts/format-check.sh --fix

@@ -6,7 +6,10 @@
 # Reports wall time, CPU time and peak RSS (GNU time) and the ratios, and fe2cb's breakdown
 # (-v). fe2cb runs with its Sturm check (the default) and once with --no-sturm.
 # Environment: BUILD, PYTHON, BENCH_OUT, BENCH_LARGE=1, BENCH_MODES="20 100 300",
-# BENCH_SIZES="0.0047 0.0029" (element sizes in m), BENCH_CCX=0 to skip CalculiX.
+# BENCH_SIZES="0.0047 0.0029" (element sizes in m), BENCH_CCX=0 to skip CalculiX,
+# BENCH_CCX_MODES="20" to run CalculiX only for those mode counts (it takes 15 min and more for
+# 300 modes), BENCH_ARPACK=1 to run fe2cb once more with the single-vector ARPACK path
+# (FMBD_EIG_BLOCK=1) where the default takes the block method (60 modes and more).
 set -u
 ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}
 BUILD=${BUILD:-build}
@@ -50,7 +53,15 @@ for h in $SIZES; do
     measure scipy-$h-$n "$PYTHON" "$ROOT/bench/fe2cb_scipy.py" "$fe" cb-$h-$n.cb.h5 "$n"
     sw=$wall; sc=$cpu; sr=$rss_mb
     cw=; cc=; cr=
-    if [ "${BENCH_CCX:-1}" != 0 ]; then
+    if [ "${BENCH_ARPACK:-0}" = 1 ] && [ "$n" -ge 60 ]; then
+      FMBD_EIG_BLOCK=1 measure fe2cb1-$h-$n fe2cb "$fe" --modes "$n" -o cb1-$h-$n.cb.h5 -v &&
+        echo "    fe2cb single-vector (FMBD_EIG_BLOCK=1): $wall s wall / $cpu s cpu / $rss_mb MB; $(grep -o 'Lanczos [^)]*)' fe2cb1-$h-$n.err)"
+    fi
+    ccx_here=1
+    if [ -n "${BENCH_CCX_MODES:-}" ]; then
+      case " $BENCH_CCX_MODES " in *" $n "*) ;; *) ccx_here=0 ;; esac
+    fi
+    if [ "${BENCH_CCX:-1}" != 0 ] && [ $ccx_here = 1 ]; then
       PYTHONPATH=$ROOT/tests/py "$PYTHON" -c "import fegen; fegen.write_ccx_deck('$fe', 'ccx-$h-$n.inp', $n, ['end0', 'end1'])"
       measure ccx-$h-$n ccx -i ccx-$h-$n && { cw=$wall; cc=$cpu; cr=$rss_mb; }
     fi

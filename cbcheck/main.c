@@ -65,6 +65,9 @@ static const char *usage_text =
     "                   without reading the fe file (faster; the second-order estimate may\n"
     "                   lose digits, see the man page)\n"
     "  --no-stress      do not compute the modal stresses of the rflex file\n"
+    "  --for-scene SCENE.yaml:BODY  the rflex body holds only what SCENE reads of its\n"
+    "                   body BODY: the modal motion of its joint, load and output nodes,\n"
+    "                   the stress of its stress outputs' nodes (fmbd-run -M passes it)\n"
     "  -o FILE          write the reduced flexible body (\"-\": standard output). With --tol\n"
     "                   and no -o: BODY.rflex.h5, or standard output when it is not a\n"
     "                   terminal. Without --tol and -o, no file is written\n"
@@ -86,7 +89,7 @@ static const char *usage_text =
 #define TOL_FLOOR 1e-10
 
 typedef struct args {
-  const char *input, *fe, *csv, *plot, *output;
+  const char *input, *fe, *csv, *plot, *output, *for_scene;
   const char *hold[64];  // --hold: interfaces the scene holds
   int nhold;
   double tol;
@@ -110,23 +113,18 @@ enum {
   OPT_ESTIMATOR,
   OPT_EXACT,
   OPT_PLAIN,
-  OPT_NO_STRESS
+  OPT_NO_STRESS,
+  OPT_FOR_SCENE
 };
-static const fmbd_cli_option options[] = {{NULL, 'o', true, OPT_OUTPUT},
-                                          {"--fe", 0, true, OPT_FE},
-                                          {"--hold", 0, true, OPT_HOLD},
-                                          {"--csv", 0, true, OPT_CSV},
-                                          {"--plot", 0, true, OPT_PLOT},
-                                          {"--tol", 0, true, OPT_TOL},
-                                          {"--range", 0, true, OPT_RANGE},
-                                          {"--init", 0, true, OPT_INIT},
-                                          {"--max-modes", 0, true, OPT_MAX_MODES},
-                                          {"--nd", 0, true, OPT_ND},
-                                          {"--estimator", 0, true, OPT_ESTIMATOR},
-                                          {"--exact", 0, false, OPT_EXACT},
-                                          {"--plain", 0, false, OPT_PLAIN},
-                                          {"--no-stress", 0, false, OPT_NO_STRESS},
-                                          {0}};
+static const fmbd_cli_option options[] = {
+    {NULL, 'o', true, OPT_OUTPUT},           {"--fe", 0, true, OPT_FE},
+    {"--hold", 0, true, OPT_HOLD},           {"--csv", 0, true, OPT_CSV},
+    {"--plot", 0, true, OPT_PLOT},           {"--tol", 0, true, OPT_TOL},
+    {"--range", 0, true, OPT_RANGE},         {"--init", 0, true, OPT_INIT},
+    {"--max-modes", 0, true, OPT_MAX_MODES}, {"--nd", 0, true, OPT_ND},
+    {"--estimator", 0, true, OPT_ESTIMATOR}, {"--exact", 0, false, OPT_EXACT},
+    {"--plain", 0, false, OPT_PLAIN},        {"--no-stress", 0, false, OPT_NO_STRESS},
+    {"--for-scene", 0, true, OPT_FOR_SCENE}, {0}};
 
 static int parse_args(int argc, char **argv, args *a, bool *done) {
   *done = false;
@@ -161,6 +159,9 @@ static int parse_args(int argc, char **argv, args *a, bool *done) {
           return fmbd_cli_usage_error("--hold: at most 64 interfaces");
         }
         a->hold[a->nhold++] = val;
+        break;
+      case OPT_FOR_SCENE:
+        a->for_scene = val;
         break;
       case OPT_CSV:
         a->csv = val;
@@ -705,6 +706,7 @@ int main(int argc, char **argv) {
     FMBD_GCHECK(nlist == nm, FMBD_ERR_VALUE, "the reduced body has only %lld flexible modes",
                 (long long)nlist);
     FMBD_GCALL(fmbd_check_rflex(r, &m, Xi, nm, a.stress, &rf, &nkept_out));
+    if (a.for_scene) FMBD_GCALL(fmbd_check_subset_for_scene(r, rf, a.for_scene));
     fmbd_check_record rec = {nd, 0, a.has_tol ? a.tol : 0};
     for (int64_t q = 0; q < t.nflex; q++) {
       rec.max_estimate = fmax(rec.max_estimate, a.which == FMBD_EST_UPPER_NEXT ? t.unext[q]

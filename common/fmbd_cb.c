@@ -906,19 +906,48 @@ int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
   }
   cb->ndof = cb->ns + cb->nb + cb->nheld;
   int64_t ns = cb->ns, nb = cb->nb;
-  for (int64_t k = 0; k < ns; k++) {
-    if (cb->interior[k] < 0 || cb->interior[k] >= cb->ndof) {
-      fmbd_err_context(NULL, "/cb/interior_dofs");
-      FMBD_GFAIL(FMBD_ERR_FORMAT, "entry %lld = %lld out of range", (long long)k,
-                 (long long)cb->interior[k]);
-    }
+  // interior, boundary and held dofs partition the rows of /dofs: each exactly once
+  if (fmbd_h5_exists(f, "/dofs")) {
+    int64_t dd[2] = {-1, 2};
+    int64_t *rows = NULL;
+    rc = fmbd_h5_read_i64(f, "/dofs", 2, dd, &rows);
+    fmbd_free(rows);
+    FMBD_GCALL(rc);
+    fmbd_err_context(fmbd_h5_name(f), "/cb");
+    FMBD_GCHECK(dd[0] == cb->ndof, FMBD_ERR_FORMAT,
+                "%lld interior + %lld boundary + %lld held dofs, but /dofs has %lld rows",
+                (long long)ns, (long long)nb, (long long)cb->nheld, (long long)dd[0]);
   }
-  for (int64_t k = 0; k < nb; k++) {
-    if (cb->boundary[k] < 0 || cb->boundary[k] >= cb->ndof) {
-      fmbd_err_context(NULL, "/cb/boundary_dofs");
-      FMBD_GFAIL(FMBD_ERR_FORMAT, "entry %lld = %lld out of range", (long long)k,
-                 (long long)cb->boundary[k]);
+  {
+    int64_t *seen = NULL;
+    FMBD_GALLOC(seen = fmbd_calloc((size_t)cb->ndof + 1, sizeof *seen));
+    const char *lists[3] = {"/cb/interior_dofs", "/cb/boundary_dofs", "/cb/held_dofs"};
+    const int64_t *v[3] = {cb->interior, cb->boundary, cb->held}, n[3] = {ns, nb, cb->nheld};
+    for (int l = 0; l < 3 && rc == FMBD_OK; l++) {
+      for (int64_t k = 0; k < n[l]; k++) {
+        int64_t d = v[l][k];
+        if (d < 0 || d >= cb->ndof) {
+          fmbd_err_context(fmbd_h5_name(f), lists[l]);
+          rc = fmbd_err_set(FMBD_ERR_FORMAT, __FILE__, __LINE__, __func__,
+                            "entry %lld = %lld out of range 0..%lld (the interior, boundary and "
+                            "held dofs number %lld)",
+                            (long long)k, (long long)d, (long long)cb->ndof - 1,
+                            (long long)cb->ndof);
+          break;
+        }
+        if (seen[d]) {
+          fmbd_err_context(fmbd_h5_name(f), lists[l]);
+          rc = fmbd_err_set(FMBD_ERR_FORMAT, __FILE__, __LINE__, __func__,
+                            "entry %lld: dof %lld is also in %s (the lists must not overlap)",
+                            (long long)k, (long long)d, lists[seen[d] - 1]);
+          break;
+        }
+        seen[d] = l + 1;
+      }
     }
+    fmbd_free(seen);
+    FMBD_GCALL(rc);
+    fmbd_err_context("", "");
   }
   {
     int64_t d = -1;

@@ -12,6 +12,9 @@
 #include "fmbd_eig.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
+#include "fmbd_scene.h"
+#include "fmbd_scene_build.h"
+#include "fmbd_sha256.h"
 
 void fmbd_check_opts_defaults(fmbd_check_opts *o) {
   memset(o, 0, sizeof *o);
@@ -258,6 +261,8 @@ void fmbd_check_close(fmbd_check **pc) {
   fmbd_fe_body_destroy(&c->fe);
   fmbd_fe_body_destroy(&c->desc);
   fmbd_free(c->fe_name);
+  fmbd_free(c->subset_scene);
+  fmbd_free(c->subset_body);
   fmbd_cb_destroy(&c->cb);
   fmbd_h5_close(&c->cbf);
   fmbd_free(c);
@@ -367,12 +372,60 @@ int fmbd_check_rflex(fmbd_check *c, const fmbd_est_modes *m, const double *Xi, i
     ldx = nd + cb->nb;
     FMBD_GCALL(rc);
   }
+  if (stress && c->desc->ntet == 0) {
+    // modal stress is recovered from solid elements only: without them it would be all zero
+    // (a beam body, or a file whose /mesh/elements was lost); none is written, and an output
+    // asking for stress is then refused by fmbd-run
+    stress = false;
+    fmbd_log(c->desc->nbeam > 0 ? FMBD_LOG_INFO : FMBD_LOG_WARN,
+             "%s: no solid elements (/mesh/elements/tet4 or tet10)%s: no modal stress written",
+             fmbd_h5_name(c->cbf), c->desc->nbeam > 0 ? ", beams only" : "");
+  }
   fmbd_rflex_input mi = {c->desc, cb->ns,  cb->nb, cb->interior, cb->boundary, nd,  cb->Phi,
                          cb->ns,  cb->Psi, *nkept, chif,         Xif,          ldx, stress};
   rc = fmbd_rflex_build(&mi, rf);
 done:
   fmbd_free(chif);
   fmbd_free(Xif);
+  return rc;
+}
+
+int fmbd_check_subset_for_scene(fmbd_check *c, fmbd_rflex *rf, const char *spec) {
+  int rc = FMBD_OK;
+  fmbd_scene *s = NULL;
+  int64_t *mo = NULL, *st = NULL, nmo = 0, nst = 0;
+  char *file = NULL;
+  const char *colon = strrchr(spec, ':');
+  FMBD_GCHECK(colon && colon != spec && colon[1], FMBD_ERR_VALUE,
+              "--for-scene %s: give SCENE.yaml:BODY", spec);
+  FMBD_GALLOC(file = fmbd_strdup(spec));
+  file[colon - spec] = 0;
+  const char *body = colon + 1;
+  FMBD_GCALL(fmbd_scene_read(file, &s));
+  int bi = fmbd_scene_find_body(s, body);
+  FMBD_GCHECK(bi >= 0 && s->bodies[bi].kind == FMBD_SCENE_FLEXIBLE, FMBD_ERR_VALUE,
+              "--for-scene: %s has no flexible body '%s'", file, body);
+  FMBD_GCALL(fmbd_scene_body_nodes(s, bi, rf, &mo, &nmo, &st, &nst));
+  int64_t ndof = rf->ndof;
+  FMBD_GCALL(fmbd_rflex_subset(rf, nmo, mo, nst, st));
+  int64_t held = 0;
+  for (int64_t p = 0; p < rf->nnodes; p++) held += rf->held[p] != 0;
+  fmbd_log(FMBD_LOG_INFO,
+           "for scene %s, body '%s': modal motion of %lld of %lld nodes (%lld of %lld dofs), "
+           "stress at %lld",
+           file, body, (long long)held, (long long)rf->nnodes, (long long)rf->ndof, (long long)ndof,
+           (long long)rf->nstress);
+  FMBD_GCALL(fmbd_sha256_file(file, c->subset_sha));
+  fmbd_free(c->subset_scene);
+  fmbd_free(c->subset_body);
+  c->subset_scene = file;
+  file = NULL;
+  FMBD_GALLOC(c->subset_body = fmbd_strdup(body));
+done:
+  fmbd_free(file);
+  fmbd_free(mo);
+  fmbd_free(st);
+  fmbd_scene_destroy(&s);
   return rc;
 }
 
@@ -385,8 +438,23 @@ int fmbd_check_write_rflex(fmbd_check *c, const char *path, const fmbd_rflex *rf
   if (c->fe_name) {
     FMBD_GCALL(fmbd_h5_add_input(out, c->fe_name, c->fe_sha));
   }
-  FMBD_GCALL(fmbd_fe_copy_description(c->cbf, out));
+  if (rf->held) {  // a subset body: the description without the whole body's dofs, /expand
+    // and elements (fmbd_rflex_write writes its own /dofs and /expand)
+    static const char *const part[] = {"/mesh/nodes", "/mesh/node_mass", "/mesh/groups",
+                                       "/material",   "/body",           "/interfaces",
+                                       "/clamped"};
+    for (size_t i = 0; i < sizeof part / sizeof *part; i++) {
+      if (i < 2 || fmbd_h5_exists(c->cbf, part[i])) FMBD_GCALL(fmbd_h5_copy(c->cbf, part[i], out));
+    }
+    if (c->subset_scene) FMBD_GCALL(fmbd_h5_add_input(out, c->subset_scene, c->subset_sha));
+  } else {
+    FMBD_GCALL(fmbd_fe_copy_description(c->cbf, out));
+  }
   FMBD_GCALL(fmbd_rflex_write(out, rf));
+  if (rf->held && c->subset_scene) {
+    FMBD_GCALL(fmbd_h5_write_attr_str(out, "/subset", "scene", c->subset_scene));
+    FMBD_GCALL(fmbd_h5_write_attr_str(out, "/subset", "body", c->subset_body));
+  }
   int64_t ndv = rec->nd;
   FMBD_GCALL(fmbd_h5_write_attr_i64(out, "/modes", "n_fixed_interface_modes", 1, &ndv));
   FMBD_GCALL(fmbd_h5_write_attr_f64(out, "/modes", "max_estimate", 1, &rec->max_estimate));

@@ -13,6 +13,7 @@
 //                          library (fmbd_cb_extend), from the fe file
 //   fmbd_check_exact       the full body's eigenvalues (--exact)
 //   fmbd_check_rflex       the kept modes as a fmbd_rflex (through fmbd_rflex_build)
+//   fmbd_check_subset_for_scene  a body that holds only what one scene reads (/subset)
 //   fmbd_check_write_rflex the rflex file: inputs, body description, modes, /modes record
 //
 // THE FE FILE. The residual blocks are exact (projected, fmbd_est_base_projected) when the fe
@@ -66,6 +67,8 @@ typedef struct fmbd_check {
   int64_t nextend;               ///< fmbd_check_extend calls that added modes
   double t_extend_s, t_exact_s, t_load_s;  ///< wall time: extensions, exact, fe file
   double c_exact_s, c_load_s;              ///< cpu time: exact, fe file
+  char *subset_scene, *subset_body;        ///< fmbd_check_subset_for_scene: made for them
+  char subset_sha[65];                     ///< the scene file's SHA-256
 } fmbd_check;
 
 /// Open `cb_path` (format fmbd-cb) and build the estimators at the file's Nd (reads the fe file
@@ -101,6 +104,13 @@ typedef struct fmbd_check_record {
   double max_estimate;  ///< the largest estimate of the kept modes (max_estimate)
   double tolerance;     ///< the tolerance met (<= 0: none given; attribute absent)
 } fmbd_check_record;
+
+/// Make rf a body that holds only what one scene reads (--for-scene SCENE:BODY; docs/FORMAT.md
+/// /subset): the nodes of BODY's joints, loads and point outputs in SCENE, resolved as fmbd-run
+/// resolves them (fmbd_scene_body_nodes), stress only where an output asks for it
+/// (fmbd_rflex_subset). Errors name the scene line; a BODY that is not a flexible body of the
+/// scene is an error.
+int fmbd_check_subset_for_scene(fmbd_check *c, fmbd_rflex *rf, const char *spec);
 
 /// Write the rflex file `path` atomically: inputs (the cb file, the fe file if read), the body
 /// description, the modes (fmbd_rflex_write) and the /modes record, held_interfaces included;

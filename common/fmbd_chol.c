@@ -503,7 +503,8 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   return FMBD_OK;
 }
 
-int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx) {
+// X <- the solves sys[0], then sys[1], ... (CHOLMOD_A, or CHOLMOD_P/L/Lt/Pt) applied in turn
+static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, double *X, int64_t ldx) {
   FMBD_CHECK(F->L && F->st.n_factor > 0 && F->failed_row < 0 && F->kind != FMBD_CHOL_LDLT,
              FMBD_ERR_INTERNAL, "solve without a valid factor (or with the inertia-only LDL')");
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
@@ -512,29 +513,47 @@ int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx) {
   const int64_t block = 64;  // bounded workspace: at most n x 64 extra doubles
   for (int64_t c0 = 0; c0 < nrhs; c0 += block) {
     int64_t nc = nrhs - c0 < block ? nrhs - c0 : block;
-    cholmod_dense Bw;
-    memset(&Bw, 0, sizeof Bw);
-    Bw.nrow = (size_t)F->n;
-    Bw.ncol = (size_t)nc;
-    Bw.d = (size_t)ldx;
-    Bw.nzmax = (size_t)(ldx * nc);
-    Bw.x = X + c0 * ldx;
-    Bw.z = NULL;
-    Bw.xtype = CHOLMOD_REAL;
-    Bw.dtype = CHOLMOD_DOUBLE;
-    g_cholmod_msg[0] = 0;
-    if (!cholmod_l_solve2(CHOLMOD_A, F->L, &Bw, NULL, &F->X, NULL, &F->Y, &F->E, &F->c)) {
-      return cholmod_fail(F, "solve");
-    }
-    const double *x = F->X->x;
-    int64_t ld = (int64_t)F->X->d;
-    for (int64_t j = 0; j < nc; j++) {
-      memcpy(X + (c0 + j) * ldx, x + j * ld, (size_t)F->n * sizeof(double));
+    for (int k = 0; k < nsys; k++) {
+      cholmod_dense Bw;
+      memset(&Bw, 0, sizeof Bw);
+      Bw.nrow = (size_t)F->n;
+      Bw.ncol = (size_t)nc;
+      Bw.d = (size_t)ldx;
+      Bw.nzmax = (size_t)(ldx * nc);
+      Bw.x = X + c0 * ldx;
+      Bw.z = NULL;
+      Bw.xtype = CHOLMOD_REAL;
+      Bw.dtype = CHOLMOD_DOUBLE;
+      g_cholmod_msg[0] = 0;
+      if (!cholmod_l_solve2(sys[k], F->L, &Bw, NULL, &F->X, NULL, &F->Y, &F->E, &F->c)) {
+        return cholmod_fail(F, "solve");
+      }
+      const double *x = F->X->x;
+      int64_t ld = (int64_t)F->X->d;
+      for (int64_t j = 0; j < nc; j++) {
+        memcpy(X + (c0 + j) * ldx, x + j * ld, (size_t)F->n * sizeof(double));
+      }
     }
   }
   F->st.t_solve_s += fmbd_wall_s() - t0;
-  F->st.n_solves += nrhs;
   return FMBD_OK;
+}
+
+int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx) {
+  const int sys[1] = {CHOLMOD_A};
+  int rc = solve_sys(F, 1, sys, nrhs, X, ldx);
+  if (rc == FMBD_OK) F->st.n_solves += nrhs;
+  return rc;
+}
+
+int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64_t ldx) {
+  FMBD_CHECK(F->kind == FMBD_CHOL_LLT && (which == FMBD_CHOL_FWD || which == FMBD_CHOL_BWD),
+             FMBD_ERR_INTERNAL, "half solve needs an LL' factor and FWD or BWD");
+  const int fwd[2] = {CHOLMOD_P, CHOLMOD_L}, bwd[2] = {CHOLMOD_Lt, CHOLMOD_Pt};
+  int rc = solve_sys(F, 2, which == FMBD_CHOL_FWD ? fwd : bwd, nrhs, X, ldx);
+  // a forward and a backward half make one solve
+  if (rc == FMBD_OK && which == FMBD_CHOL_FWD) F->st.n_solves += nrhs;
+  return rc;
 }
 
 void fmbd_chol_release_matrix(fmbd_chol *F) {

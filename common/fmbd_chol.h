@@ -79,6 +79,14 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma);
 /// @param[in,out] X  column-major n x nrhs with leading dimension ldx (>= n)
 int fmbd_chol_solve(fmbd_chol *F, int64_t nrhs, double *X, int64_t ldx);
 
+enum { FMBD_CHOL_FWD = 1, FMBD_CHOL_BWD = 2 };
+
+/// @brief Half of an LLT solve, for the symmetric form L^-1 P B P' L^-T of a generalized
+/// eigenproblem (A - sigma B = P' L L' P): FMBD_CHOL_FWD gives X <- L^-1 P X, FMBD_CHOL_BWD
+/// X <- P' L^-T X (so that BWD after FWD is fmbd_chol_solve). Block of nrhs columns, in place.
+/// A forward half counts as one solve in the statistics.
+int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64_t ldx);
+
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
 /// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long
 /// solve phase by the size of the upper triangle.

@@ -53,6 +53,14 @@ typedef struct fmbd_eig_opts {
   bool sturm;         ///< do the Sturm count check. Default true
   int64_t ncv;        ///< Lanczos basis size (0: automatic, nev + max(20, nev/2), capped)
   int64_t dense_max;  ///< solve densely with LAPACK up to this order. Default 400
+  int64_t block;      ///< Lanczos block size: 1 = ARPACK (single vector), >= 2 = block
+                      ///< Krylov-Schur with blocks of that many vectors, 0 = automatic (blocks
+                      ///< of 16 from 60 wanted pairs on). Default 0, or the environment
+                      ///< variable FMBD_EIG_BLOCK when set
+  const double *v0;   ///< (n) start vector of the first Lanczos pass, borrowed, or NULL
+                      ///< (default): ARPACK's random start / a fixed pseudo-random block. A
+                      ///< pass after a failed check starts afresh without it. With the block
+                      ///< method it becomes the first column of the start block (as OP v0)
   fmbd_eig_progress_fn progress;  ///< may be NULL (default)
   void *progress_ctx;
 } fmbd_eig_opts;
@@ -72,6 +80,7 @@ typedef struct fmbd_eig_result {
   double sturm_shift;   ///< shift of the Sturm check (NAN if none)
   int64_t sturm_count;  ///< eigenvalues below sturm_shift by inertia (-1 if not checked)
   bool dense;           ///< solved densely (LAPACK)
+  int64_t block;        ///< block size of the last Lanczos pass (1: ARPACK)
   int passes;           ///< Lanczos runs, including the estimate pass
   int64_t n_solves;     ///< operator applications (sparse solves)
   int64_t n_restarts;   ///< ARPACK restart iterations, summed over runs

@@ -36,6 +36,7 @@ struct fmbd_h5 {
   int ninputs, cap;  ///< the `inputs` attribute, written at commit
   char **input_name, **input_sha;
   double last_flush_s;  ///< wall clock of the last flush (series flush at most every 0.5 s)
+  bool inputs_checked;  ///< the recorded inputs were compared with the files at hand
 };
 
 struct fmbd_h5_series {
@@ -289,6 +290,70 @@ static int parse_version(const char *s, int *major, int *minor) {
   return 0;
 }
 
+// The file an input recorded as `name` in the file `of` is now: the name joined to of's folder
+// (the usual case: made in one folder), the name as given (relative to the current folder),
+// then its last component beside `of`. Only regular files (never a device or a FIFO a hostile
+// file could name). 0 and the path in buf when found.
+static int find_input(const char *of, const char *name, char *buf, size_t size) {
+  struct stat st;
+  const char *slash = strrchr(of, '/');
+  int dl = slash ? (int)(slash - of) : 0;
+  const char *base = strrchr(name, '/') ? strrchr(name, '/') + 1 : name;
+  char cand[3][4096];
+  int nc = 0;
+  if (name[0] != '/' && dl > 0) snprintf(cand[nc++], sizeof cand[0], "%.*s/%s", dl, of, name);
+  snprintf(cand[nc++], sizeof cand[0], "%s", name);
+  if (base != name || dl > 0)
+    snprintf(cand[nc++], sizeof cand[0], "%.*s%s%s", dl, of, dl > 0 ? "/" : "", base);
+  for (int i = 0; i < nc; i++) {
+    if (stat(cand[i], &st) == 0 && S_ISREG(st.st_mode) && strlen(cand[i]) < size) {
+      memcpy(buf, cand[i], strlen(cand[i]) + 1);
+      return 0;
+    }
+  }
+  return -1;
+}
+
+// Provenance (docs/FORMAT.md, "inputs"): every input recorded in f's `inputs` attribute that is
+// at hand and whose SHA-256 differs now gets a warning: f was made from other bytes, and what
+// it holds may not match that file any more (remake it). Missing inputs are not a fault (files
+// travel alone); standard input cannot be checked. Once per handle; errors here are not
+// errors of the read (a file without `inputs` is checked elsewhere, if at all).
+static void warn_changed_inputs(fmbd_h5 *f) {
+  int n = 0;
+  char **names = NULL, **sha = NULL;
+  if (f->inputs_checked || !strcmp(f->name, "-") || !fmbd_h5_has_attr(f, "/", "inputs")) return;
+  f->inputs_checked = true;
+  if (fmbd_h5_read_inputs(f, &n, &names, &sha) != FMBD_OK) {
+    fmbd_err_clear();
+    return;
+  }
+  for (int i = 0; i < n; i++) {
+    char path[4096], now[65];
+    if (!names[i][0] || !strcmp(names[i], "-") || names[i][0] == '<' || names[i][0] == '(')
+      continue;  // standard input: "(stdin)" (older files "-", "<stdin>")
+    if (find_input(f->name, names[i], path, sizeof path) != 0) {
+      fmbd_log(FMBD_LOG_DEBUG, "%s: input %s is not at hand: not compared", f->name, names[i]);
+      continue;
+    }
+    if (fmbd_sha256_file(path, now) != FMBD_OK) {
+      fmbd_err_clear();
+      continue;
+    }
+    if (strcmp(now, sha[i]) != 0)
+      fmbd_log(FMBD_LOG_WARN,
+               "%s: its input %s changed since it was made (SHA-256 %.12s..., recorded "
+               "%.12s...): remake %s",
+               f->name, path, now, sha[i], f->name);
+  }
+  for (int i = 0; i < n; i++) {
+    fmbd_free(names[i]);
+    fmbd_free(sha[i]);
+  }
+  fmbd_free(names);
+  fmbd_free(sha);
+}
+
 int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major) {
   int rc = FMBD_OK;
   char *fmt = NULL, *ver = NULL;
@@ -308,6 +373,7 @@ int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major) {
               "format_version '%s' is not MAJOR.MINOR", ver);
   FMBD_GCHECK(fmaj <= major, FMBD_ERR_VERSION,
               "%s format version %s is newer than this program reads (%d.x)", format, ver, major);
+  if (!f->writing) warn_changed_inputs(f);
 done:
   fmbd_free(fmt);
   fmbd_free(ver);

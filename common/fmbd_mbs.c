@@ -176,6 +176,16 @@ static void body_scales(mbody *b) {
   b->gyr = sqrt(fmax(trJ / b->m, 0));
 }
 
+// mass, first moment and the symmetrised second moment of a flexible body, and its scales
+static void set_inertia(mbody *b, double mass, const double *c0, const double *J) {
+  b->m = mass;
+  memcpy(b->c0, c0, sizeof b->c0);
+  for (int a = 0; a < 3; a++) {
+    for (int c = 0; c < 3; c++) b->J0[3 * a + c] = 0.5 * (J[3 * a + c] + J[3 * c + a]);
+  }
+  body_scales(b);
+}
+
 int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double com[3],
                        const double inertia[9], const fmbd_mbs_state0 *s0, int *id) {
   FMBD_CHECK(isfinite(mass) && mass > 0, FMBD_ERR_VALUE, "body '%s': mass %g must be positive",
@@ -279,13 +289,7 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
   }
   mbody *b;
   FMBD_CALL(add_body(m, name, (int)nm, s0, &b));
-  b->m = d->mass;
-  memcpy(b->c0, d->first_moment, sizeof b->c0);
-  for (int a = 0; a < 3; a++) {
-    for (int c = 0; c < 3; c++)
-      b->J0[3 * a + c] = 0.5 * (d->second_moment[3 * a + c] + d->second_moment[3 * c + a]);
-  }
-  body_scales(b);
+  set_inertia(b, d->mass, d->first_moment, d->second_moment);
   if (nm > 0) {
     size_t n1 = (size_t)nm;
     b->S1 = fmbd_malloc(sizeof(double) * 3 * n1);
@@ -396,13 +400,7 @@ int fmbd_mbs_add_fe(fmbd_mbs *m, const char *name, const fmbd_mbs_fe_data *d,
   b->fe = fe, b->q0 = q0, b->qd0 = qd0;
   if (d->q0) memcpy(b->q0, d->q0, sizeof(double) * (size_t)n);
   if (d->qd0) memcpy(b->qd0, d->qd0, sizeof(double) * (size_t)n);
-  b->m = d->mass;
-  memcpy(b->c0, d->first_moment, sizeof b->c0);
-  for (int a = 0; a < 3; a++) {
-    for (int c = 0; c < 3; c++)
-      b->J0[3 * a + c] = 0.5 * (d->second_moment[3 * a + c] + d->second_moment[3 * c + a]);
-  }
-  body_scales(b);
+  set_inertia(b, d->mass, d->first_moment, d->second_moment);
   if (id) *id = m->nb - 1;
   return FMBD_OK;
 }

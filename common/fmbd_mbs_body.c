@@ -26,6 +26,121 @@ static void matvec(int m, int n, const double *restrict A, const double *restric
     for (int i = 0; i < m; i++) y[i] += xj * a[i];
   }
 }
+// --- parts shared by modal bodies (mbs_body_eval) and full FE bodies (mbs_fe_eval) -------
+// the frame's kinematics: A(p/|p|), G(p), |p| into the body's workspace, body angular velocity
+// w = 2 G p' (also b->wb) and acceleration wd = 2 G p'' (zero without pdd)
+void mbs_frame_kin(mbody *b, const double *p, const double *pd, const double *pdd, double *w,
+                   double *wd) {
+  double *A = b->A, *G = b->G;
+  quat_to_A(p, A);
+  quat_G(p, G);
+  b->pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+  wd[0] = wd[1] = wd[2] = 0;
+  for (int a = 0; a < 3; a++) {
+    w[a] =
+        2 * (G[4 * a] * pd[0] + G[4 * a + 1] * pd[1] + G[4 * a + 2] * pd[2] + G[4 * a + 3] * pd[3]);
+    if (pdd) {
+      wd[a] = 2 * (G[4 * a] * pdd[0] + G[4 * a + 1] * pdd[1] + G[4 * a + 2] * pdd[2] +
+                   G[4 * a + 3] * pdd[3]);
+    }
+  }
+  memcpy(b->wb, w, 3 * sizeof(double));
+}
+
+// the rigid rows of r in x coordinates: r[0..2] = rb[0..2], r[3..6] = 2 G' rb[3..5], plus the
+// mass mu p p' on the Euler parameters (see fmbd_mbs.h): G p = 0, so the physical equations
+// are unchanged; the normalisation multiplier absorbs mu p (p . p'')
+void mbs_rigid_rows(const mbody *b, const double *rb, const double *p, const double *pdd,
+                    double *r) {
+  const double *G = b->G;
+  r[0] = rb[0], r[1] = rb[1], r[2] = rb[2];
+  for (int c4 = 0; c4 < 4; c4++)
+    r[3 + c4] = 2 * (G[c4] * rb[3] + G[4 + c4] * rb[4] + G[8 + c4] * rb[5]);
+  const double mu = PMASS * b->snorm;
+  if (pdd) {
+    double ppdd = p[0] * pdd[0] + p[1] * pdd[1] + p[2] * pdd[2] + p[3] * pdd[3];
+    for (int c4 = 0; c4 < 4; c4++) r[3 + c4] += mu * p[c4] * ppdd;
+  }
+}
+
+// rigid rows of the quadratic velocity vector: rb[0..2] = A[w x (w x c) + 2 w x S1 q'],
+// rb[3..5] = w x I w + 2 (tr(H) w - H w); Iw = I w
+void mbs_rigid_qv(const double *A, const double *w, const double *c, const double *s1qd,
+                  const double *I, const double *H, double trH, double *rb, double *Iw) {
+  double t1[3], t2[3];
+  cross3(w, c, t1);
+  cross3(w, t1, t2);  // w x (w x c)
+  double t3[3];
+  cross3(w, s1qd, t3);
+  for (int a = 0; a < 3; a++) t2[a] += 2 * t3[a];
+  mv3(A, t2, rb);
+  mv3(I, w, Iw);
+  cross3(w, Iw, rb + 3);
+  double Hw[3];  // (H w)_a = sum_b H[a + 3b] w_b
+  for (int a = 0; a < 3; a++) Hw[a] = H[a] * w[0] + H[a + 3] * w[1] + H[a + 6] * w[2];
+  for (int a = 0; a < 3; a++) rb[3 + a] += 2 * (trH * w[a] - Hw[a]);
+}
+
+// its derivatives with respect to wb: AM (rows R), WW (rows wb), both row-major 3 x 3
+void mbs_rigid_vel_tangent(const double *A, const double *w, const double *c, const double *Sc,
+                           const double *s1qd, const double *I, const double *Iw, const double *H,
+                           double trH, double *AM, double *WW) {
+  double S1[9], S2[9], S3[9], M1[9];
+  double wc[3];
+  cross3(w, c, wc);
+  skew3(wc, S1);
+  double Sw[9];
+  skew3(w, Sw);
+  mm3(Sw, Sc, S2);
+  skew3(s1qd, S3);
+  for (int i = 0; i < 9; i++) M1[i] = -(S1[i] + S2[i] + 2 * S3[i]);
+  mm3(A, M1, AM);
+  double IwS[9], SwI[9];
+  skew3(Iw, IwS);
+  mm3(Sw, I, SwI);
+  for (int a = 0; a < 3; a++) {
+    for (int bb = 0; bb < 3; bb++)
+      WW[3 * a + bb] =
+          SwI[3 * a + bb] - IwS[3 * a + bb] + 2 * ((a == bb ? trH : 0) - H[a + 3 * bb]);
+  }
+}
+
+// the loads on body ib's points: subtracted from the rigid rows rb (6) and the flexible rows
+// rf (indexed by flexible coordinate; a point's T, Rr over its support, or all modes)
+void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const double *q,
+                    double *rb, double *rf) {
+  for (int il = 0; il < m->nl; il++) {
+    const mload *L = &m->l[il];
+    const mpoint *P = &m->p[L->pt];
+    if (P->body != ib) continue;
+    const int nk = P->sup ? P->nsup : m->b[ib].nm;
+    double fv = fmbd_mbs_fn_eval(&L->f, t, NULL, NULL);
+    double Fw[3], Fl[3];
+    if (L->body_frame) {
+      for (int a = 0; a < 3; a++) Fl[a] = fv * L->dir[a];
+      mv3(A, Fl, Fw);
+    } else {
+      for (int a = 0; a < 3; a++) Fw[a] = fv * L->dir[a];
+      mtv3(A, Fw, Fl);
+    }
+    if (L->kind == FMBD_MBS_FORCE) {
+      double u[3];
+      memcpy(u, P->x0, sizeof u);
+      for (int k = 0; k < nk; k++) {
+        double qk = q[P->sup ? P->sup[k] : k];
+        for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * qk;
+      }
+      double nn[3];
+      cross3(u, Fl, nn);
+      for (int a = 0; a < 3; a++) rb[a] -= Fw[a], rb[3 + a] -= nn[a];
+      for (int k = 0; k < nk; k++) rf[P->sup ? P->sup[k] : k] -= dot3(P->T + 3 * k, Fl);
+    } else {
+      for (int a = 0; a < 3; a++) rb[3 + a] -= Fl[a];
+      for (int k = 0; k < nk; k++) rf[P->sup ? P->sup[k] : k] -= dot3(P->Rr + 3 * k, Fl);
+    }
+  }
+}
+
 // mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
@@ -36,21 +151,8 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
   const double *p = x + 3, *q = x + 7, *pd = xd + 3, *qd = xd + 7;
-  double *A = b->A, *G = b->G;
-  quat_to_A(p, A);
-  quat_G(p, G);
-  b->pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
-  double w[3], wd[3] = {0, 0, 0};
-  for (int a = 0; a < 3; a++) {
-    w[a] =
-        2 * (G[4 * a] * pd[0] + G[4 * a + 1] * pd[1] + G[4 * a + 2] * pd[2] + G[4 * a + 3] * pd[3]);
-    if (xdd) {
-      const double *pdd = xdd + 3;
-      wd[a] = 2 * (G[4 * a] * pdd[0] + G[4 * a + 1] * pdd[1] + G[4 * a + 2] * pdd[2] +
-                   G[4 * a + 3] * pdd[3]);
-    }
-  }
-  memcpy(b->wb, w, sizeof w);
+  double *A = b->A, *G = b->G, w[3], wd[3];
+  mbs_frame_kin(b, p, pd, xdd ? xdd + 3 : NULL, w, wd);
   // --- inertia at q: c, J, H_k, Mwf, H ---
   double *c = b->c, *J = b->J, *I = b->I, H[9] = {0};
   memcpy(c, b->c0, sizeof b->c);
@@ -113,18 +215,8 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     for (int l = 0; l < nm; l++) MB(6 + k, 6 + l) = b->Mff[k + (size_t)nm * l];
   }
   // --- quadratic velocity vector v and forces f: rb = v - f (+ K q + D q') ---
-  double t1[3], t2[3], Iw[3];
-  cross3(w, c, t1);
-  cross3(w, t1, t2);  // w x (w x c)
-  double t3[3];
-  cross3(w, s1qd, t3);
-  for (int a = 0; a < 3; a++) t2[a] += 2 * t3[a];
-  mv3(A, t2, rb);
-  mv3(I, w, Iw);
-  cross3(w, Iw, rb + 3);
-  double Hw[3];  // (H w)_a = sum_b H[a + 3b] w_b
-  for (int a = 0; a < 3; a++) Hw[a] = H[a] * w[0] + H[a + 3] * w[1] + H[a + 6] * w[2];
-  for (int a = 0; a < 3; a++) rb[3 + a] += 2 * (trH * w[a] - Hw[a]);
+  double Iw[3];
+  mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
   double ww = dot3(w, w);
   double *cor = b->cor;  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
   if (nm > 0) {
@@ -153,35 +245,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   cross3(c, gl, cg);
   for (int a = 0; a < 3; a++) rb[a] -= b->m * m->g[a], rb[3 + a] -= cg[a];
   for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(b->S1 + 3 * k, gl);
-  // loads
-  for (int il = 0; il < m->nl; il++) {
-    const mload *L = &m->l[il];
-    const mpoint *P = &m->p[L->pt];
-    if (P->body != ib) continue;
-    double fv = fmbd_mbs_fn_eval(&L->f, t, NULL, NULL);
-    double Fw[3], Fl[3];
-    if (L->body_frame) {
-      for (int a = 0; a < 3; a++) Fl[a] = fv * L->dir[a];
-      mv3(A, Fl, Fw);
-    } else {
-      for (int a = 0; a < 3; a++) Fw[a] = fv * L->dir[a];
-      mtv3(A, Fw, Fl);
-    }
-    if (L->kind == FMBD_MBS_FORCE) {
-      double u[3];
-      memcpy(u, P->x0, sizeof u);
-      for (int k = 0; k < nm; k++) {
-        for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * q[k];
-      }
-      double nn[3];
-      cross3(u, Fl, nn);
-      for (int a = 0; a < 3; a++) rb[a] -= Fw[a], rb[3 + a] -= nn[a];
-      for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(P->T + 3 * k, Fl);
-    } else {
-      for (int a = 0; a < 3; a++) rb[3 + a] -= Fl[a];
-      for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(P->Rr + 3 * k, Fl);
-    }
-  }
+  mbs_body_loads(m, ib, t, A, q, rb, rb + 6);
   // rb += Mb acc_b
   if (xdd) {
     for (int j = 0; j < n6; j++) {
@@ -192,41 +256,19 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     }
   }
   // r = T' rb
-  r[0] = rb[0], r[1] = rb[1], r[2] = rb[2];
-  for (int c4 = 0; c4 < 4; c4++)
-    r[3 + c4] = 2 * (G[c4] * rb[3] + G[4 + c4] * rb[4] + G[8 + c4] * rb[5]);
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];
-  // mass mu p p' on the Euler parameters (see fmbd_mbs.h): G p = 0, so the physical
-  // equations are unchanged; the normalisation multiplier absorbs mu p (p . p'')
+  mbs_rigid_rows(b, rb, p, xdd ? xdd + 3 : NULL, r);
   const double mu = PMASS * b->snorm;
-  if (xdd) {
-    const double *pdd = xdd + 3;
-    double ppdd = p[0] * pdd[0] + p[1] * pdd[1] + p[2] * pdd[2] + p[3] * pdd[3];
-    for (int c4 = 0; c4 < 4; c4++) r[3 + c4] += mu * p[c4] * ppdd;
-  }
   if (!B) return;
   // --- velocity tangent Cb (d v / d [R', wb, q']) ---
   memset(Cb, 0, sizeof(double) * (size_t)n6 * n6);
   if (cc != 0) {
-    double S1[9], S2[9], S3[9], M1[9];
-    double wc[3];
-    cross3(w, c, wc);
-    skew3(wc, S1);
-    double Sw[9];
-    skew3(w, Sw);
-    mm3(Sw, Sc, S2);
-    skew3(s1qd, S3);
-    for (int i = 0; i < 9; i++) M1[i] = -(S1[i] + S2[i] + 2 * S3[i]);
-    double AM[9];
-    mm3(A, M1, AM);
-    double IwS[9], SwI[9];
-    skew3(Iw, IwS);
-    mm3(Sw, I, SwI);
+    double AM[9], WW[9];
+    mbs_rigid_vel_tangent(A, w, c, Sc, s1qd, I, Iw, H, trH, AM, WW);
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
         CB(a, 3 + bb) = AM[3 * a + bb];
-        CB(3 + a, 3 + bb) =
-            SwI[3 * a + bb] - IwS[3 * a + bb] + 2 * ((a == bb ? trH : 0) - H[a + 3 * bb]);
+        CB(3 + a, 3 + bb) = WW[3 * a + bb];
       }
     }
     for (int k = 0; k < nm; k++) {

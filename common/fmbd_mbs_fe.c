@@ -117,21 +117,8 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
   const int64_t n = b->nm, nn = f->nn;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
   const double *p = x + 3, *q = x + 7, *pd = xd + 3, *qd = xd + 7, *qdd = xdd ? xdd + 7 : NULL;
-  double *A = b->A, *G = b->G;
-  quat_to_A(p, A);
-  quat_G(p, G);
-  b->pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
-  double w[3], wd[3] = {0, 0, 0};
-  for (int a = 0; a < 3; a++) {
-    w[a] =
-        2 * (G[4 * a] * pd[0] + G[4 * a + 1] * pd[1] + G[4 * a + 2] * pd[2] + G[4 * a + 3] * pd[3]);
-    if (xdd) {
-      const double *pdd = xdd + 3;
-      wd[a] = 2 * (G[4 * a] * pdd[0] + G[4 * a + 1] * pdd[1] + G[4 * a + 2] * pdd[2] +
-                   G[4 * a + 3] * pdd[3]);
-    }
-  }
-  memcpy(b->wb, w, sizeof w);
+  double *A = b->A, *G = b->G, w[3], wd[3];
+  mbs_frame_kin(b, p, pd, xdd ? xdd + 3 : NULL, w, wd);
   fe_fields(f, q, qd, qdd);
   double *c = b->c, *J = b->J, *I = b->I, H[9], s1qd[3];
   fe_inertia(b, c, J, s1qd, H);
@@ -143,17 +130,8 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
   skew3(c, Sc);
   mm3(A, Sc, Ac);  // A c~
   // --- rigid rows rb (6): quadratic velocity terms, gravity, loads, mass terms ---
-  double rb[6], t1[3], t2[3], t3[3], Iw[3];
-  cross3(w, c, t1);
-  cross3(w, t1, t2);
-  cross3(w, s1qd, t3);
-  for (int a = 0; a < 3; a++) t2[a] += 2 * t3[a];
-  mv3(A, t2, rb);
-  mv3(I, w, Iw);
-  cross3(w, Iw, rb + 3);
-  double Hw[3];
-  for (int a = 0; a < 3; a++) Hw[a] = H[a] * w[0] + H[a + 3] * w[1] + H[a + 6] * w[2];
-  for (int a = 0; a < 3; a++) rb[3 + a] += 2 * (trH * w[a] - Hw[a]);
+  double rb[6], Iw[3];
+  mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
   double gl[3], cg[3];
   mtv3(A, m->g, gl);
   cross3(c, gl, cg);
@@ -209,44 +187,9 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
       rf[i] += sk + sd + sm;
     }
   }
-  // loads on the body's points
-  for (int il = 0; il < m->nl; il++) {
-    const mload *L = &m->l[il];
-    const mpoint *P = &m->p[L->pt];
-    if (P->body != ib) continue;
-    double fv = fmbd_mbs_fn_eval(&L->f, t, NULL, NULL);
-    double Fw[3], Fl[3];
-    if (L->body_frame) {
-      for (int a = 0; a < 3; a++) Fl[a] = fv * L->dir[a];
-      mv3(A, Fl, Fw);
-    } else {
-      for (int a = 0; a < 3; a++) Fw[a] = fv * L->dir[a];
-      mtv3(A, Fw, Fl);
-    }
-    if (L->kind == FMBD_MBS_FORCE) {
-      double u[3];
-      memcpy(u, P->x0, sizeof u);
-      for (int j = 0; j < P->nsup; j++) {
-        for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * j] * q[P->sup[j]];
-      }
-      double nn3[3];
-      cross3(u, Fl, nn3);
-      for (int a = 0; a < 3; a++) rb[a] -= Fw[a], rb[3 + a] -= nn3[a];
-      for (int j = 0; j < P->nsup; j++) rf[P->sup[j]] -= dot3(P->T + 3 * j, Fl);
-    } else {
-      for (int a = 0; a < 3; a++) rb[3 + a] -= Fl[a];
-      for (int j = 0; j < P->nsup; j++) rf[P->sup[j]] -= dot3(P->Rr + 3 * j, Fl);
-    }
-  }
-  r[0] = rb[0], r[1] = rb[1], r[2] = rb[2];
-  for (int c4 = 0; c4 < 4; c4++)
-    r[3 + c4] = 2 * (G[c4] * rb[3] + G[4 + c4] * rb[4] + G[8 + c4] * rb[5]);
+  mbs_body_loads(m, ib, t, A, q, rb, rf);
+  mbs_rigid_rows(b, rb, p, xdd ? xdd + 3 : NULL, r);
   const double mu = PMASS * b->snorm;
-  if (xdd) {
-    const double *pdd = xdd + 3;
-    double ppdd = p[0] * pdd[0] + p[1] * pdd[1] + p[2] * pdd[2] + p[3] * pdd[3];
-    for (int c4 = 0; c4 < 4; c4++) r[3 + c4] += mu * p[c4] * ppdd;
-  }
   if (!Ax) return;
   // --- the block: Z = cm Mb + cc Cb + ck K in [R, wb, q'] (6 + n), then B = T' Z T ---
   double Z6[36] = {0};  // 6 x 6 column-major
@@ -276,21 +219,12 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
   memcpy(cl, cu, sizeof(double) * (size_t)(6 * n));
   if (cc != 0) {
     // rigid velocity tangent (as mbs_body_eval)
-    double S1m[9], S2[9], S3[9], M1[9], wc[3], Sw[9], AM[9], IwS[9], SwI[9];
-    cross3(w, c, wc);
-    skew3(wc, S1m);
-    skew3(w, Sw);
-    mm3(Sw, Sc, S2);
-    skew3(s1qd, S3);
-    for (int i = 0; i < 9; i++) M1[i] = -(S1m[i] + S2[i] + 2 * S3[i]);
-    mm3(A, M1, AM);
-    skew3(Iw, IwS);
-    mm3(Sw, I, SwI);
+    double AM[9], WW[9];
+    mbs_rigid_vel_tangent(A, w, c, Sc, s1qd, I, Iw, H, trH, AM, WW);
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
         Z(a, 3 + bb) += cc * AM[3 * a + bb];
-        Z(3 + a, 3 + bb) +=
-            cc * (SwI[3 * a + bb] - IwS[3 * a + bb] + 2 * ((a == bb ? trH : 0) - H[a + 3 * bb]));
+        Z(3 + a, 3 + bb) += cc * WW[3 * a + bb];
       }
     }
     // coupling (mbs_body_eval's, with H_k from the fields): trk = tr H_k = (E'Y)_k,

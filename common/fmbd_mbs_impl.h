@@ -150,12 +150,14 @@ typedef struct mbody {
   double *q0, *qd0;
   // --- evaluation workspace (filled by mbs_body_eval) ---
   double A[9], G[12], pn, wb[3], c[3], J[9], I[9];
-  double *P;    // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
-  double *Hk;   // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
-  double *Mwf;  // 3 x nm
-  double *cor;  // 3 x nm: sum_l q'_l int rho S_l x S_k
-  bool kdiag;   // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
-  mbs_fe *fe;   // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
+  double *P;         // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
+  double *Hk;        // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
+  double *Mwf;       // 3 x nm
+  double *cor;       // 3 x nm: sum_l q'_l int rho S_l x S_k
+  bool kdiag;        // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
+  mbs_fe *fe;        // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
+  double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
+  bool spin_warned;  // mbs_spin_check warned
 } mbody;
 // unit of a body's flexible coordinates in the scales: sqrt(m) for mass-normalised modal
 // coordinates, 1 for FE dofs (m, rad)
@@ -219,6 +221,7 @@ struct fmbd_mbs {
   mload *l;
   double g[3];
   bool ready;
+  bool spin_ready;  // the bodies' spin_lam computed (fmbd_mbs_spin.c)
   fmbd_mbs_settings set;
   // --- dimensions and state ---
   int64_t n, neq, m, N;  // coordinates, all equations, kept, matrix size
@@ -292,11 +295,26 @@ const char *mbs_joint_kind_name(int kind);
 // fmbd_mbs_fn.c: copy a function (table arrays owned by the copy; `what` names it in messages)
 int mbs_fn_copy(const fmbd_mbs_fn *src, fmbd_mbs_fn *dst, const char *what);
 void mbs_fn_free(fmbd_mbs_fn *f);
+// After each accepted step: warn once per flexible body spinning fast enough for the missing
+// geometric stiffening to matter (fmbd_mbs_spin.c, docs/STABILITY.md).
+void mbs_spin_check(fmbd_mbs *m);
 // fmbd_mbs_body.c: the residual r (n = 7 + nm) of body ib at (xg, xdg, xddg; xddg may be
 // NULL: zero accelerations) and optionally its block B = cm M + cc C + ck K (n x n, column
 // major); see the comment at the definition
 void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
                    const double *xddg, double *r, double *B, double cm, double cc, double ck);
+// parts shared by modal and FE bodies (fmbd_mbs_body.c; see there)
+void mbs_frame_kin(mbody *b, const double *p, const double *pd, const double *pdd, double *w,
+                   double *wd);
+void mbs_rigid_rows(const mbody *b, const double *rb, const double *p, const double *pdd,
+                    double *r);
+void mbs_rigid_qv(const double *A, const double *w, const double *c, const double *s1qd,
+                  const double *I, const double *H, double trH, double *rb, double *Iw);
+void mbs_rigid_vel_tangent(const double *A, const double *w, const double *c, const double *Sc,
+                           const double *s1qd, const double *I, const double *Iw, const double *H,
+                           double trH, double *AM, double *WW);
+void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const double *q,
+                    double *rb, double *rf);
 // fmbd_mbs_constraint.c
 void mbs_eq_describe(const fmbd_mbs *m, const meq *e, char *buf, size_t len);
 void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2);

@@ -44,6 +44,10 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
       else if (k < 7)
         snprintf(what, sizeof what, "body '%s' rotational equation of motion (row e%d)", b->name,
                  k - 3);
+      else if (b->fe && b->fe->dofs)
+        snprintf(what, sizeof what, "body '%s' equation of FE dof %d (node %lld, direction %lld)",
+                 b->name, k - 6, (long long)b->fe->dofs[2 * (k - 7)],
+                 (long long)b->fe->dofs[2 * (k - 7) + 1]);
       else
         snprintf(what, sizeof what, "body '%s' modal equation %d", b->name, k - 6);
     }
@@ -236,6 +240,7 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
     memcpy(m->xddp, m->xddn, sizeof(double) * (size_t)m->n);  // x'' of the previous step
     m->h_prev = h;
     mbs_update_scales(m);
+    mbs_spin_check(m);  // docs/STABILITY.md, the spin-up beam (fmbd_mbs_spin.c)
     bool hit_out = oe <= 0;
     if (oe > 0 && clipped && out_lim) {
       m->k_out++;

@@ -27,6 +27,8 @@ void fmbd_rflex_destroy(fmbd_rflex **pr) {
   fmbd_free(r->node_xyz);
   fmbd_free(r->node_mass);
   fmbd_free(r->dofs);
+  fmbd_free(r->held);
+  fmbd_free(r->stress_row);
   fmbd_csr_destroy(&r->expand);
   for (int i = 0; i < r->ninterfaces && r->interfaces; i++) {
     fmbd_free(r->interfaces[i].name);
@@ -74,6 +76,10 @@ int64_t fmbd_rflex_nearest_node(const fmbd_rflex *r, const double x[3], double *
 int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double *T, double *R) {
   FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
              (long long)node, (long long)r->nnodes);
+  FMBD_CHECK(!r->held || (r->held[node] & FMBD_RFLEX_HELD_MOTION), FMBD_ERR_VALUE,
+             "node %lld is not in this subset body, which holds only the nodes its scene read "
+             "(/subset); make the body for this scene (fmbd-run -M passes cbcheck --for-scene)",
+             (long long)node);
   if (x0) {
     memcpy(x0, r->node_xyz + 3 * node, 3 * sizeof(double));
   }
@@ -103,12 +109,124 @@ int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma) {
   FMBD_CHECK(r->stress, FMBD_ERR_VALUE, "the body has no modal stress (/modes/stress)");
   FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
              (long long)node, (long long)r->nnodes);
+  int64_t row = r->stress_row ? r->stress_row[node] : node;
+  FMBD_CHECK(row >= 0, FMBD_ERR_VALUE,
+             "this subset body holds no stress at node %lld: only where its scene asked for "
+             "stress (/subset/stress_nodes); make the body for this scene (fmbd-run -M passes "
+             "cbcheck --for-scene)",
+             (long long)node);
+  int64_t ns = r->stress_row ? r->nstress : r->nnodes;
   for (int64_t k = 0; k < r->nm; k++) {
     for (int i = 0; i < 6; i++) {
-      sigma[i + 6 * k] = r->stress[i + 6 * node + 6 * r->nnodes * k];
+      sigma[i + 6 * k] = r->stress[i + 6 * row + 6 * ns * k];
     }
   }
   return FMBD_OK;
+}
+
+int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int64_t nstress,
+                      const int64_t *stress) {
+  int rc = FMBD_OK;
+  int64_t nn = r->nnodes, nm = r->nm, nd = r->ndof;
+  unsigned char *held = NULL;
+  int64_t *dmap = NULL, *srow = NULL, *dofs = NULL;
+  if (!r->held) r->whole_ndof = nd;
+  double *shapes = NULL, *sig = NULL;
+  fmbd_csr *E = NULL;
+  FMBD_GALLOC(held = xcalloc((size_t)nn + 1, 1));
+  for (int64_t i = 0; i < nmotion + nstress; i++) {
+    int64_t p = i < nmotion ? motion[i] : stress[i - nmotion];
+    FMBD_GCHECK(p >= 0 && p < nn, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
+                (long long)p, (long long)nn);
+    held[p] |=
+        i < nmotion ? FMBD_RFLEX_HELD_MOTION : (FMBD_RFLEX_HELD_MOTION | FMBD_RFLEX_HELD_STRESS);
+  }
+  for (int i = 0; i < r->ninterfaces; i++) held[r->interfaces[i].node] |= FMBD_RFLEX_HELD_MOTION;
+  for (int64_t p = 0; p < nn; p++) {  // a subset of a subset: what it holds, no more
+    if (r->held) held[p] &= r->held[p];
+    if ((held[p] & FMBD_RFLEX_HELD_STRESS) &&
+        !(r->stress_row ? r->stress_row[p] >= 0 : !!r->stress))
+      held[p] &= (unsigned char)~FMBD_RFLEX_HELD_STRESS;
+  }
+  FMBD_GCHECK(nstress == 0 || r->stress, FMBD_ERR_VALUE,
+              "stress asked at %lld nodes, but the body has no modal stress", (long long)nstress);
+  // the dofs the held nodes' /expand rows read, renumbered in their order
+  const fmbd_csr *X = r->expand;
+  FMBD_GALLOC(dmap = fmbd_malloc(sizeof(int64_t) * (size_t)(nd + 1)));
+  for (int64_t i = 0; i < nd; i++) dmap[i] = -1;
+  int64_t nnz = 0;
+  for (int64_t p = 0; p < nn; p++) {
+    if (!(held[p] & FMBD_RFLEX_HELD_MOTION)) continue;
+    for (int64_t q = X->indptr[6 * p]; q < X->indptr[6 * p + 6]; q++) dmap[X->indices[q]] = 0;
+    nnz += X->indptr[6 * p + 6] - X->indptr[6 * p];
+  }
+  int64_t nk = 0;
+  for (int64_t i = 0; i < nd; i++) {
+    if (dmap[i] == 0) dmap[i] = nk++;
+  }
+  FMBD_GALLOC(dofs = fmbd_malloc(sizeof(int64_t) * (size_t)(2 * nk + 1)));
+  FMBD_GALLOC(shapes = fmbd_malloc(sizeof(double) * (size_t)(nk * nm + 1)));
+  for (int64_t i = 0; i < nd; i++) {
+    if (dmap[i] < 0) continue;
+    dofs[2 * dmap[i]] = r->dofs[2 * i];
+    dofs[2 * dmap[i] + 1] = r->dofs[2 * i + 1];
+    for (int64_t k = 0; k < nm; k++) shapes[dmap[i] + nk * k] = r->shapes[i + nd * k];
+  }
+  FMBD_GCALL(fmbd_csr_create(6 * nn, nk, nnz, &E));
+  int64_t e = 0;
+  E->indptr[0] = 0;
+  for (int64_t row = 0; row < 6 * nn; row++) {
+    if (held[row / 6] & FMBD_RFLEX_HELD_MOTION) {
+      for (int64_t q = X->indptr[row]; q < X->indptr[row + 1]; q++) {
+        E->indices[e] = dmap[X->indices[q]];  // increasing: dmap keeps the order
+        E->data[e++] = X->data[q];
+      }
+    }
+    E->indptr[row + 1] = e;
+  }
+  // the stress rows of the nodes that keep it
+  int64_t ns = 0;
+  if (r->stress) {
+    FMBD_GALLOC(srow = fmbd_malloc(sizeof(int64_t) * (size_t)(nn + 1)));
+    for (int64_t p = 0; p < nn; p++) srow[p] = (held[p] & FMBD_RFLEX_HELD_STRESS) ? ns++ : -1;
+    FMBD_GALLOC(sig = fmbd_malloc(sizeof(double) * (size_t)(6 * ns * nm + 1)));
+    int64_t ns0 = r->stress_row ? r->nstress : nn;
+    for (int64_t p = 0; p < nn; p++) {
+      if (srow[p] < 0) continue;
+      int64_t from = r->stress_row ? r->stress_row[p] : p;
+      for (int64_t k = 0; k < nm; k++) {
+        memcpy(sig + 6 * srow[p] + 6 * ns * k, r->stress + 6 * from + 6 * ns0 * k,
+               6 * sizeof(double));
+      }
+    }
+  }
+  fmbd_free(r->held);
+  fmbd_free(r->dofs);
+  fmbd_free(r->shapes);
+  fmbd_free(r->stress_row);
+  fmbd_free(r->stress);
+  fmbd_csr_destroy(&r->expand);
+  r->held = held;
+  r->dofs = dofs;
+  r->shapes = shapes;
+  r->expand = E;
+  r->ndof = nk;
+  r->stress = sig;
+  r->stress_row = srow;
+  r->nstress = ns;
+  held = NULL;
+  dofs = srow = NULL;
+  shapes = sig = NULL;
+  E = NULL;
+done:
+  fmbd_free(held);
+  fmbd_free(dmap);
+  fmbd_free(srow);
+  fmbd_free(dofs);
+  fmbd_free(shapes);
+  fmbd_free(sig);
+  fmbd_csr_destroy(&E);
+  return rc;
 }
 
 double fmbd_von_mises(const double s[6]) {
@@ -149,37 +267,18 @@ static int consistent_weighted(const fmbd_fe_body *b, int64_t nm, const double *
   return FMBD_OK;
 }
 
-// --- secondary reduction ------------------------------------------------------------------
-int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+// --- a body from its shapes: the one place of the nodal motion and the invariants ---------
+// r already holds nm, ndof, nnodes and shapes (ndof x nm); Mff, Kff (nm x nm, column-major)
+// and eig (nm Ritz eigenvalues, > 0) are copied. Everything else is derived here: the
+// description, the nodal and interface motion through /expand, the FFRF invariants
+// (docs/THEORY.md section 9) and the optional modal stress.
+static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
+                        const double *eig, bool stress) {
   int rc = FMBD_OK;
-  fmbd_rflex *r = NULL;
-  double *U = NULL, *Wa = NULL, *Ub = NULL;
-  const fmbd_fe_body *b = in->body;
-  int64_t ns = in->ns, nb = in->nb, nd = in->nd, nm = in->nm;
-  *out = NULL;
-  // --- check inputs ---
-  FMBD_CHECK(b && b->expand, FMBD_ERR_VALUE, "the body description has no /expand");
-  // ns + nb < ndof: the rest are held dofs (fe2cb --method nm --hold), zero in every mode
-  FMBD_CHECK(ns + nb <= b->ndof, FMBD_ERR_VALUE,
-             "%lld interior + %lld boundary dofs, but the body has %lld dofs", (long long)ns,
-             (long long)nb, (long long)b->ndof);
-  FMBD_CHECK(nm >= 0 && in->ldxi >= nd + nb && (nd == 0 || in->ldphi >= ns), FMBD_ERR_VALUE,
-             "inconsistent sizes of the reduced modes");
-  FMBD_CHECK(b->expand->nrows == 6 * b->nnodes && b->expand->ncols == b->ndof, FMBD_ERR_VALUE,
-             "/expand is %lld x %lld, expected %lld x %lld", (long long)b->expand->nrows,
-             (long long)b->expand->ncols, (long long)(6 * b->nnodes), (long long)b->ndof);
-  for (int64_t k = 0; k < nm; k++) {
-    FMBD_CHECK(in->chibar[k] > 0, FMBD_ERR_VALUE, "flexible mode %lld has eigenvalue %g",
-               (long long)k + 1, in->chibar[k]);
-  }
-  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
-  int64_t ndof = b->ndof, nn = b->nnodes;
-  r->nm = nm;
-  r->ndof = ndof;
-  r->nnodes = nn;
+  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL;
+  int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
   FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
   FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
-  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
   FMBD_GALLOC(r->node_xyz = xcalloc((size_t)(3 * nn), sizeof(double)));
   FMBD_GALLOC(r->node_mass = xcalloc((size_t)nn, sizeof(double)));
   FMBD_GALLOC(r->dofs = xcalloc((size_t)(2 * ndof), sizeof(int64_t)));
@@ -190,30 +289,8 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   memcpy(r->dofs, b->dofs, sizeof(int64_t) * (size_t)(2 * ndof));
   FMBD_GCALL(fmbd_csr_duplicate(b->expand, &r->expand));
   for (int64_t k = 0; k < nm; k++) {
-    r->eigenvalue[k] = in->chibar[k];
-    r->frequency_hz[k] = sqrt(in->chibar[k]) / (2 * M_PI);
-  }
-  // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
-  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
-  if (nd > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
-  }
-  if (nb > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
-  }
-  for (int64_t k = 0; k < nm; k++) {
-    for (int64_t i = 0; i < ns; i++) {
-      int64_t row = in->interior_dofs[i];
-      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
-                  (long long)row);
-      r->shapes[row + ndof * k] = Wa[i + ns * k];
-    }
-    for (int64_t j = 0; j < nb; j++) {
-      int64_t row = in->boundary_dofs[j];
-      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "boundary dof %lld out of range",
-                  (long long)row);
-      r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
-    }
+    r->eigenvalue[k] = eig[k];
+    r->frequency_hz[k] = sqrt(fmax(eig[k], 0.0)) / (2 * M_PI);
   }
   // --- nodal motion: U = expand * shapes, (6 nn) x nm ---
   FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
@@ -260,10 +337,8 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   FMBD_GALLOC(r->SS = xcalloc((size_t)(9 * nm * nm), sizeof(double)));
   FMBD_GALLOC(r->Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
   FMBD_GALLOC(r->Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
-  for (int64_t k = 0; k < nm; k++) {
-    r->Mff[k + nm * k] = 1.0;
-    r->Kff[k + nm * k] = in->chibar[k];
-  }
+  memcpy(r->Mff, Mff, sizeof(double) * (size_t)(nm * nm));
+  memcpy(r->Kff, Kff, sizeof(double) * (size_t)(nm * nm));
   if (nm > 0) {
     // Ub: component b of the nodal motion (nn x nm per b); Wa = M_n Ua, the mass-weighted
     // motion, with M_n the body's nodal mass: the scalar consistent mass of the solid elements
@@ -271,8 +346,6 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
     // solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
     //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    fmbd_free(Wa);  // held the interior shapes above
-    Wa = NULL;
     FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int64_t k = 0; k < nm; k++) {
@@ -298,7 +371,6 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
         for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
       }
     }
-    double *Sab = NULL;
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
@@ -311,24 +383,200 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
         }
       }
     }
-    fmbd_free(Sab);
   }
   // --- modal stress ---
-  if (in->stress && nm > 0) {
+  // from the solid elements only: without any (beams, springs, a lost /mesh/elements) it would
+  // be zero everywhere, so none is made (r->stress = NULL; callers say so)
+  if (stress && nm > 0 && b->ntet > 0) {
     FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
     FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, r->stress));
   }
-  *out = r;
-  r = NULL;
 done:
   fmbd_free(U);
   fmbd_free(Wa);
   fmbd_free(Ub);
+  fmbd_free(Sab);
+  return rc;
+}
+
+// the description checks shared by both producers
+static int check_body(const fmbd_fe_body *b) {
+  FMBD_CHECK(b && b->expand, FMBD_ERR_VALUE, "the body description has no /expand");
+  FMBD_CHECK(b->expand->nrows == 6 * b->nnodes && b->expand->ncols == b->ndof, FMBD_ERR_VALUE,
+             "/expand is %lld x %lld, expected %lld x %lld", (long long)b->expand->nrows,
+             (long long)b->expand->ncols, (long long)(6 * b->nnodes), (long long)b->ndof);
+  return FMBD_OK;
+}
+
+// --- secondary reduction ------------------------------------------------------------------
+int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+  int rc = FMBD_OK;
+  fmbd_rflex *r = NULL;
+  double *Wa = NULL, *Mff = NULL, *Kff = NULL;
+  const fmbd_fe_body *b = in->body;
+  int64_t ns = in->ns, nb = in->nb, nd = in->nd, nm = in->nm;
+  *out = NULL;
+  // --- check inputs ---
+  FMBD_CALL(check_body(b));
+  // ns + nb < ndof: the rest are held dofs (fe2cb --method nm --hold), zero in every mode
+  FMBD_CHECK(ns + nb <= b->ndof, FMBD_ERR_VALUE,
+             "%lld interior + %lld boundary dofs, but the body has %lld dofs", (long long)ns,
+             (long long)nb, (long long)b->ndof);
+  FMBD_CHECK(nm >= 0 && in->ldxi >= nd + nb && (nd == 0 || in->ldphi >= ns), FMBD_ERR_VALUE,
+             "inconsistent sizes of the reduced modes");
+  for (int64_t k = 0; k < nm; k++) {
+    FMBD_CHECK(in->chibar[k] > 0, FMBD_ERR_VALUE, "flexible mode %lld has eigenvalue %g",
+               (long long)k + 1, in->chibar[k]);
+  }
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
+  int64_t ndof = b->ndof;
+  r->nm = nm;
+  r->ndof = ndof;
+  r->nnodes = b->nnodes;
+  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
+  // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
+  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  if (nd > 0) {
+    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
+  }
+  if (nb > 0) {
+    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
+  }
+  for (int64_t k = 0; k < nm; k++) {
+    for (int64_t i = 0; i < ns; i++) {
+      int64_t row = in->interior_dofs[i];
+      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
+                  (long long)row);
+      r->shapes[row + ndof * k] = Wa[i + ns * k];
+    }
+    for (int64_t j = 0; j < nb; j++) {
+      int64_t row = in->boundary_dofs[j];
+      FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "boundary dof %lld out of range",
+                  (long long)row);
+      r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
+    }
+  }
+  // mass-normalised modes of the reduced problem: Mff = I, Kff = diag(chibar)
+  FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  for (int64_t k = 0; k < nm; k++) {
+    Mff[k + nm * k] = 1.0;
+    Kff[k + nm * k] = in->chibar[k];
+  }
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, in->chibar, in->stress));
+  *out = r;
+  r = NULL;
+done:
+  fmbd_free(Wa);
+  fmbd_free(Mff);
+  fmbd_free(Kff);
+  fmbd_rflex_destroy(&r);
+  return rc;
+}
+
+// --- any basis of displacement fields ---------------------------------------------------------
+int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out) {
+  int rc = FMBD_OK;
+  fmbd_rflex *r = NULL;
+  double *Mff = NULL, *Kff = NULL, *W = NULL, *A = NULL, *B = NULL, *eig = NULL;
+  const fmbd_fe_body *b = in->body;
+  int64_t nm = in->nm;
+  *out = NULL;
+  FMBD_CALL(check_body(b));
+  int64_t ndof = b->ndof;
+  FMBD_CHECK(nm >= 0 && in->lds >= ndof && in->S, FMBD_ERR_VALUE,
+             "a basis of %lld shapes with leading dimension %lld for a body of %lld dofs",
+             (long long)nm, (long long)in->lds, (long long)ndof);
+  bool sparse = in->M && in->K;
+  FMBD_CHECK(sparse || (in->Mff && in->Kff), FMBD_ERR_VALUE,
+             "a basis needs the body's M and K, or its projections Mff and Kff");
+  if (sparse) {
+    FMBD_CHECK(in->M->nrows == ndof && in->M->ncols == ndof && in->K->nrows == ndof &&
+                   in->K->ncols == ndof,
+               FMBD_ERR_VALUE, "M or K is not %lld x %lld", (long long)ndof, (long long)ndof);
+  }
+  FMBD_GALLOC(r = fmbd_calloc(1, sizeof(*r)));
+  r->nm = nm;
+  r->ndof = ndof;
+  r->nnodes = b->nnodes;
+  FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
+  for (int64_t k = 0; k < nm; k++) {
+    memcpy(r->shapes + ndof * k, in->S + in->lds * k, sizeof(double) * (size_t)ndof);
+  }
+  FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
+  if (sparse) {  // Mff = S' M S, Kff = S' K S
+    FMBD_GALLOC(W = xcalloc((size_t)(ndof * nm), sizeof(double)));
+    fmbd_csr_matmat(in->M, nm, r->shapes, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nm, nm, ndof, 1.0, r->shapes, ndof, W, ndof, 0.0, Mff, nm);
+    fmbd_csr_matmat(in->K, nm, r->shapes, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nm, nm, ndof, 1.0, r->shapes, ndof, W, ndof, 0.0, Kff, nm);
+  } else {
+    memcpy(Mff, in->Mff, sizeof(double) * (size_t)(nm * nm));
+    memcpy(Kff, in->Kff, sizeof(double) * (size_t)(nm * nm));
+  }
+  for (int64_t l = 0; l < nm; l++) {  // exact symmetry (round-off of the products)
+    for (int64_t k = 0; k < l; k++) {
+      double m = 0.5 * (Mff[k + nm * l] + Mff[l + nm * k]);
+      double kk = 0.5 * (Kff[k + nm * l] + Kff[l + nm * k]);
+      Mff[k + nm * l] = Mff[l + nm * k] = m;
+      Kff[k + nm * l] = Kff[l + nm * k] = kk;
+    }
+  }
+  // the body's eigenvalues in this basis (Ritz values of Kff x = w Mff x) for /modes/eigenvalue;
+  // a dependent basis makes Mff singular: refused
+  FMBD_GALLOC(A = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(B = xcalloc((size_t)(nm * nm), sizeof(double)));
+  FMBD_GALLOC(eig = xcalloc((size_t)nm, sizeof(double)));
+  memcpy(A, Kff, sizeof(double) * (size_t)(nm * nm));
+  memcpy(B, Mff, sizeof(double) * (size_t)(nm * nm));
+  rc = fmbd_dense_sygv(nm, A, B, eig);
+  if (rc == FMBD_ERR_SINGULAR) {
+    FMBD_GFAIL(FMBD_ERR_VALUE,
+               "the %lld shapes of the basis are linearly dependent (S'MS is not positive "
+               "definite)",
+               (long long)nm);
+  }
+  FMBD_GCALL(rc);
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, eig, in->stress));
+  *out = r;
+  r = NULL;
+done:
+  fmbd_free(Mff);
+  fmbd_free(Kff);
+  fmbd_free(W);
+  fmbd_free(A);
+  fmbd_free(B);
+  fmbd_free(eig);
   fmbd_rflex_destroy(&r);
   return rc;
 }
 
 // --- file I/O --------------------------------------------------------------------------------
+// /subset/{nodes,stress_nodes} and the subset's /dofs and /expand (docs/FORMAT.md)
+static int write_subset(fmbd_h5 *f, const fmbd_rflex *r) {
+  int rc = FMBD_OK;
+  int64_t *list = NULL, n = 0, ns = 0;
+  FMBD_GALLOC(list = fmbd_malloc(sizeof(int64_t) * (size_t)(r->nnodes + 1)));
+  for (int64_t p = 0; p < r->nnodes; p++) {
+    if (r->held[p] & FMBD_RFLEX_HELD_MOTION) list[n++] = p;
+  }
+  int64_t d1[1] = {n};
+  FMBD_GCALL(fmbd_h5_write_i64(f, "/subset/nodes", 1, d1, list));
+  for (int64_t p = 0; p < r->nnodes; p++) {
+    if (r->stress_row && r->stress_row[p] >= 0) list[ns++] = p;  // rows in node order
+  }
+  d1[0] = ns;
+  FMBD_GCALL(fmbd_h5_write_i64(f, "/subset/stress_nodes", 1, d1, list));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, "/subset", "whole_ndof", 1, &r->whole_ndof));
+  int64_t dd[2] = {r->ndof, 2};
+  FMBD_GCALL(fmbd_h5_write_i64(f, "/dofs", 2, dd, r->dofs));
+  FMBD_GCALL(fmbd_h5_write_csr(f, "/expand", r->expand));
+done:
+  fmbd_free(list);
+  return rc;
+}
+
 int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
   int rc = FMBD_OK;
   double *buf = NULL;
@@ -338,6 +586,9 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
   FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/eigenvalue", 1, d1, r->eigenvalue));
   FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/frequency_hz", 1, d1, r->frequency_hz));
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/modes/shapes", r->ndof, nm, r->shapes));
+  if (r->held) {  // a subset body: its own /dofs, /expand, and the nodes it holds
+    nn = r->stress_row ? r->nstress : 0;
+  }
   size_t big = (size_t)(9 * nm * nm);
   if (r->stress && (size_t)(6 * nn * nm) > big) {
     big = (size_t)(6 * nn * nm);
@@ -354,6 +605,7 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
     int64_t d3[3] = {nn, 6, nm};
     FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/stress", 3, d3, buf));
   }
+  if (r->held) FMBD_GCALL(write_subset(f, r));
   for (int i = 0; i < r->ninterfaces; i++) {
     const fmbd_rflex_interface *it = &r->interfaces[i];
     snprintf(path, sizeof path, "/interfaces/%s/translation", it->name);
@@ -430,14 +682,44 @@ int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out) {
   FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/frequency_hz", 1, de, &r->frequency_hz));
   int64_t rows = ndof, cols = nm;
   FMBD_GCALL(fmbd_h5_read_f64_cm(f, "/modes/shapes", &rows, &cols, &r->shapes));
+  int64_t nsr = nn;                    // rows of /modes/stress
+  if (fmbd_h5_exists(f, "/subset")) {  // a subset body: the nodes it holds
+    int64_t dk[1] = {-1};
+    FMBD_GCALL(fmbd_h5_read_i64(f, "/subset/nodes", 1, dk, &itmp));
+    FMBD_GALLOC(r->held = xcalloc((size_t)nn + 1, 1));
+    for (int64_t i = 0; i < dk[0]; i++) {
+      fmbd_err_context(fmbd_h5_name(f), "/subset/nodes");
+      FMBD_GCHECK(itmp[i] >= 0 && itmp[i] < nn, FMBD_ERR_FORMAT, "node %lld out of range",
+                  (long long)itmp[i]);
+      r->held[itmp[i]] = FMBD_RFLEX_HELD_MOTION;
+    }
+    fmbd_free(itmp);
+    itmp = NULL;
+    dk[0] = -1;
+    FMBD_GCALL(fmbd_h5_read_i64(f, "/subset/stress_nodes", 1, dk, &itmp));
+    FMBD_GALLOC(r->stress_row = fmbd_malloc(sizeof(int64_t) * (size_t)(nn + 1)));
+    for (int64_t p = 0; p < nn; p++) r->stress_row[p] = -1;
+    for (int64_t i = 0; i < dk[0]; i++) {
+      fmbd_err_context(fmbd_h5_name(f), "/subset/stress_nodes");
+      FMBD_GCHECK(itmp[i] >= 0 && itmp[i] < nn && r->held[itmp[i]], FMBD_ERR_FORMAT,
+                  "node %lld out of range or not in /subset/nodes", (long long)itmp[i]);
+      r->stress_row[itmp[i]] = i;
+      r->held[itmp[i]] |= FMBD_RFLEX_HELD_STRESS;
+    }
+    fmbd_err_context("", "");
+    nsr = r->nstress = dk[0];
+    FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/subset", "whole_ndof", 1, &r->whole_ndof));
+    fmbd_free(itmp);
+    itmp = NULL;
+  }
   if (fmbd_h5_exists(f, "/modes/stress")) {
-    int64_t ds[3] = {nn, 6, nm};
+    int64_t ds[3] = {nsr, 6, nm};
     FMBD_GCALL(fmbd_h5_read_f64(f, "/modes/stress", 3, ds, &buf));
-    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nsr * nm + 1), sizeof(double)));
     for (int64_t k = 0; k < nm; k++) {
-      for (int64_t p = 0; p < nn; p++) {
+      for (int64_t p = 0; p < nsr; p++) {
         for (int i = 0; i < 6; i++) {
-          r->stress[i + 6 * p + 6 * nn * k] = buf[(p * 6 + i) * nm + k];
+          r->stress[i + 6 * p + 6 * nsr * k] = buf[(p * 6 + i) * nm + k];
         }
       }
     }

@@ -66,7 +66,16 @@ typedef struct fmbd_rflex {
   double *SS;               ///< 3 x 3 x nm x nm: int rho S_k,a S_l,b dV
   double *Mff;              ///< nm x nm modal mass (identity up to round-off)
   double *Kff;              ///< nm x nm modal stiffness (diag eigenvalue)
+  // --- a subset body (cbcheck --for-scene; docs/FORMAT.md /subset): NULL/0 for a whole body.
+  // It holds every node's position (places resolve as on the whole body) but the modal motion
+  // (shapes, /dofs, /expand rows) of the held nodes only, and the modal stress of fewer.
+  unsigned char *held;  ///< nnodes flags: FMBD_RFLEX_HELD_MOTION, FMBD_RFLEX_HELD_STRESS
+  int64_t *stress_row;  ///< nnodes: the node's row in stress, or -1 (NULL: row = node)
+  int64_t nstress;      ///< rows of stress (nnodes for a whole body)
+  int64_t whole_ndof;   ///< the whole body's active dofs (/subset whole_ndof)
 } fmbd_rflex;
+
+enum { FMBD_RFLEX_HELD_MOTION = 1, FMBD_RFLEX_HELD_STRESS = 2 };
 
 // --- accessors (no bounds checks) ---------------------------------------------------------
 static inline double fmbd_rflex_S1(const fmbd_rflex *r, int a, int64_t k) {
@@ -91,7 +100,9 @@ static inline double fmbd_rflex_J(const fmbd_rflex *r, int a, int b) {
 int fmbd_rflex_read(fmbd_h5 *f, fmbd_rflex **out);
 
 /// @brief Write the rflex objects of r: /modes/{eigenvalue,frequency_hz,shapes[,stress]},
-/// /interfaces/<name>/{translation,rotation}, /ffrf/*. The description groups (/mesh, /dofs,
+/// /interfaces/<name>/{translation,rotation}, /ffrf/*; for a subset body also /subset, /dofs
+/// and /expand (its own), and the caller copies the description without /dofs, /expand and
+/// /mesh/elements (fmbd_check_write_rflex does). The description groups (/mesh, /dofs,
 /// /material, /interfaces attributes and tied nodes, /clamped, /body, /expand) are copied by
 /// the caller beforehand (fmbd_fe_copy_description); the /interfaces/<name> groups must exist.
 /// @param[in] f a file from fmbd_h5_create(..., FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, ...)
@@ -126,6 +137,29 @@ typedef struct fmbd_rflex_input {
 ///         fmbd_fe_nodal_stress
 int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out);
 
+/// Any basis of FE displacement fields of a body (all borrowed; column-major).
+typedef struct fmbd_rflex_basis {
+  const fmbd_fe_body *body;  ///< description: nodes, node_mass, dofs, expand, interfaces, /body
+                             ///< (elements and material for stress)
+  const fmbd_csr *M, *K;     ///< the body's FE mass and stiffness (ndof x ndof), or NULL
+  int64_t nm;                ///< shapes in the basis
+  const double *S;           ///< ndof x nm shapes on the body's dofs (rigid motion excluded)
+  int64_t lds;               ///< leading dimension of S (>= ndof)
+  const double *Mff, *Kff;   ///< nm x nm: S'MS and S'KS when M, K are NULL (the caller knows
+                             ///< them, e.g. from the modal body the shapes are combinations of)
+  bool stress;               ///< compute /modes/stress
+} fmbd_rflex_basis;
+
+/// @brief The body fmbd-run integrates for ANY basis S of displacement fields (a global-mode
+/// GMc basis, ...): Mff = S'MS, Kff = S'KS (not necessarily diagonal), the nodal and
+/// interface motion and the FFRF invariants through the same function fmbd_rflex_build uses;
+/// /modes/eigenvalue gets the Ritz values of Kff x = w Mff x (the body's eigenvalues in the
+/// basis, ascending), frequency_hz their sqrt / 2 pi.
+/// @param[out] out caller releases with fmbd_rflex_destroy
+/// @return FMBD_OK, FMBD_ERR_VALUE (sizes; dependent shapes: S'MS not positive definite),
+///         FMBD_ERR_NOMEM, errors of fmbd_fe_nodal_stress
+int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out);
+
 /// @brief True when fmbd_rflex_build evaluates the invariants S1, XS, SS with the body's
 /// scalar consistent mass (a solid body, tet4/tet10, meshed with consistent mass: the mass the
 /// modes come from), false when with the lumped nodal masses (lumped-mass bodies, beams).
@@ -147,12 +181,24 @@ int64_t fmbd_rflex_nearest_node(const fmbd_rflex *r, const double x[3], double *
 /// @param[out] T    3 x nm modal translations T[a + 3k] (may be NULL)
 /// @param[out] R    3 x nm modal rotations (may be NULL; zero for a solid node, which has
 ///                  no rotational dofs)
-/// @return FMBD_OK, FMBD_ERR_VALUE (node out of range)
+/// @return FMBD_OK, FMBD_ERR_VALUE (node out of range, or a node a subset body does not hold:
+///         the message says so)
 int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double *T, double *R);
 
 /// @brief A node's modal stress: sigma[i + 6k] (i = xx yy zz xy yz zx) per unit modal
-/// coordinate. FMBD_ERR_VALUE if the body has no stress or node is out of range.
+/// coordinate. FMBD_ERR_VALUE if the body has no stress, node is out of range, or a subset
+/// body does not hold the node's stress.
 int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma);
+
+/// @brief Make r a subset body (docs/FORMAT.md /subset): keep the modal motion of the nodes
+/// `motion` (and of every interface node) and the modal stress of the nodes `stress` (which
+/// also keep their motion); the /dofs, shapes and /expand columns that no kept node reads are
+/// dropped. Node positions, interfaces, invariants are unchanged. Applying it to a subset body
+/// keeps the intersection with what it holds.
+/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range, or stress asked where r has none),
+///         FMBD_ERR_NOMEM
+int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int64_t nstress,
+                      const int64_t *stress);
 
 /// @brief von Mises stress of a stress vector s (xx yy zz xy yz zx).
 double fmbd_von_mises(const double s[6]);

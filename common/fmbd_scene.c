@@ -672,7 +672,7 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   static const char *const keys[] = {
       "name",  "type",          "mass", "com",      "inertia",     "geometry", "file",
       "modes", "damping_ratio", "make", "position", "orientation", "velocity", "angular_velocity",
-      NULL};
+      "basis", "basis_body",    NULL};
   TRY(check_map(c, n, what, keys));
   const char *type = "rigid";
   if ((x = get(c, n, "type"))) TRY(as_str(c, x, "body type", &type));
@@ -680,7 +680,8 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   for (int i = 0; i < 9; i++) b->rotation[i] = (i % 4 == 0);
   if (!strcmp(type, "rigid")) {
     b->kind = FMBD_SCENE_RIGID;
-    static const char *const flexkeys[] = {"file", "modes", "damping_ratio", "make", NULL};
+    static const char *const flexkeys[] = {"file",       "modes", "damping_ratio", "make", "basis",
+                                           "basis_body", NULL};
     for (int i = 0; flexkeys[i]; i++) {
       if ((x = get(c, n, flexkeys[i]))) {
         return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)",
@@ -735,6 +736,24 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     } else {
       snprintf(b->file, len, "%s/%s", bdir, f);
     }
+    if ((x = get(c, n, "basis"))) {  // a global-mode (GMc) basis from gmsolve
+      b->basis_loc = loc_of(x);
+      TRY(as_str(c, x, "basis", &f));
+      len = strlen(bdir) + strlen(f) + 2;
+      b->basis = fmbd_malloc(len);
+      if (!b->basis) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+      if (f[0] == '/' || !strcmp(bdir, ".")) {
+        snprintf(b->basis, len, "%s", f);
+      } else {
+        snprintf(b->basis, len, "%s/%s", bdir, f);
+      }
+    }
+    if ((x = get(c, n, "basis_body"))) {
+      if (!b->basis) return fail_at(c, x, "%s: 'basis_body' needs 'basis'", what);
+      TRY(as_str(c, x, "basis_body", &f));
+      b->basis_body = fmbd_strdup(f);
+      if (!b->basis_body) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+    }
     if ((x = get(c, n, "modes"))) TRY(as_int(c, x, "modes", 1, &b->modes));
     if ((x = get(c, n, "damping_ratio"))) {
       TRY(as_double(c, x, "damping_ratio", &b->damping_ratio));
@@ -742,8 +761,11 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       b->damping_set = true;
     }
     if ((x = get(c, n, "make"))) {
-      static const char *const mk[] = {"geometry", "mesh2fe", "fe", "fe2cb", "cb", "cbcheck", NULL};
+      static const char *const mk[] = {"geometry", "mesh2fe", "fe",    "fe2cb",
+                                       "cb",       "cbcheck", "whole", NULL};
       TRY(check_map(c, x, "make", mk));
+      yaml_node_t *w = get(c, x, "whole");
+      if (w) TRY(as_bool(c, w, "whole", &b->chain.whole));
       struct {
         const char *k;
         char **p;
@@ -1299,6 +1321,8 @@ void fmbd_scene_destroy(fmbd_scene **sp) {
     fmbd_scene_body *b = &s->bodies[i];
     fmbd_free(b->name);
     fmbd_free(b->file);
+    fmbd_free(b->basis);
+    fmbd_free(b->basis_body);
     fmbd_free(b->chain.geometry);
     fmbd_free(b->chain.mesh2fe_args);
     fmbd_free(b->chain.fe);
@@ -1446,10 +1470,21 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
           p = e ? e + 1 : p + l;
         }
       }
-      sb_add(&b, "\n%s: %s%s%s\n\tcbcheck %s%s%s%s%s%s -o $@\n", bd->file, ch->cb,
-             ch->fe ? " " : "", ch->fe ? ch->fe : "", ch->cb, ch->fe ? " --fe " : "",
-             ch->fe ? ch->fe : "", ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
+      // a body file of one body holds only what this scene reads of it (cbcheck --for-scene,
+      // docs/FORMAT.md /subset), so it depends on the scene too; a file two bodies share, a
+      // chain with `whole: true` or whose options say --for-scene already, is left as it is
+      bool shared = false;
+      for (int k = 0; k < s->nbodies; k++)
+        shared |= k != i && s->bodies[k].file && !strcmp(s->bodies[k].file, bd->file);
+      bool subset =
+          !shared && !ch->whole && !(ch->cbcheck_args && strstr(ch->cbcheck_args, "--for-scene"));
+      sb_add(&b, "\n%s: %s%s%s%s%s\n\tcbcheck %s%s%s%s%s%s", bd->file, ch->cb, ch->fe ? " " : "",
+             ch->fe ? ch->fe : "", subset ? " " : "", subset ? s->file : "", ch->cb,
+             ch->fe ? " --fe " : "", ch->fe ? ch->fe : "",
+             ch->cbcheck_args && ch->cbcheck_args[0] ? " " : "",
              ch->cbcheck_args ? ch->cbcheck_args : "", holds);
+      if (subset) sb_add(&b, " --for-scene %s:%s", s->file, bd->name);
+      sb_add(&b, " -o $@\n");
     }
     const char *cb = is_cb ? bd->file : ch->cb;
     if (cb && ch->fe) {

@@ -33,6 +33,7 @@ typedef struct fmbd_scene_chain {
   char *geometry, *mesh2fe_args;  ///< geometry file and mesh2fe options (NULL: not named)
   char *fe, *fe2cb_args;          ///< fe file and fe2cb options
   char *cb, *cbcheck_args;        ///< cb file and cbcheck options (rflex bodies)
+  bool whole;  ///< `whole: true`: the whole body, not one made for this scene (--for-scene)
 } fmbd_scene_chain;
 
 typedef struct fmbd_scene_body {
@@ -46,7 +47,11 @@ typedef struct fmbd_scene_body {
   // --- flexible ---
   char *file;  ///< .rflex.h5 or .cb.h5, resolved against the scene's folder
   fmbd_scene_loc file_loc;
-  int64_t modes;  ///< first N flexible modes kept; 0 = all in the file
+  char *basis;  ///< a gmsolve .gm.h5 whose GMc basis of this body replaces the file's modes
+                ///< (NULL: the file's modes), resolved as file
+  fmbd_scene_loc basis_loc;
+  char *basis_body;  ///< the body's name in the basis file (NULL: this body's name)
+  int64_t modes;     ///< first N flexible modes kept; 0 = all in the file
   bool damping_set;
   double damping_ratio;  ///< modal damping ratio of every kept mode (default 0)
   fmbd_scene_chain chain;

@@ -13,6 +13,7 @@
 #include "fmbd_cb.h"
 #include "fmbd_eig.h"
 #include "fmbd_err.h"
+#include "fmbd_gm.h"
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
 
@@ -24,6 +25,16 @@
 
 static void fe_node_modes(const fmbd_scene_model *m, int bi, int64_t node, int64_t n, double *T,
                           double *R);
+
+// the initial state of a scene body
+static fmbd_mbs_state0 body_state0(const fmbd_scene_body *b) {
+  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
+  memcpy(s0.position, b->position, sizeof s0.position);
+  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
+  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
+  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  return s0;
+}
 
 // --- keeping the first n modes of a modal body ----------------------------------------------
 static int truncate_modes(fmbd_rflex *r, int64_t n) {
@@ -208,7 +219,8 @@ static int add_point(fmbd_scene_model *m, const fmbd_scene *s, int bi, const fmb
   int64_t nm = r->nm;
   FMBD_GALLOC(T = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
   FMBD_GALLOC(R = fmbd_malloc(sizeof(double) * (size_t)(3 * nm + 1)));
-  FMBD_GCALL(fmbd_rflex_node_modes(r, node, x0, T, R));
+  rc = fmbd_rflex_node_modes(r, node, x0, T, R);
+  if (rc) SFAIL(s, loc, rc, "%s: body '%s' (%s): %s", what, b->name, b->file, fmbd_err_get()->msg);
   FMBD_GCALL(fmbd_mbs_add_point(m->mbs, m->body_id[bi], x0, T, R, pid));
   if (node_out) *node_out = node;
 done:
@@ -229,6 +241,119 @@ static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
   snprintf(m->input_sha[m->ninputs], 65, "%s", sha ? sha : "");
   m->ninputs++;
   return 0;
+}
+
+// --- a global-mode (GMc) basis instead of the file's modes ----------------------------------
+// The body's GMc basis from a gmsolve file (/gmc/<body>: shapes on the FE dofs, Mff, Kff),
+// turned into the body by fmbd_rflex_from_basis with the description of the body's own file
+// (f: a .rflex.h5, .cb.h5 or .fe.h5), which must be the file the basis was made from (its
+// SHA-256). A full FE body so becomes a modal body with the GMc shapes as its modes.
+static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f, bool stress) {
+  int rc = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  const char *name = b->basis_body ? b->basis_body : b->name;
+  fmbd_h5 *g = NULL;
+  fmbd_fe_body *desc = NULL;
+  fmbd_rflex *r = NULL;
+  double *S = NULL, *Mff = NULL, *Kff = NULL;
+  char *sha = NULL, path[600];
+  fmbd_err_clear();
+  rc = fmbd_h5_open(b->basis, &g);
+  if (!rc) rc = fmbd_h5_check_format(g, FMBD_GM_FORMAT, FMBD_GM_FORMAT_MAJOR);
+  if (rc) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    SFAIL(s, b->basis_loc, rc, "body '%s': basis %s: %s", b->name, b->basis, msg);
+  }
+  snprintf(path, sizeof path, "/gmc/%s", name);
+  if (!fmbd_h5_exists(g, path)) {
+    SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+          "body '%s': %s has no GMc basis of a body '%s' (name it with basis_body)", b->name,
+          b->basis, name);
+  }
+  if (fmbd_h5_has_attr(g, path, "file_sha256")) {
+    FMBD_GCALL(fmbd_h5_read_attr_str(g, path, "file_sha256", &sha));
+    if (sha[0] && strcmp(sha, fmbd_h5_sha256(f))) {
+      SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+            "body '%s': the basis in %s was made from another version of %s (SHA-256 differs): "
+            "run gmsolve again",
+            b->name, b->basis, b->file);
+    }
+  }
+  int64_t ndof = -1, nc = -1, r1 = -1, c1 = -1, r2 = -1, c2 = -1;
+  snprintf(path, sizeof path, "/gmc/%s/shapes", name);
+  rc = fmbd_h5_read_f64_cm(g, path, &ndof, &nc, &S);
+  if (!rc) {
+    snprintf(path, sizeof path, "/gmc/%s/Mff", name);
+    rc = fmbd_h5_read_f64_cm(g, path, &r1, &c1, &Mff);
+  }
+  if (!rc) {
+    snprintf(path, sizeof path, "/gmc/%s/Kff", name);
+    rc = fmbd_h5_read_f64_cm(g, path, &r2, &c2, &Kff);
+  }
+  if (rc) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    SFAIL(s, b->basis_loc, rc, "body '%s': %s:%s: %s", b->name, b->basis, path, msg);
+  }
+  FMBD_GCALL(fmbd_fe_read(f, &desc));
+  if (nc == 0 || r1 != nc || c1 != nc || r2 != nc || c2 != nc || ndof != desc->ndof) {
+    SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+          "body '%s': the GMc basis of '%s' in %s has %lld columns on %lld dofs (Mff %lld x %lld, "
+          "Kff %lld x %lld); the body has %lld dofs%s",
+          b->name, name, b->basis, (long long)nc, (long long)ndof, (long long)r1, (long long)c1,
+          (long long)r2, (long long)c2, (long long)desc->ndof,
+          nc == 0 ? " (an empty basis: the body does not deform in the global modes)" : "");
+  }
+  if (b->modes > 0) {  // the columns of the first `modes` global modes: a prefix (mode order)
+    int64_t ng = -1, *gmode = NULL, keep = 0;
+    snprintf(path, sizeof path, "/gmc/%s/global_mode", name);
+    rc = fmbd_h5_read_i64(g, path, 1, &ng, &gmode);
+    if (rc) {
+      char msg[1100];
+      snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+      SFAIL(s, b->basis_loc, rc, "body '%s': %s:%s: %s", b->name, b->basis, path, msg);
+    }
+    while (keep < ng && keep < nc && gmode[keep] <= b->modes) keep++;
+    int64_t last = ng > 0 ? gmode[ng - 1] : 0;
+    fmbd_free(gmode);
+    if (keep == 0) {
+      SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
+            "body '%s': none of the %lld GMc columns of '%s' in %s comes from the first %lld "
+            "global modes",
+            b->name, (long long)nc, name, b->basis, (long long)b->modes);
+    }
+    if (b->modes > last && last > 0) {
+      fmbd_log(FMBD_LOG_INFO,
+               "body '%s': modes %lld, but %s has the GMc columns of %lld global modes", b->name,
+               (long long)b->modes, b->basis, (long long)last);
+    }
+    for (int64_t j = 0; j < keep; j++) {  // leading keep x keep blocks, in place
+      for (int64_t i = 0; i < keep; i++) {
+        Mff[i + keep * j] = Mff[i + nc * j];
+        Kff[i + keep * j] = Kff[i + nc * j];
+      }
+    }
+    nc = keep;
+  }
+  // a full FE body's file has its M and K: the projections are made here; a modal body's
+  // description has none: the file's Mff, Kff (gmsolve's projections with the modal matrices)
+  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress};
+  rc = fmbd_rflex_from_basis(&in, &r);
+  if (rc) SFAIL(s, b->basis_loc, rc, "body '%s': %s: %s", b->name, b->basis, fmbd_err_get()->msg);
+  fmbd_rflex_destroy(&m->flex[bi]);
+  m->flex[bi] = r;
+  r = NULL;
+  FMBD_GCALL(add_input(m, b->basis, fmbd_h5_sha256(g)));
+done:
+  fmbd_h5_close(&g);
+  fmbd_fe_body_destroy(&desc);
+  fmbd_rflex_destroy(&r);
+  fmbd_free(S);
+  fmbd_free(Mff);
+  fmbd_free(Kff);
+  fmbd_free(sha);
+  return rc;
 }
 
 // --- full FE bodies (docs/THEORY.md section 4b) ---------------------------------------------
@@ -374,11 +499,7 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
       }
     }
   }
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  memcpy(s0.position, b->position, sizeof s0.position);
-  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_fe(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
   fmbd_log(FMBD_LOG_INFO,
@@ -453,7 +574,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
   } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR);
-    if (!rc) {
+    // with a GMc basis the body is the modal body of that basis (load_gmc, below)
+    if (!rc && !b->basis) {
       FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
       FMBD_GCALL(load_fe(m, s, bi, f));
       FMBD_GCALL(add_input(m, b->file, fmbd_h5_sha256(f)));
@@ -472,7 +594,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     char msg[1100], where[600];
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     snprintf(where, sizeof where, "%s", fmbd_err_get()->where);
-    SFAIL(s, b->file_loc, rc, "body '%s': %s:%s: %s", b->name, b->file, where, msg);
+    SFAIL(s, b->file_loc, rc, "body '%s': %s%s%s: %s", b->name, b->file, where[0] ? ":" : "", where,
+          msg);
   }
   FMBD_GALLOC(m->file_kind[bi] = fmbd_strdup(format));
   if (!strcmp(format, FMBD_RFLEX_FORMAT)) {
@@ -513,12 +636,13 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     }
     fmbd_free(made);
   }
+  if (b->basis) FMBD_GCALL(load_gmc(m, s, bi, f, need_stress));
   fmbd_rflex *r = m->flex[bi];
-  if (b->modes > r->nm) {
+  if (!b->basis && b->modes > r->nm) {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name,
-          (long long)b->modes, b->file, (long long)r->nm);
+          (long long)b->modes, b->basis ? b->basis : b->file, (long long)r->nm);
   }
-  if (b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
+  if (!b->basis && b->modes > 0) FMBD_GCALL(truncate_modes(r, b->modes));
   if (!need_stress && r->stress) {  // nothing asks for stress: do not keep it
     fmbd_free(r->stress);
     r->stress = NULL;
@@ -540,11 +664,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
                           .damping_ratio = b->damping_ratio};
   memcpy(d.first_moment, r->first_moment, sizeof d.first_moment);
   memcpy(d.second_moment, r->second_moment, sizeof d.second_moment);
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  memcpy(s0.position, b->position, sizeof s0.position);
-  memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-  memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-  memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+  fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_flex(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
 done:
@@ -578,11 +698,7 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
   for (int i = 0; i < nb; i++) {
     const fmbd_scene_body *b = &s->bodies[i];
     if (b->kind == FMBD_SCENE_RIGID) {
-      fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-      memcpy(s0.position, b->position, sizeof s0.position);
-      memcpy(s0.rotation, b->rotation, sizeof s0.rotation);
-      memcpy(s0.velocity, b->velocity, sizeof s0.velocity);
-      memcpy(s0.angular_velocity, b->angular_velocity, sizeof s0.angular_velocity);
+      fmbd_mbs_state0 s0 = body_state0(b);
       rc = fmbd_mbs_add_rigid(m->mbs, b->name, b->mass, b->com, b->inertia, &s0, &m->body_id[i]);
       if (rc) SFAIL(s, b->loc, rc, "body '%s': %s", b->name, fmbd_err_get()->msg);
     } else {
@@ -671,18 +787,22 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
       const fmbd_rflex *r = m->flex[op->body];
       if (!r->stress) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE,
-              "%s asks for stress or strain, but %s has no /modes/stress (%s)", what,
+              "%s asks for stress or strain, but %s has no modal stress (%s)", what,
               s->bodies[op->body].file,
               !strcmp(m->file_kind[op->body], FMBD_CB_FORMAT)
-                  ? "a cb file never has it; use the .rflex.h5 of cbcheck"
-                  : "cbcheck writes it when the fe file is at hand");
+                  ? "it is recovered from solid elements, and its /mesh/elements has no tet4 or "
+                    "tet10"
+                  : "no /modes/stress: cbcheck writes it for bodies with solid elements");
       }
       if ((op->quantities & FMBD_OUT_STRAIN) && !(m->E[op->body] > 0)) {
         SFAIL(s, op->loc, FMBD_ERR_SCENE, "%s asks for strain, but %s has no /material E and nu",
               what, s->bodies[op->body].file);
       }
       FMBD_GALLOC(m->out_sigma[o] = fmbd_malloc(sizeof(double) * (size_t)(6 * r->nm + 1)));
-      FMBD_GCALL(fmbd_rflex_node_stress(r, m->out_node[o], m->out_sigma[o]));
+      rc = fmbd_rflex_node_stress(r, m->out_node[o], m->out_sigma[o]);
+      if (rc)
+        SFAIL(s, op->loc, rc, "%s: body '%s' (%s): %s", what, s->bodies[op->body].name,
+              s->bodies[op->body].file, fmbd_err_get()->msg);
     }
   }
   *out = m;
@@ -770,4 +890,83 @@ void fmbd_scene_model_destroy(fmbd_scene_model **mp) {
   fmbd_free(m->out_sigma);
   fmbd_free(m);
   *mp = NULL;
+}
+
+// --- the nodes a scene reads on one body (cbcheck --for-scene: a subset body) ----------------
+// The places are resolved on r exactly as fmbd_scene_build resolves them (flex_node), so that
+// the subset holds the very nodes the run will ask for.
+static int push_node(int64_t **v, int64_t *n, int64_t p) {
+  int64_t *q = fmbd_realloc(*v, sizeof(int64_t) * (size_t)(*n + 1));
+  if (!q) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  *v = q;
+  q[(*n)++] = p;
+  return 0;
+}
+
+int fmbd_scene_body_nodes(const fmbd_scene *s, int bi, const fmbd_rflex *r, int64_t **motion,
+                          int64_t *nmotion, int64_t **stress, int64_t *nstress) {
+  int rc = 0;
+  *motion = *stress = NULL;
+  *nmotion = *nstress = 0;
+  const fmbd_scene_body *b = &s->bodies[bi];
+  for (int k = 0; k < s->njoints; k++) {
+    const fmbd_scene_joint *j = &s->joints[k];
+    char what[200];
+    snprintf(what, sizeof what, "joint '%s'", j->name);
+    for (int sd = 0; sd < 2; sd++) {
+      if (j->body[sd] != bi) continue;
+      const fmbd_scene_at *at = &j->at[sd];
+      double x0[3] = {0, 0, 0}, P[3];
+      if (at->kind == FMBD_AT_POINT) {
+        memcpy(x0, at->p, sizeof x0);
+      } else if (at->kind == FMBD_AT_DEFAULT) {  // the joint's point, in this body's frame
+        int first = j->at[0].kind != FMBD_AT_DEFAULT ? 0 : 1;
+        int ob = j->body[first];
+        if (j->has_point) {
+          memcpy(P, j->point, sizeof P);
+        } else if (ob < 0) {
+          memcpy(P, j->at[first].p, sizeof P);
+        } else if (s->bodies[ob].kind == FMBD_SCENE_RIGID) {
+          to_world(&s->bodies[ob], j->at[first].p, P);
+        } else {
+          SFAIL(s, j->loc, FMBD_ERR_SCENE,
+                "%s: its point on body '%s' comes from flexible body '%s''s file; give the joint "
+                "a point (or name the place on '%s') to make a body that holds only what the "
+                "scene reads",
+                what, b->name, s->bodies[ob].name, b->name);
+        }
+        to_body(b, P, x0);
+      }
+      int64_t node;
+      FMBD_GCALL(flex_node(s, bi, r, at, x0, j->has_point ? j->point_loc : j->loc, what, &node));
+      FMBD_GCALL(push_node(motion, nmotion, node));
+    }
+  }
+  for (int k = 0; k < s->nloads; k++) {
+    const fmbd_scene_load *l = &s->loads[k];
+    if (l->body != bi || l->at.kind == FMBD_AT_DEFAULT) continue;  // default: the body origin
+    char what[200];
+    snprintf(what, sizeof what, "load '%s'", l->name);
+    int64_t node;
+    FMBD_GCALL(flex_node(s, bi, r, &l->at, l->at.p, l->loc, what, &node));
+    FMBD_GCALL(push_node(motion, nmotion, node));
+  }
+  for (int o = 0; o < s->noutputs; o++) {
+    const fmbd_scene_output *op = &s->outputs[o];
+    if (op->body != bi || op->at.kind == FMBD_AT_DEFAULT) continue;
+    char what[200];
+    snprintf(what, sizeof what, "output '%s'", op->name);
+    int64_t node;
+    FMBD_GCALL(flex_node(s, bi, r, &op->at, op->at.p, op->loc, what, &node));
+    bool sig = op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN);
+    FMBD_GCALL(push_node(sig ? stress : motion, sig ? nstress : nmotion, node));
+  }
+done:
+  if (rc) {
+    fmbd_free(*motion);
+    fmbd_free(*stress);
+    *motion = *stress = NULL;
+    *nmotion = *nstress = 0;
+  }
+  return rc;
 }

@@ -64,5 +64,14 @@ void fmbd_scene_model_destroy(fmbd_scene_model **m);
 /// description in the cb file carries the elements and the material).
 /// @param[out] out caller destroys with fmbd_rflex_destroy
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out);
+/// @brief The nodes of flexible body bi that scene s reads, resolved on r as fmbd_scene_build
+/// resolves them: the joints', loads' and point outputs' nodes (motion), and the nodes of
+/// outputs that ask for stress or strain (stress; they need motion too). For a body that holds
+/// only what the scene reads (fmbd_rflex_subset; cbcheck --for-scene). Errors name the scene
+/// line, as fmbd_scene_build's; a joint whose point comes from another flexible body's file
+/// (no `point`, the place named only on that body) cannot be resolved here and is an error.
+/// @param[out] motion, stress  caller frees (fmbd_free); may repeat a node
+int fmbd_scene_body_nodes(const fmbd_scene *s, int bi, const fmbd_rflex *r, int64_t **motion,
+                          int64_t *nmotion, int64_t **stress, int64_t *nstress);
 
 #endif

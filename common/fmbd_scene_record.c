@@ -194,7 +194,14 @@ static int add_fields(run *r, const char *xdmf_name) {
     }
     FMBD_GCALL(fmbd_h5_open(file, &f));
     fmbd_err_context(file, "");
-    if (!fmbd_h5_exists(f, "/mesh/elements/tet4") && !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
+    if (fmbd_h5_exists(f, "/subset")) {  // made for its scene: no elements, a few nodes' motion
+      fmbd_log(FMBD_LOG_WARN,
+               "XDMF fields: body '%s' (%s) holds only what its scene reads (cbcheck "
+               "--for-scene): not in the fields; make it whole (`whole: true` in its make "
+               "mapping, or cbcheck without --for-scene)",
+               s->bodies[b].name, file);
+    } else if (!fmbd_h5_exists(f, "/mesh/elements/tet4") &&
+               !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
       fmbd_log(FMBD_LOG_WARN,
                "XDMF fields: body '%s' (%s) has no solid elements: not in the fields",
                s->bodies[b].name, file);

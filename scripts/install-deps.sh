@@ -10,6 +10,8 @@ PKGS=(gcc g++ make pkg-config
       # issue 13: the batch example (/usr/bin/time; bc for bench/batch.sh) and fe2cb-mpi
       # (PETSc/SLEPc with MUMPS over OpenMPI: 85 packages, 62 MB download, 259 MB installed)
       time bc libpetsc-real-dev libslepc-real-dev openmpi-bin)
+# `make fuzz` only (not make check): clang and its libFuzzer runtime
+if [ "${1:-}" = --fuzz ]; then PKGS=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${PKGS[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then

@@ -3,6 +3,7 @@
 #   unit tests   build/tests/tNNN-*          (C, silent when right, nonzero exit on failure)
 #   cli tests    tests/cli/*.sh              (programs on tiny inputs, expected errors)
 #   py tests     tests/py/test_*.py          (against scipy / closed form / CalculiX)
+#   extreme      tests/extreme/*.{py,sh}     (stiff and extreme cases, docs/STABILITY.md)
 # Environment: BUILD (build dir), PYTHON (/usr/bin/python3), TESTS (glob filter, optional),
 # VALGRIND=1 (unit tests under valgrind memcheck).
 set -u
@@ -54,6 +55,13 @@ done
 for t in tests/py/test_*.py; do
   [ -f "$t" ] || continue
   run "py/$(basename "$t" .py)" "$PYTHON" "$t"
+done
+for t in tests/extreme/*.py tests/extreme/*.sh; do
+  [ -f "$t" ] || continue
+  case $t in
+    *.py) run "extreme/$(basename "$t" .py)" "$PYTHON" "$t" ;;
+    *.sh) run "extreme/$(basename "$t" .sh)" bash "$t" ;;
+  esac
 done
 echo
 [ $fail -gt 0 ] && printf 'failed: %s (logs in %s)\n' "${failed[*]}" "$LOG"

@@ -131,7 +131,7 @@ ex=$ROOT/examples
 ( cd "$T" && mkdir -p man && cd man &&
   fmbd-run "$ex/scenes/pendulum.yaml" -o pendulum.run.h5 --plot pend- -q &&
   [ -f pend-bob-trajectory.svg ] &&
-  fmbd-run -M "$ex/quadpend/quadpend.yaml" --body-dir out | grep -q '^out/rod.rflex.h5: out/rod.cb.h5 out/rod.fe.h5$' &&
+  fmbd-run -M "$ex/quadpend/quadpend.yaml" --body-dir out | grep -q "^out/rod.rflex.h5: out/rod.cb.h5 out/rod.fe.h5 $ex/quadpend/quadpend.yaml\$" &&
   fmbd-run "$ex/scenes/pendulum.yaml" -o coarse.run.h5 --reference pendulum.run.h5 2>ref.err &&
   grep -Eq "^fmbd-run: +bob +position +0\.0000e\+00 +0\.0000e\+00 " ref.err ) || { echo "man page examples failed"; fail=1; }
 

@@ -188,7 +188,7 @@ mk = scene.replace("file: %s", "file: rod.rflex.h5,\n     make: {cb: rod.cb.h5, 
 with open(os.path.join(TMP, "mk.yaml"), "w") as f:
     f.write(mk)
 r = run("fmbd-run", "-M", "mk.yaml")
-check("cbcheck rod.cb.h5 --fe rod.fe.h5 --tol 1e-3 --hold end0 -o $@" in r.stdout,
+check("cbcheck rod.cb.h5 --fe rod.fe.h5 --tol 1e-3 --hold end0 --for-scene mk.yaml:" in r.stdout,
       "fmbd-run -M passes --hold end0 for the fixed joint: %s" % r.stdout.split("\n")[3:5])
 
 # bad input: an interface the body does not have

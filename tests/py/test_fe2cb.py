@@ -213,6 +213,29 @@ check(np.all(np.abs(kap - ref[:10]) <= 1e-9 * ref[:10] + 100 * 2.2e-16 * ref[-1]
       and pairs_cb == pairs, "cantilever: all 10 modes incl. %d repeated pairs (scipy %d) found, "
       "max rel %.2e" % (pairs_cb, pairs, rel.max()))
 check(cb["attrs"]["sturm_count"] >= 10, "cantilever: Sturm count %d" % cb["attrs"]["sturm_count"])
+# /cb/sturm_count against scipy's count of eigenvalues below /cb/sturm_shift on the same
+# matrices: the shift lies in a clear gap (fmbd_eig places it at a relative gap of 1e-6 or
+# more, midway), far wider than the dense reference's error (1e-9 relative above), so the
+# count is exact (the shift may lie above a pair's second member that was not returned)
+sh = float(cb["attrs"]["sturm_shift"])
+cnt_ref = int(np.sum(ref < sh))
+check(int(cb["attrs"]["sturm_count"]) == cnt_ref >= len(kap),
+      "cantilever: Sturm count %d below %.6g = scipy's %d" % (cb["attrs"]["sturm_count"], sh, cnt_ref))
+# /cb/max_residual against the residual of the stored modes recomputed here (same definition,
+# fmbd_eig.h: ||K x - lambda M x|| / max(||K x||, lambda ||M x||)), below what the library
+# accepts (1e-6, or its attainable floor 1e3 eps lambda_top / lambda_1 when larger). Both
+# products run over the same CSR rows in the same order (scipy's and the library's matvec),
+# so the two values differ only by the rounding of the written modes and of the norms:
+# measured 3 digits alike; 10 % catches a wrong formula or a stale attribute
+Ks_, Ms_ = Kc_[s][:, s], Mc_[s][:, s]
+Phi = cb["cb/Phi"]
+KX, MX = Ks_ @ Phi, Ms_ @ Phi
+r_np = (np.linalg.norm(KX - MX * kap, axis=0)
+        / np.maximum(np.linalg.norm(KX, axis=0), kap * np.linalg.norm(MX, axis=0))).max()
+floor = 1e3 * 2.2e-16 * ref[-1] / kap[0]
+mr = float(cb["attrs"]["max_residual"])
+check(0 < mr <= max(1e-6, floor) and abs(r_np - mr) <= 0.1 * mr,
+      "cantilever: /cb/max_residual %.3g, recomputed %.3g (floor %.2g)" % (mr, r_np, floor))
 # --fmax just above a pair: both members
 lam_pair = ref[6]  # a bending pair ends at index 6 or 7; pick a bound above index 7
 fmax = np.sqrt(0.5 * (ref[7] + ref[8])) / 2 / np.pi

@@ -178,7 +178,7 @@ q = os.path.join(ROOT, "examples/quadpend/quadpend.yaml")
 p = run(["-M", q, "--body-dir", "out"])
 rules = p.stdout
 check(rules.startswith("%s: %s \\\n  out/rod.rflex.h5\n" % (q[:-5] + ".run.h5", q)), "-M quadpend run rule")
-check("\nout/rod.rflex.h5: out/rod.cb.h5 out/rod.fe.h5\n\tcbcheck out/rod.cb.h5 --fe out/rod.fe.h5 --init 5" in rules,
+check("\nout/rod.rflex.h5: out/rod.cb.h5 out/rod.fe.h5 %s\n\tcbcheck out/rod.cb.h5 --fe out/rod.fe.h5 --init 5" % q in rules,
       "-M cbcheck rule")
 check("\nout/rod.cb.h5: out/rod.fe.h5\n\tfe2cb out/rod.fe.h5 --modes 60 -o $@\n" in rules, "-M fe2cb rule")
 geo = os.path.join(ROOT, "examples/quadpend/../geometry/rod.geo")

@@ -143,10 +143,17 @@ if make_bodies(spin, os.path.join(TMP, "rodbeam.rflex.h5")):
     # stress output needs /modes/stress in the rflex
     with h5py.File(os.path.join(TMP, "rodbeam.rflex.h5"), "r") as f:
         has_stress = "modes/stress" in f
-    s = open(spin).read().replace("file: rodbeam.rflex.h5", "file: " + os.path.join(TMP, "rodbeam.rflex.h5"))
+        # the -M body holds only what spinning.yaml reads: its two interface nodes' motion
+        check("subset" in f and f["subset/nodes"].shape[0] == 2, "the -M body is a subset body (/subset)")
+    # (a body made by the -M rules holds only what its scene reads: the stress variant gets its
+    # own, made for it with cbcheck --for-scene)
+    vm_body = os.path.join(TMP, "rodbeam_vm.rflex.h5")
+    s = open(spin).read().replace("file: rodbeam.rflex.h5", "file: " + vm_body)
     s = s.replace("quantities: [position, velocity, acceleration]", "quantities: [position, von_mises, strain]")
     s = s.replace("t_end: 0.2", "t_end: 0.02")
     path = write("spin_stress.yaml", s)
+    subprocess.run(["cbcheck", os.path.join(TMP, "rodbeam.cb.h5"), "--fe", os.path.join(TMP, "rodbeam.fe.h5"),
+                    "--for-scene", path + ":rod", "-o", vm_body, "-q"], env=env)
     p = run([path, "-o", "spin_stress.run.h5", "-q"])
     if has_stress:
         check(p.returncode == 0, "von Mises and strain outputs run")

@@ -23,7 +23,8 @@ BIN = os.path.join(ROOT, BUILD, "bin")
 TMP = os.path.join(ROOT, BUILD, "test-tmp", "test_format_doc")
 # collections whose member names are the user's: the placeholder FORMAT.md uses for a member
 COLLECTIONS = {"interfaces": "<name>", "clamped": "<name>", "groups": "<name>", "outputs": "NAME",
-               "reactions": "JOINT", "reference": "NAME", "body": "NAME", "frames": "K"}
+               "reactions": "JOINT", "reference": "NAME", "body": "NAME", "frames": "K", "gms": "<body>",
+               "gmc": "<body>"}
 CSR_MEMBERS = ("data", "indices", "indptr")
 
 
@@ -47,15 +48,18 @@ def main():
     run("fe2cb", "rod.fe.h5", "--modes", "12", "-o", "rod.cb.h5", "-q")
     run("cbcheck", "rod.cb.h5", "--tol", "0.1", "--range", "4", "-o", "rod.rflex.h5", "-q")
     scene = os.path.join(ex, "quadpend", "quadpend.yaml")
+    run("cbcheck", "rod.cb.h5", "--tol", "0.1", "--range", "4", "--for-scene", scene + ":rod",
+        "-o", "rodsub.rflex.h5", "-q")  # a subset body (/subset)
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "-o", "ref.run.h5", "-q")
     run("fmbd-run", scene, "--body-dir", ".", "--t-end", "0.02", "--reference", "ref.run.h5", "-o", "run.h5",
         "--xdmf", "-q")
+    run("gmsolve", scene, "--body-dir", ".", "--modes", "4", "--matrices", "-o", "quadpend.gm.h5", "-q")
 
     doc = open(os.path.join(ROOT, "docs", "FORMAT.md")).read()
     paths = set(re.findall(r"`(/[^`\s]*)`", doc))
     words = set(re.findall(r"`([^`\s/]+)`", doc))
     missing = []
-    for name in ("rod.fe.h5", "rod.cb.h5", "rod.rflex.h5", "run.h5"):
+    for name in ("rod.fe.h5", "rod.cb.h5", "rod.rflex.h5", "rodsub.rflex.h5", "run.h5", "quadpend.gm.h5"):
         with h5py.File(os.path.join(TMP, name), "r") as f:
             objects = ["/"]
             f.visit(lambda n: objects.append("/" + n))

@@ -141,7 +141,8 @@ int main(void) {
     SAME(eigenvalue, nm);
     SAME(frequency_hz, nm);
     SAME(shapes, n * nm);
-    SAME(stress, 6 * rf->nnodes * nm);
+    // a beam body: modal stress is recovered from solid elements only, so none (not zeros)
+    EXPECT(!rf->stress && !rd->stress, "a beam body has no modal stress");
     SAME(node_xyz, 3 * rf->nnodes);
     SAME(node_mass, rf->nnodes);
     SAME(S1, 3 * nm);
@@ -177,7 +178,7 @@ int main(void) {
     EXPECT(fmbd_rflex_node_modes(rd, rd->nnodes, NULL, NULL, NULL) == FMBD_ERR_VALUE,
            "node out of range");
     double sg[30];
-    EXPECT(fmbd_rflex_node_stress(rd, 3, sg) == 0, "stress present");
+    EXPECT(fmbd_rflex_node_stress(rd, 3, sg) == FMBD_ERR_VALUE, "no stress: an error");
   }
   // a file of another kind is refused
   EXPECT(fmbd_h5_create(tmp("other.h5"), "fmbd-cb", "1.0", &f) == 0, "create other");

@@ -6,6 +6,19 @@
 // SPDX-License-Identifier: MIT
 //
 // It reaches mbs_body_eval and mbs_eval_constraints through the core's internal header.
+//
+// WHAT IT COVERS: the complete mass matrix d r / d x'' and velocity tangent d r / d x' of a
+// body's equations (every inertia, gyroscopic, Coriolis and modal damping term, at a random
+// spinning, deformed state), and the position Jacobian Cq of every joint kind and driver
+// equation (flexible attachments with modal translations and rotations). WHAT IT DOES NOT:
+// the position tangent d r / d x. The iteration matrix keeps only the modal stiffness Kff
+// there and drops by design the position dependence of the inertia forces (centrifugal and
+// Coriolis terms through the orientation and the modal coordinates), of gravity and follower
+// loads, and the constraint forces' geometric stiffness (lambda' Phi_qq); Newton then
+// converges linearly, not quadratically, and the step is the same (the residual is complete).
+// So no finite-difference check of d r / d x is asserted here: it would test a matrix the
+// code does not claim. The drivers' time derivatives (Phi_t = -f'(t), Phi_tt = -f''(t) in the
+// velocity and acceleration equations) are checked in t510-mbs-fn.
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -106,8 +106,8 @@ int main(void) {
     if (rules) {
       EXPECT(strstr(rules, "t.run.h5: dir/t.yaml \\\n  dir/rod.rflex.h5\n"), "run rule: %s", rules);
       EXPECT(strstr(rules,
-                    "dir/rod.rflex.h5: dir/rod.cb.h5 dir/rod.fe.h5\n\tcbcheck dir/rod.cb.h5 --fe "
-                    "dir/rod.fe.h5 --tol 1e-3 -o $@"),
+                    "dir/rod.rflex.h5: dir/rod.cb.h5 dir/rod.fe.h5 dir/t.yaml\n\tcbcheck "
+                    "dir/rod.cb.h5 --fe dir/rod.fe.h5 --tol 1e-3 --for-scene dir/t.yaml:rod -o $@"),
              "cbcheck rule: %s", rules);
       EXPECT(strstr(rules, "dir/rod.fe.h5: dir/rod.geo\n\tmesh2fe dir/rod.geo -o $@"),
              "mesh2fe rule: %s", rules);

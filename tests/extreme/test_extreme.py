@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-# tests/py/test_extreme.py: stiff and extreme cases (docs/STABILITY.md). Each case: what could go
+# tests/extreme/test_extreme.py: stiff and extreme cases (docs/STABILITY.md). Each case: what could go
 # wrong, what the toolchain does, what is measured.
 # SPDX-License-Identifier: MIT
 #
