@@ -315,12 +315,12 @@ int fmbd_xdmf_commit(fmbd_xdmf **xp) {
   FMBD_GCHECK(o, FMBD_ERR_IO, "cannot write %s", part);
   fprintf(o,
           "<?xml version=\"1.0\" ?>\n"
-          "<!-- written by fmbd-run: the flexible bodies of %s (docs/FORMAT.md, /fields) -->\n"
+          "<!-- the flexible bodies of the run file beside it (docs/FORMAT.md, /fields); "
+          "no file name here: a comment cannot hold a double dash -->\n"
           "<Xdmf Version=\"3.0\">\n"
           "  <Domain>\n"
           "    <Grid Name=\"flexible bodies\" GridType=\"Collection\" "
-          "CollectionType=\"Temporal\">\n",
-          h5);
+          "CollectionType=\"Temporal\">\n");
   for (int64_t k = 0; k < x->nframes; k++) {
     char path[128];
     fprintf(o, "      <Grid Name=\"frame %" PRId64 "\" GridType=\"Uniform\">\n", k);

@@ -56,6 +56,14 @@ with open(os.path.join(TMP, "qp.yaml"), "w") as f:
     f.write(scene)
 T_END = 0.05
 run("fmbd-run", "qp.yaml", "--t-end", str(T_END), "-o", "run.h5", "--xdmf", "-q")
+# a run file whose name XML must escape, or would end a comment (&, <, --): the XDMF still parses
+run("fmbd-run", "qp.yaml", "--t-end", "0.014", "-o", "a&b<c--d.run.h5", "--xdmf", "-q")
+try:
+    odd = ET.parse(os.path.join(TMP, "a&b<c--d.run.xdmf")).getroot()
+    item = odd.find("Domain").find("Grid").find("Grid").find("Geometry").find("DataItem").text.strip()
+    check(item == "a&b<c--d.run.h5:/fields/frames/0/position", f"XDMF of an odd run-file name: {item}")
+except ET.ParseError as e:
+    check(False, f"XDMF of an odd run-file name parses: {e}")
 
 # --- 1. --reference against a synthetic reference linear in time -------------------------------
 rng = np.random.default_rng(9)
