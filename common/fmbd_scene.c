@@ -669,10 +669,15 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     }
   }
   snprintf(what, sizeof what, "body '%s'", b->name);
-  static const char *const keys[] = {
-      "name",  "type",          "mass", "com",      "inertia",     "geometry", "file",
-      "modes", "damping_ratio", "make", "position", "orientation", "velocity", "angular_velocity",
-      "basis", "basis_body",    NULL};
+  static const char *const keys[] = {"name",          "type",
+                                     "mass",          "com",
+                                     "inertia",       "geometry",
+                                     "file",          "modes",
+                                     "damping_ratio", "make",
+                                     "position",      "orientation",
+                                     "velocity",      "angular_velocity",
+                                     "basis",         "basis_body",
+                                     "basis_kind",    NULL};
   TRY(check_map(c, n, what, keys));
   const char *type = "rigid";
   if ((x = get(c, n, "type"))) TRY(as_str(c, x, "body type", &type));
@@ -680,8 +685,8 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   for (int i = 0; i < 9; i++) b->rotation[i] = (i % 4 == 0);
   if (!strcmp(type, "rigid")) {
     b->kind = FMBD_SCENE_RIGID;
-    static const char *const flexkeys[] = {"file",       "modes", "damping_ratio", "make", "basis",
-                                           "basis_body", NULL};
+    static const char *const flexkeys[] = {"file",  "modes",      "damping_ratio", "make",
+                                           "basis", "basis_body", "basis_kind",    NULL};
     for (int i = 0; flexkeys[i]; i++) {
       if ((x = get(c, n, flexkeys[i]))) {
         return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)",
@@ -753,6 +758,14 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       TRY(as_str(c, x, "basis_body", &f));
       b->basis_body = fmbd_strdup(f);
       if (!b->basis_body) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+    }
+    if ((x = get(c, n, "basis_kind"))) {  // gmc (the body's own) or gms (shared coordinates)
+      if (!b->basis) return fail_at(c, x, "%s: 'basis_kind' needs 'basis'", what);
+      TRY(as_str(c, x, "basis_kind", &f));
+      if (!strcmp(f, "gms"))
+        b->basis_gms = true;
+      else if (strcmp(f, "gmc"))
+        return fail_at(c, x, "%s: basis_kind '%s': gmc or gms", what, f);
     }
     if ((x = get(c, n, "modes"))) TRY(as_int(c, x, "modes", 1, &b->modes));
     if ((x = get(c, n, "damping_ratio"))) {

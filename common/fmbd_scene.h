@@ -15,6 +15,9 @@
 #ifndef FMBD_SCENE_H
 #define FMBD_SCENE_H
 
+/// most bodies that one GMs basis file shares its coordinates among (scene key basis_kind)
+#define FMBD_SCENE_GMS_MAX 256
+
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -51,6 +54,8 @@ typedef struct fmbd_scene_body {
                 ///< (NULL: the file's modes), resolved as file
   fmbd_scene_loc basis_loc;
   char *basis_body;  ///< the body's name in the basis file (NULL: this body's name)
+  bool basis_gms;    ///< basis_kind gms: the GMs basis, its coordinates shared by every body
+                     ///< naming the same basis file with gms (else the body's GMc basis)
   int64_t modes;     ///< first N flexible modes kept; 0 = all in the file
   bool damping_set;
   double damping_ratio;  ///< modal damping ratio of every kept mode (default 0)
