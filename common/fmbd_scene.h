@@ -37,6 +37,7 @@ typedef struct fmbd_scene_chain {
   char *fe, *fe2cb_args;          ///< fe file and fe2cb options
   char *cb, *cbcheck_args;        ///< cb file and cbcheck options (rflex bodies)
   bool whole;  ///< `whole: true`: the whole body, not one made for this scene (--for-scene)
+  char *gm_scene, *gmsolve_args;  ///< the scene gmsolve makes the `basis` file from, options
 } fmbd_scene_chain;
 
 typedef struct fmbd_scene_body {
@@ -139,8 +140,9 @@ typedef struct fmbd_scene_output {
 } fmbd_scene_output;
 
 typedef struct fmbd_scene {
-  char *file;  ///< the scene file's name as given
-  char *dir;   ///< its folder ("." if none), against which body files resolve
+  char *file;      ///< the scene file's name as given
+  char *dir;       ///< its folder ("." if none), against which body files resolve
+  char *body_dir;  ///< the body_dir it was read with (NULL: none; -M reads gm_scene with it)
   char *title;
   char *text;         ///< the scene file's text as read (provenance in the run file)
   double gravity[3];  ///< default 0

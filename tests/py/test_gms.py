@@ -9,8 +9,13 @@
 #    6, 12 global modes converge to the run of the full FE model (FM), and the run has
 #    7 per body + K coordinates (the K shared once);
 # 3. bad input: GMs bodies asking for different numbers of modes, more modes than the file has,
-#    an unknown basis_kind: refused naming the scene line, nothing written.
+#    an unknown basis_kind: refused naming the scene line, nothing written;
+# 4. fmbd-run -M and gmsolve: a scene whose bodies name `basis: X.gm.h5` with make: gm_scene
+#    gets gmsolve's rule for X.gm.h5 and the reference scene's own rules (its FE body's mesh2fe
+#    rule, once); make -n orders them, a real make builds the run, a touched reference scene
+#    remakes the basis only.
 import os
+import shutil
 import sys
 
 import h5py
@@ -168,5 +173,53 @@ two("bad_k.yaml", ", basis: fm.gm.h5, basis_kind: gms, modes: 13", ", basis: fm.
 refused("bad_k.yaml", 5, "asks for 13 global modes")
 two("bad_kind.yaml", ", basis: fm.gm.h5, basis_kind: gmx")
 refused("bad_kind.yaml", 5, "gmc or gms")
+# --- 4. fmbd-run -M makes the basis: gmsolve's rule from make: gm_scene, and that scene's rules --
+shutil.copy(os.path.join(ROOT, "examples", "geometry", "rod.geo"), os.path.join(TMP, "rod.geo"))
+REF = """title: double pendulum of solid rods, full FE bodies
+gravity: [0, -9.81, 0]
+solver: {t_end: 0.01, step: 2e-4}
+bodies:
+  - name: l1
+    type: flexible
+    file: rod.fe.h5
+    make: {geometry: rod.geo, mesh2fe: --size 0.03 --interface end0 --interface end1}
+  - {name: l2, type: flexible, file: rod.fe.h5, position: [0.3, 0, 0]}
+joints:
+  - {name: pin, type: revolute, body1: ground, body2: l1, axis: z, at2: {interface: end0}}
+  - {name: knee, type: revolute, body1: l1, body2: l2, axis: z, at1: {interface: end1}, at2: {interface: end0}}
+outputs:
+  every: 0.005
+  points:
+    - {name: tip, body: l2, interface: end1, quantities: [position]}
+"""
+write("ref.yaml", REF)
+write("gmsmk.yaml", REF.replace(
+    "make: {geometry: rod.geo, mesh2fe: --size 0.03 --interface end0 --interface end1}",
+    "basis: ref.gm.h5\n    basis_kind: gms\n    make: {geometry: rod.geo, mesh2fe: --size 0.03 --interface end0 "
+    "--interface end1, gm_scene: ref.yaml, gmsolve: --modes 4}").replace(
+    "position: [0.3, 0, 0]}", "position: [0.3, 0, 0], basis: ref.gm.h5, basis_kind: gms}"))
+os.makedirs(os.path.join(TMP, "mk"), exist_ok=True)
+rules = run("fmbd-run", "-M", "gmsmk.yaml", "--body-dir", "mk", "-o", "mk/gms.run.h5").stdout
+write("gms.d", rules)
+write("Makefile", "mk/gms.run.h5:\n\tfmbd-run gmsmk.yaml --body-dir mk -o $@ -q\ninclude gms.d\n")
+check("mk/ref.gm.h5: ref.yaml" in rules and "\tgmsolve ref.yaml --body-dir mk --modes 4 -o $@" in rules
+      and rules.count("mk/rod.fe.h5: rod.geo") == 1,
+      "fmbd-run -M: gmsolve's rule for the basis from gm_scene, the FE body's rule once")
+dry = subprocess.run(["make", "-n", "mk/gms.run.h5"], cwd=TMP, capture_output=True, text=True).stdout
+order = [dry.find(w) for w in ("mesh2fe rod.geo", "gmsolve ref.yaml", "fmbd-run gmsmk.yaml")]
+check(min(order) >= 0 and order == sorted(order), "make -n: mesh2fe, gmsolve, fmbd-run in that order")
+mk = subprocess.run(["make", "mk/gms.run.h5"], cwd=TMP, capture_output=True, text=True)
+check(mk.returncode == 0 and os.path.exists(os.path.join(TMP, "mk", "gms.run.h5")),
+      "a real make builds the FE body, its GMs basis and the run")
+with h5py.File(os.path.join(TMP, "mk", "ref.gm.h5"), "r") as f:
+    check(int(f["gms"].attrs["modes"]) == 4, "the basis made with the scene's gmsolve options (4 modes)")
+os.utime(os.path.join(TMP, "ref.yaml"))
+dry = subprocess.run(["make", "-n", "mk/gms.run.h5"], cwd=TMP, capture_output=True, text=True).stdout
+check("gmsolve ref.yaml" in dry and "mesh2fe" not in dry, "ref.yaml touched: make remakes the basis, not the body")
+write("badmk.yaml", REF.replace("mesh2fe: --size 0.03 --interface end0 --interface end1",
+                                "gm_scene: ref.yaml"))
+p = subprocess.run(["fmbd-run", "-M", "badmk.yaml"], cwd=TMP, capture_output=True, text=True)
+check(p.returncode == 1 and "badmk.yaml:8:" in p.stderr and "needs 'basis'" in p.stderr,
+      "make: gm_scene without basis: refused naming the line")
 finish()
 print("all passed")
