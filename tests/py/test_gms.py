@@ -13,8 +13,11 @@
 # 4. fmbd-run -M and gmsolve: a scene whose bodies name `basis: X.gm.h5` with make: gm_scene
 #    gets gmsolve's rule for X.gm.h5 and the reference scene's own rules (its FE body's mesh2fe
 #    rule, once); make -n orders them, a real make builds the run, a touched reference scene
-#    remakes the basis only.
+#    remakes the basis only;
+# 5. the spatial slider-crank on a coarse mesh: the global frequencies = scipy's solution of the
+#    same constrained problem; GMs = GMc on the mid-span node (one flexible body).
 import os
+import re
 import shutil
 import sys
 
@@ -221,5 +224,49 @@ write("badmk.yaml", REF.replace("mesh2fe: --size 0.03 --interface end0 --interfa
 p = subprocess.run(["fmbd-run", "-M", "badmk.yaml"], cwd=TMP, capture_output=True, text=True)
 check(p.returncode == 1 and "badmk.yaml:8:" in p.stderr and "needs 'basis'" in p.stderr,
       "make: gm_scene without basis: refused naming the line")
+# --- 5. the spatial slider-crank (one flexible rod; examples/spatial-slidercrank) ------------------
+# coarse mesh (12 mm), 0.02 s. Its global flexible modes are the rod's normal modes as the
+# mechanism holds it (its joints, the rigid crank's and slider's inertia; the driver left out):
+# their frequencies against scipy's dense solution of the same constrained problem (null space
+# of Cq, /linear of gmsolve --matrices), and GMs = GMc (one body: one span) on the mid-span node
+sys.path.insert(0, os.path.join(ROOT, "examples", "spatial-slidercrank"))
+import gmtable  # noqa: E402
+
+ssc = open(gmtable.SCENE).read()
+m2f = re.sub(r"--size +\S+", "--size 0.012", re.search(r"mesh2fe: *(.*)", ssc).group(1)).split()
+run("mesh2fe", os.path.join(ROOT, "examples", "spatial-slidercrank", "rod.geo"), *m2f, "-o", "sscrod.fe.h5", "-q")
+write("ssc_fm.yaml", gmtable.scene_variant(ssc, "file: sscrod.fe.h5", 0.02))
+run("gmsolve", "ssc_fm.yaml", "--modes", "4", "-o", "ssc.gm.h5", "-q")
+# the dense check on the rod's CB body (fe2cb, 6 fixed-interface modes: 18 coordinates; the FE
+# rod's 3000 make scipy's dense SVD take minutes)
+run("fe2cb", "sscrod.fe.h5", "--modes", "6", "-o", "sscrod.cb.h5", "-q")
+write("ssc_cb.yaml", gmtable.scene_variant(ssc, "file: sscrod.cb.h5", 0.02))
+run("gmsolve", "ssc_cb.yaml", "--modes", "4", "--matrices", "-o", "sscb.gm.h5", "-q")
+with h5py.File(os.path.join(TMP, "sscb.gm.h5"), "r") as f:
+    import scipy.linalg as sl
+    import scipy.sparse as sp
+
+    def csr(g):
+        return sp.csr_matrix((g["data"][()], g["indices"][()], g["indptr"][()]), shape=tuple(g.attrs["shape"]))
+    M, K, C = (csr(f["linear/" + k]).toarray() for k in ("M", "K", "Cq"))
+    got, fz = f["global/eigenvalue"][()], int(f["global"].attrs["f"])
+N = sl.null_space(C)
+wall = sl.eigh(N.T @ K @ N, N.T @ M @ N, eigvals_only=True)
+w = wall[fz:fz + len(got)]
+# both dense symmetric-definite solutions of one problem (gmsolve: coordinate partitioning, scipy:
+# SVD null space): an eigenvalue's backward error is eps times the largest of the reduced pencil,
+# relative to itself eps * wmax / w; 100 times that for the two solutions' different operations
+err = np.max(np.abs(got / w - 1))
+tol = 100 * np.finfo(float).eps * wall[-1] / w[0]
+check(fz == 1 and err < tol, f"spatial slider-crank: f = {fz}, 4 global frequencies "
+      f"{np.sqrt(got[0]) / 2 / np.pi:.1f} .. {np.sqrt(got[-1]) / 2 / np.pi:.1f} Hz = scipy on the same M, K, Cq (rel {err:.1e}, bound {tol:.1e})")
+for kind in ("gms", "gmc"):
+    write("ssc_%s.yaml" % kind, gmtable.scene_variant(
+        ssc, "file: sscrod.fe.h5, basis: ssc.gm.h5, basis_kind: %s, modes: 2" % kind, 0.02))
+    run("fmbd-run", "ssc_%s.yaml" % kind, "-o", "ssc_%s.run.h5" % kind, "-q")
+a, b = point("ssc_gms.run.h5", "mid"), point("ssc_gmc.run.h5", "mid")
+d, e = np.max(np.abs(a - a[0])), np.max(np.abs(a - b))
+# one span in two coordinate sets: the Newton tolerance (1e-8 relative) of the motion, 1e-6
+check(d > 0 and e < 1e-6 * d, f"spatial slider-crank, 2 global modes: GMs mid-span = GMc ({e:.1e} m of {d:.2e} m)")
 finish()
 print("all passed")
