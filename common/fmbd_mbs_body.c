@@ -150,7 +150,9 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   mbody *b = &m->b[ib];
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
-  const double *p = x + 3, *q = x + 7, *pd = xd + 3, *qd = xd + 7;
+  // elastic coordinates at qoff (off + 7, or a shared set's block)
+  const double *p = x + 3, *q = xg + b->qoff, *pd = xd + 3, *qd = xdg + b->qoff;
+  const double *qdd = xddg ? xddg + b->qoff : NULL;
   double *A = b->A, *G = b->G, w[3], wd[3];
   mbs_frame_kin(b, p, pd, xdd ? xdd + 3 : NULL, w, wd);
   // --- inertia at q: c, J, H_k, Mwf, H ---
@@ -249,7 +251,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   // rb += Mb acc_b
   if (xdd) {
     for (int j = 0; j < n6; j++) {
-      double aj = j < 3 ? xdd[j] : (j < 6 ? wd[j - 3] : xdd[7 + (j - 6)]);
+      double aj = j < 3 ? xdd[j] : (j < 6 ? wd[j - 3] : qdd[j - 6]);
       if (aj == 0) continue;
       const double *col = Mb + (size_t)n6 * j;
       for (int i = 0; i < n6; i++) rb[i] += col[i] * aj;
