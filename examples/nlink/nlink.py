@@ -4,23 +4,27 @@
 # the first driven, theta_1(t) = -pi/2 - (pi/6) sin(2 pi t) (here: the chain starts hanging along
 # -z, theta_1 = -pi/2, and the driver prescribes -(pi/6) sin(2 pi t) from there), under gravity.
 # Our choices (the paper's copy we have gives none): link length 0.5 m, solid circular section of
-# radius 0.01 m, steel (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3), 5 elements per link.
+# radius 0.01 m, steel (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3), NE elements per link (10).
 #
 # Bases of every link, m = number of modes:
 #   NM   fe2cb --method nm --modes m           (free-free normal modes, rigid ones removed)
 #   CB   fe2cb --modes m                       (m fixed-interface + the 12 constraint modes:
 #                                               m + 6 flexible modes)
-#   GMc  gmsolve on the reference scene, the body's rows of the first m global modes
+#   GMc  gmsolve --keep-drivers on the reference scene (the global modes of the chain with the
+#        driven joint held), the body's rows of the first m global modes
+#   GMc-free  the same with the driven joint free in the global modes (gmsolve's default)
 #   GMs  written by gmsolve, not read by fmbd-run yet (not run)
-# Reference: each link as a CB body with 12 fixed-interface modes (18 of its 60 flexible modes;
-# richer bases make the beam's floating-frame mass matrix indefinite, as below). The full model (FM: .fe.h5 beam bodies) cannot be the reference today: with
-# beam elements its mass matrix in the floating frame is not positive definite (lumped-mass
-# inertia invariants against the consistent mass), and fmbd-run stops (see README.md).
+# Reference: each link as the modal body of all its 6 NE free-free flexible modes (fe2cb --method
+# nm): a complete basis, which spans every FE dof, i.e. the full model in modal coordinates with
+# the consistent rigid-flexible coupling (THEORY section 9). The full model as .fe.h5 beam bodies
+# (FM) does not run yet: their coupling uses the lumped nodal masses (THEORY section 6, "Limits").
+# Initial state: the rigid chain's motion under the driver at t = 0 (see scene()).
 # Error: eps_RMS of each link's end point over the run (docs/THEORY.md section 7), the largest
 # over the links; CPU: the run's /stats cpu_time_s.
 #
 #   /usr/bin/python3 examples/nlink/nlink.py [--links 2,4] [--modes 1,2,4,6] [--t-end 0.5]
-#       [--out build/nlink]      (programs from build/bin)
+#       [--ne 10] [--step H] [--methods NM,CB,GMc,GMc-free] [--out build/nlink]
+#       (programs from build/bin)
 import argparse
 import math
 import os
@@ -90,6 +94,7 @@ def main():
     ap.add_argument("--modes", default="1,2,4,6")
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--step", type=float, default=0, help="fixed step (s); 0: variable, max 1e-3 s")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMc-free")
     ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
@@ -98,6 +103,7 @@ def main():
     os.environ["PATH"] = os.path.join(ROOT, "build", "bin") + os.pathsep + os.environ["PATH"]
     links = [int(x) for x in a.links.split(",")]
     modes = [int(x) for x in a.modes.split(",")]
+    methods = a.methods.split(",")
     sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--size", "%.12g" % (L / a.ne), "--circle", "0.01",
        "--E", "210e9", "--nu", "0.3",
        "--rho", "7850", "--interface", "end0", "--interface", "end1", "-o", "link.fe.h5", "-q")
@@ -111,7 +117,12 @@ def main():
     rows = []
     for nb in links:
         scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, "ref.cb.h5")
-        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "ref%d.gm.h5" % nb, "-q")
+        # GMc: the global modes with the driven joint held (--keep-drivers: the boundary condition
+        # the prescribed motion imposes); GMc-free: with it left free (gmsolve's default)
+        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "--keep-drivers", "-o", "ref%d.gm.h5" % nb,
+           "-q")
+        if "GMc-free" in methods:
+            sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "free%d.gm.h5" % nb, "-q")
         sh(out, "fmbd-run", "ref%d.yaml" % nb, "-o", "ref%d.run.h5" % nb, "-q")
         ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
         with h5py.File(os.path.join(out, "ref%d.gm.h5" % nb), "r") as f:
@@ -119,8 +130,11 @@ def main():
         rows.append((nb, "ref (NM all %d)" % nfull, nfull, cref, 0.0, ntot, []))
         for m in modes:
             for meth, body, basis, nflex in (("NM", "nm%d.cb.h5" % m, None, m),
+                                             ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m),
                                              ("CB", "cb%d.cb.h5" % m, None, m + 6),
                                              ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m)):
+                if meth not in methods:
+                    continue
                 name = "%s%d_%d" % (meth, nb, m)
                 scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, m)
                 if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
