@@ -202,11 +202,12 @@ done:
           tm.sturm, tm.reduced, t_write, (long long)tm.solves);
       fmbd_log(FMBD_LOG_INFO,
                "modes: %.6g .. %.6g Hz, largest residual %.2g; Sturm count %lld below %.6g Hz; "
-               "peak memory: process 0 %.0f MB, largest process %.0f MB",
+               "peak memory: process 0 %.0f MB, largest process %.0f MB (%.0f MB once the "
+               "rows were distributed)",
                sqrt(cb->kappa[0]) / (2 * M_PI), sqrt(cb->kappa[cb->nd - 1]) / (2 * M_PI),
                cb->max_residual, (long long)cb->sturm_count,
                isnan(cb->sturm_shift) ? NAN : sqrt(fabs(cb->sturm_shift)) / (2 * M_PI), mine,
-               largest);
+               largest, tm.read_peak_mb);
       fmbd_cli_summary("%s: %lld fixed-interface + %lld constraint modes (%d processes)", oname,
                        (long long)cb->nd, (long long)cb->nb, nproc);
     }

@@ -464,6 +464,10 @@ int fmbd_slepc_cb_reduce(fmbd_h5 *f, int64_t n, int64_t nb, const int64_t *bound
   PCALL(MatSetOption(Ks, MAT_SPD, PETSC_TRUE));
   PCALL(MatSetOption(Ms, MAT_SYMMETRIC, PETSC_TRUE));
   t->distribute = tmax(MPI_Wtime() - t0);
+  {
+    double mine = 0;
+    fmbd_slepc_peak_mb(&mine, &t->read_peak_mb);
+  }
 
   // --- fixed-interface modes: Krylov-Schur, shift-and-invert at 0, MUMPS Cholesky of Ks ---
   double t1 = MPI_Wtime(), c1 = fmbd_cpu_s();

@@ -64,6 +64,7 @@ typedef struct fmbd_slepc_timing {
   double factor_flops;    ///< its elimination flops (RINFOG(3))
   double factor_mb_max;   ///< MUMPS memory of the largest process, MB (INFOG(21))
   double factor_mb_sum;   ///< summed over the processes, MB (INFOG(22))
+  double read_peak_mb;    ///< largest process's peak memory when its rows are distributed, MB
 } fmbd_slepc_timing;
 
 /// @brief Reduce (method cb). Collective: every process passes its own open handle f of the
