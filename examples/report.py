@@ -4,7 +4,8 @@
 #
 #   examples/report.py SCENE --body rod --output A --out DIR [--tols 0.1,0.01,0.001]
 #       [--paper-nd 35,58,446] [--size H] [--fe2cb-modes N] [--t-end T] [--step H] [--window]
-#       [--no-fm] [--cb-nd LIST] [--nm-modes LIST] [--ranges LIST] [--title TEXT]
+#       [--no-fm] [--cb-nd LIST] [--nm-modes LIST] [--ranges LIST] [--only fm|bodies]
+#       [--jobs N] [--title TEXT]
 #
 # From the scene's own make chain (fmbd-run -M: mesh2fe, fe2cb, cbcheck and the --hold options
 # the scene's joints ask for), it builds and runs the benchmark's family of models of the
@@ -51,7 +52,9 @@ import re
 import shlex
 import subprocess
 import sys
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import h5py
 import numpy as np
@@ -67,13 +70,15 @@ def die(msg):
     sys.exit(1)
 
 
+LOG_LOCK = threading.Lock()
+
+
 def sh(cmd, log, check=True):
-    """Run a command (list); its output appended to the log; the CompletedProcess."""
-    with open(log, "a") as f:
-        f.write("$ " + " ".join(shlex.quote(c) for c in cmd) + "\n")
+    """Run a command (list); it and its output appended to the log together (runs may go side
+    by side: --jobs); the CompletedProcess."""
     p = subprocess.run(cmd, capture_output=True, text=True)
-    with open(log, "a") as f:
-        f.write(p.stdout + p.stderr)
+    with LOG_LOCK, open(log, "a") as f:
+        f.write("$ " + " ".join(shlex.quote(c) for c in cmd) + "\n" + p.stdout + p.stderr)
     if check and p.returncode:
         die(f"{' '.join(cmd[:2])} failed (exit {p.returncode}):\n{p.stderr.strip()}")
     return p
@@ -267,6 +272,7 @@ def main():
     ap.add_argument("--only", choices=("fm", "bodies"), help="only run the FM reference (fm) or only "
                     "make the reduced bodies (bodies), and stop: the two can run side by side, and a "
                     "later call reuses both")
+    ap.add_argument("--jobs", type=int, default=1, help="fmbd-run runs side by side (default 1)")
     ap.add_argument("--title", default="")
     a = ap.parse_args()
     w0, c0 = time.time(), time.process_time()
@@ -424,13 +430,17 @@ def main():
         ref_scene = os.path.join(out, "cball.yaml")
     ref_cpu, ref_tot, ref_steps = stats(ref)
 
-    for mo in models:
+    def run_model(mo):
         slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
         run = os.path.join(out, slug + ".run.h5")
         sh(["fmbd-run", variant(slug, mo["file"]), "-o", run, "-q", "--reference", ref] + trun, log)
         mo["cpu"], mo["cpu_total"], mo["steps"] = stats(run)
         mo["err"] = errors(run, a.output)
         mo["speedup"] = ref_cpu / mo["cpu"] if mo["cpu"] > 0 else float("nan")
+
+    # side by side with --jobs: each run's CPU time is its own (the table's), whatever runs beside
+    with ThreadPoolExecutor(max_workers=a.jobs) as ex:
+        list(ex.map(run_model, models))
 
     # --- chaotic motion: the window before the trajectories separate ---------------------------
     # found from the cheapest CB body (the loosest tolerance's) run at the run's steps and at
@@ -450,12 +460,15 @@ def main():
         window = dict(t=tsep, size=size, finer=tighter_what(open(os.path.join(out, slug + ".yaml")).read()),
                       model=sep["name"])
         if tsep is not None:
-            for mo in models:
+            def run_window(mo):
                 slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
                 run = os.path.join(out, slug + "-window.run.h5")
                 sh(["fmbd-run", os.path.join(out, slug + ".yaml"), "-o", run, "-q", "--t-end", "%.6g" % tsep,
                     "--reference", ref, "--window", "0:%.6g" % tsep], log)
                 mo["werr"] = errors(run, a.output)
+
+            with ThreadPoolExecutor(max_workers=a.jobs) as ex:
+                list(ex.map(run_window, models))
 
     write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_steps, models,
                  window, nm_range, locals().get("fm_why"))
@@ -503,7 +516,7 @@ def write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_step
     for q in qs:
         hdr += [f"RMS {q} ({UNIT[q]})", f"max {q}"]
     if window and window["t"] is not None:
-        hdr += [f"window RMS position (m)", "window max position"]
+        hdr += ["window RMS position (m)", "window max position"]
     L.append("| " + " | ".join(hdr) + " |")
     L.append("|" + "---|" * len(hdr))
     for mo in models:
