@@ -14,6 +14,8 @@ BUILD  ?= build
 PYTHON ?= /usr/bin/python3
 RP_OUT ?= $(BUILD)/reports
 RP_ARGS ?=
+# fmbd-run runs side by side (report.py --jobs): the table's CPU times are each run's own
+RP_JOBS ?= 2
 # quadruple pendulum: tet10 of 15 mm (3045 dofs; the scene's 7.5 mm mesh: 14667), 3 s (the
 # trajectories separate near 2.8 s: beyond, every model is decimetres off and the FM's cost buys
 # nothing)
@@ -38,16 +40,16 @@ reports: report-slidercrank report-spatial-slidercrank report-quadpend
 # the models' (the scene's own variable steps separate the trajectories sooner).
 report-quadpend:
 	$(PYTHON) examples/report.py examples/quadpend/quadpend.yaml --body rod --output A \
-	  --out $(RP_OUT)/quadpend --step 1e-3 --window --paper-nd 35,58,446 $(QP_ARGS) $(RP_ARGS)
+	  --out $(RP_OUT)/quadpend --step 1e-3 --window --paper-nd 35,58,446 $(QP_ARGS) --jobs $(RP_JOBS) $(RP_ARGS)
 
 # the planar slider-crank (first paper, 5.2): node A at the rod's largest stress; Nd 8, 25, 105
 report-slidercrank:
 	$(PYTHON) examples/report.py examples/slidercrank/slidercrank.yaml --body rod --output A \
-	  --out $(RP_OUT)/slidercrank --paper-nd 8,25,105 $(SC_ARGS) $(RP_ARGS)
+	  --out $(RP_OUT)/slidercrank --paper-nd 8,25,105 $(SC_ARGS) --jobs $(RP_JOBS) $(RP_ARGS)
 
 # the spatial slider-crank (second paper, 4.1): the rod's mid-span node. Its crank swings to
 # within 0.086 rad of the dead point, where a body with axial compliance can carry it over to
 # the other branch (README.md): the window before two step sizes part is reported too.
 report-spatial-slidercrank:
 	$(PYTHON) examples/report.py examples/spatial-slidercrank/spatial-slidercrank.yaml \
-	  --body rod --output mid --out $(RP_OUT)/spatial-slidercrank --window $(SSC_ARGS) $(RP_ARGS)
+	  --body rod --output mid --out $(RP_OUT)/spatial-slidercrank --window $(SSC_ARGS) --jobs $(RP_JOBS) $(RP_ARGS)

@@ -430,45 +430,54 @@ def main():
         ref_scene = os.path.join(out, "cball.yaml")
     ref_cpu, ref_tot, ref_steps = stats(ref)
 
+    def slugof(mo):
+        return re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
+
+    for mo in models:
+        variant(slugof(mo), mo["file"])
+
     def run_model(mo):
-        slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
-        run = os.path.join(out, slug + ".run.h5")
-        sh(["fmbd-run", variant(slug, mo["file"]), "-o", run, "-q", "--reference", ref] + trun, log)
+        run = os.path.join(out, slugof(mo) + ".run.h5")
+        sh(["fmbd-run", os.path.join(out, slugof(mo) + ".yaml"), "-o", run, "-q", "--reference", ref] + trun, log)
         mo["cpu"], mo["cpu_total"], mo["steps"] = stats(run)
         mo["err"] = errors(run, a.output)
         mo["speedup"] = ref_cpu / mo["cpu"] if mo["cpu"] > 0 else float("nan")
-
-    # side by side with --jobs: each run's CPU time is its own (the table's), whatever runs beside
-    with ThreadPoolExecutor(max_workers=a.jobs) as ex:
-        list(ex.map(run_model, models))
 
     # --- chaotic motion: the window before the trajectories separate ---------------------------
     # found from the cheapest CB body (the loosest tolerance's) run at the run's steps and at
     # finer ones: chaos separates any two solutions, and the first instant at which these two
     # differ says how long a trajectory means anything at this step size. Each model is run
     # again to that instant, its errors over the window from fmbd-run --reference --window.
-    window = None
-    if a.window:
-        sep = next(mo for mo in models if mo["family"] == "CB")
-        slug = re.sub(r"[^A-Za-z0-9.]+", "_", sep["name"])
-        t2 = os.path.join(out, slug + "-finer.yaml")
-        with open(t2, "w") as f:
-            f.write(tighter(open(os.path.join(out, slug + ".yaml")).read()))
-        run2 = os.path.join(out, slug + "-finer.run.h5")
-        sh(["fmbd-run", t2, "-o", run2, "-q"] + trun, log)
-        tsep, size = separation(os.path.join(out, slug + ".run.h5"), run2, a.output)
-        window = dict(t=tsep, size=size, finer=tighter_what(open(os.path.join(out, slug + ".yaml")).read()),
-                      model=sep["name"])
-        if tsep is not None:
-            def run_window(mo):
-                slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
-                run = os.path.join(out, slug + "-window.run.h5")
-                sh(["fmbd-run", os.path.join(out, slug + ".yaml"), "-o", run, "-q", "--t-end", "%.6g" % tsep,
-                    "--reference", ref, "--window", "0:%.6g" % tsep], log)
-                mo["werr"] = errors(run, a.output)
+    def run_window(mo, tsep):
+        run = os.path.join(out, slugof(mo) + "-window.run.h5")
+        sh(["fmbd-run", os.path.join(out, slugof(mo) + ".yaml"), "-o", run, "-q", "--t-end", "%.6g" % tsep,
+            "--reference", ref, "--window", "0:%.6g" % tsep], log)
+        mo["werr"] = errors(run, a.output)
 
-            with ThreadPoolExecutor(max_workers=a.jobs) as ex:
-                list(ex.map(run_window, models))
+    # side by side with --jobs (each run's CPU time is its own, the table's, whatever runs beside
+    # it): the separation's two runs first, then the costliest models first
+    window = None
+    order = sorted(models, key=lambda mo: -(mo["modes"] or 0))
+    with ThreadPoolExecutor(max_workers=a.jobs) as ex:
+        if a.window:
+            sep = next(mo for mo in models if mo["family"] == "CB")
+            t2 = os.path.join(out, slugof(sep) + "-finer.yaml")
+            with open(t2, "w") as f:
+                f.write(tighter(open(os.path.join(out, slugof(sep) + ".yaml")).read()))
+            run2 = os.path.join(out, slugof(sep) + "-finer.run.h5")
+            first = [ex.submit(run_model, sep), ex.submit(sh, ["fmbd-run", t2, "-o", run2, "-q"] + trun, log)]
+            rest = [ex.submit(run_model, mo) for mo in order if mo is not sep]
+            for f in first:
+                f.result()
+            tsep, size = separation(os.path.join(out, slugof(sep) + ".run.h5"), run2, a.output)
+            window = dict(t=tsep, size=size, finer=tighter_what(open(os.path.join(out, slugof(sep) + ".yaml")).read()),
+                          model=sep["name"])
+            if tsep is not None:
+                rest += [ex.submit(run_window, mo, tsep) for mo in order]
+        else:
+            rest = [ex.submit(run_model, mo) for mo in order]
+        for f in rest:
+            f.result()
 
     write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_steps, models,
                  window, nm_range, locals().get("fm_why"))
