@@ -4,7 +4,7 @@
 #
 #   examples/report.py SCENE --body rod --output A --out DIR [--tols 0.1,0.01,0.001]
 #       [--paper-nd 35,58,446] [--size H] [--fe2cb-modes N] [--t-end T] [--step H] [--window]
-#       [--no-fm] [--cb-nd LIST] [--nm-modes LIST] [--ranges LIST] [--only fm|bodies]
+#       [--window-end T] [--no-fm] [--cb-nd LIST] [--nm-modes LIST] [--ranges LIST] [--only fm|bodies]
 #       [--jobs N] [--title TEXT]
 #
 # From the scene's own make chain (fmbd-run -M: mesh2fe, fe2cb, cbcheck and the --hold options
@@ -264,6 +264,8 @@ def main():
     ap.add_argument("--t-end", help="end time instead of the scene's")
     ap.add_argument("--step", help="a fixed step for every run instead of the scene's step control")
     ap.add_argument("--window", action="store_true", help="chaotic motion: error before separation")
+    ap.add_argument("--window-end", help="with --window: the window's errors over 0..T instead of up to the "
+                    "separation (T an output instant)")
     ap.add_argument("--no-fm", action="store_true", help="do not try the .fe.h5 body as reference")
     ap.add_argument("--cb-nd", default="", help="more CB bodies: these numbers of fixed-interface modes")
     ap.add_argument("--nm-modes", default="", help="more NM bodies: these numbers of free-body modes")
@@ -471,7 +473,9 @@ def main():
                 f.result()
             tsep, size = separation(os.path.join(out, slugof(sep) + ".run.h5"), run2, a.output)
             window = dict(t=tsep, size=size, finer=tighter_what(open(os.path.join(out, slugof(sep) + ".yaml")).read()),
-                          model=sep["name"])
+                          model=sep["name"], sep=tsep)
+            if a.window_end:  # a window of the user's instead (an output instant: no interpolation at its end)
+                tsep = window["t"] = float(a.window_end)
             if tsep is not None:
                 rest += [ex.submit(run_window, mo, tsep) for mo in order]
         else:
@@ -545,11 +549,15 @@ def write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_step
                   f"never differ by more than 1 % of the motion's size ({window['size']:.3g} m): "
                   f"no separation within the run."]
         else:
-            L += ["", f"Window: the {window['model']} body run at the run's steps and at finer ones "
+            L += ["", f"Window: the {window['model']} body at the run's steps and at finer ones never "
+                  f"differ by more than 1 % of the motion's size ({window['size']:.3g} m); the window "
+                  f"errors are over 0..{window['t']:.4g} s (--window-end)."] if window["sep"] is None else \
+                 ["", f"Window: the {window['model']} body run at the run's steps and at finer ones "
                   f"({window['finer']}) first differ at `{a.output}` by more than 1 % of the motion's size "
-                  f"({window['size']:.3g} m) at t = {window['t']:.4g} s: the trajectories "
+                  f"({window['size']:.3g} m) at t = {window['sep']:.4g} s: the trajectories "
                   f"separate there, and the window errors are over 0..{window['t']:.4g} s (each model "
-                  f"run again to there, fmbd-run --reference --window)."]
+                  f"run again to there, fmbd-run --reference --window"
+                  + (", --window-end" if a.window_end else "") + ")."]
     L += ["", f"Plot: report.svg. Reproduce: `{' '.join(shlex.quote(x) for x in sys.argv)}`", ""]
     open(os.path.join(out, "report.md"), "w").write("\n".join(L))
     plot(a, out, title, ref_label, ref_cpu, models, qs, window)
