@@ -35,8 +35,8 @@ export OPENBLAS_NUM_THREADS ?= 1
 .PHONY: reports report-quadpend report-slidercrank report-spatial-slidercrank
 reports: report-slidercrank report-spatial-slidercrank report-quadpend
 
-# the quadruple pendulum (first paper, 5.1): node A; chaotic, so also the error over the window
-# before two references (fixed 1e-3 s and 5e-4 s steps) separate; the paper's Nd 35, 58, 446.
+# the quadruple pendulum (first paper, 5.1): node A; chaotic, so also the error over a window
+# before two runs (fixed 1e-3 s and 5e-4 s steps) separate (QP_ARGS); the paper's Nd 35, 58, 446.
 # Fixed steps for every model, so that all runs share one time grid and the differences are
 # the models' (the scene's own variable steps separate the trajectories sooner).
 report-quadpend:
@@ -49,8 +49,8 @@ report-slidercrank:
 	  --out $(RP_OUT)/slidercrank --paper-nd 8,25,105 $(SC_ARGS) --jobs $(RP_JOBS) $(RP_ARGS)
 
 # the spatial slider-crank (second paper, 4.1): the rod's mid-span node. Its crank swings to
-# within 0.086 rad of the dead point, where a body with axial compliance can carry it over to
-# the other branch (README.md): the window before two step sizes part is reported too.
+# within 0.086 rad of the dead point (at t = 0.025 s), where the mechanism amplifies any
+# difference between models (README.md): the window before that pass (SSC_ARGS) is reported too.
 report-spatial-slidercrank:
 	$(PYTHON) examples/report.py examples/spatial-slidercrank/spatial-slidercrank.yaml \
 	  --body rod --output mid --out $(RP_OUT)/spatial-slidercrank --window $(SSC_ARGS) --jobs $(RP_JOBS) $(RP_ARGS)
