@@ -290,6 +290,14 @@ struct fmbd_mbs {
 #define SAFETY 0.9
 #define DEAD_LOW 0.85
 #define MODAL_FLOOR 1e-5
+// a failed step at the smallest step size is reported as a singular position when the
+// smallest singular value of the kept constraint rows (unit-normalised, coordinates in their
+// scales: L_ref for translations) is below SINGULAR_TOL. Measured on the spatial slider-crank
+// (docs/STABILITY.md, Constraints): 0.03 to 0.09 at regular positions (metre and millimetre
+// scale alike), 3e-5 where Newton fails at its dead point; the value falls as the square root
+// of the distance to the fold (2.8e-2 at 0.01 s before it), so 1e-3 is reached about 1.4e-5 s
+// (2.7e-6 m of travel) before the fold.
+#define SINGULAR_TOL 1e-3
 
 // --- constraints ---------------------------------------------------------------------------
 // Kinematics of one joint side: position r and up to 4 attached directions g[i], with their
@@ -311,6 +319,8 @@ void mbs_fn_free(fmbd_mbs_fn *f);
 // After each accepted step: warn once per flexible body spinning fast enough for the missing
 // geometric stiffening to matter (fmbd_mbs_spin.c, docs/STABILITY.md).
 void mbs_spin_check(fmbd_mbs *m);
+// fmbd_mbs_init.c: the kept constraint rows (nearly) dependent at the current positions
+bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len);
 // fmbd_mbs_body.c: the residual r (n = 7 + nm) of body ib at (xg, xdg, xddg; xddg may be
 // NULL: zero accelerations) and optionally its block B = cm M + cc C + ck K (n x n, column
 // major); see the comment at the definition

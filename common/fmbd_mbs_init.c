@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "fmbd_alloc.h"
+#include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
@@ -64,6 +65,41 @@ static bool joints_form_free_tree(const fmbd_mbs *m) {
   return tree;
 }
 
+// The Jacobian rows of the constraint equations (all but the normalisations; only the kept
+// ones when kept_only) as unit columns of C (n x nc): the Euler-parameter direction of every
+// body projected out (the normalisations handle it), then coordinate i scaled by cs[i] (a
+// coordinate's unit; NULL: none). ix[k] = equation of column k.
+static void constraint_columns(fmbd_mbs *m, bool kept_only, const double *cs, double *C,
+                               int64_t *ix, int64_t *nc_out) {
+  int64_t n = m->n, k = 0;
+  for (int64_t e = 0; e < m->neq; e++) {
+    meq *q = &m->eq[e];
+    if (q->kind == EQ_NORM || (kept_only && !q->kept)) continue;
+    ix[k] = e;
+    double *col = C + n * k;
+    memset(col, 0, sizeof(double) * (size_t)n);
+    mbs_eq_jtv(m, q, 1.0, col);
+    for (int ib = 0; ib < m->nb; ib++) {
+      const double *p = m->x + m->b[ib].off + 3;
+      double *c = col + m->b[ib].off + 3;
+      double pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3], cp = 0;
+      for (int i = 0; i < 4; i++) cp += c[i] * p[i];
+      for (int i = 0; i < 4; i++) c[i] -= cp / pp * p[i];
+    }
+    if (cs) {
+      for (int64_t i = 0; i < n; i++) col[i] *= cs[i];
+    }
+    double nrm = 0;
+    for (int64_t i = 0; i < n; i++) nrm += col[i] * col[i];
+    nrm = sqrt(nrm);
+    if (nrm > 0) {
+      for (int64_t i = 0; i < n; i++) col[i] /= nrm;
+    }
+    k++;
+  }
+  *nc_out = k;
+}
+
 // Redundant equations: QR with column pivoting of the normalised Jacobian rows for the rank,
 // then a greedy in-order selection (Gram-Schmidt, twice) so that the equations declared
 // redundant are the later ones (the joint closing a loop); if the two disagree, the
@@ -85,29 +121,8 @@ static int find_redundant(fmbd_mbs *m) {
   FMBD_GALLOC(sel = fmbd_calloc((size_t)nc, sizeof(bool)));
   FMBD_GALLOC(jp = fmbd_calloc((size_t)nc, sizeof(lapack_int)));
   FMBD_GALLOC(tau = fmbd_calloc((size_t)(nc < n ? nc : n) + 1, sizeof(double)));
-  int64_t k = 0;
-  for (int64_t e = 0; e < m->neq; e++) {
-    meq *q = &m->eq[e];
-    if (q->kind == EQ_NORM) continue;
-    ix[k] = e;
-    double *col = C + n * k;
-    mbs_eq_jtv(m, q, 1.0, col);
-    // the Euler-parameter direction is handled by the normalisations: project it out
-    for (int ib = 0; ib < m->nb; ib++) {
-      const double *p = m->x + m->b[ib].off + 3;
-      double *c = col + m->b[ib].off + 3;
-      double pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3], cp = 0;
-      for (int i = 0; i < 4; i++) cp += c[i] * p[i];
-      for (int i = 0; i < 4; i++) c[i] -= cp / pp * p[i];
-    }
-    double nrm = 0;
-    for (int64_t i = 0; i < n; i++) nrm += col[i] * col[i];
-    nrm = sqrt(nrm);
-    if (nrm > 0) {
-      for (int64_t i = 0; i < n; i++) col[i] /= nrm;
-    }
-    k++;
-  }
+  int64_t k;
+  constraint_columns(m, false, NULL, C, ix, &k);
   memcpy(Q, C, sizeof(double) * (size_t)(n * nc));
   lapack_int info =
       LAPACKE_dgeqp3(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)nc, Q, (lapack_int)n, jp, tau);
@@ -183,6 +198,75 @@ static int find_redundant(fmbd_mbs *m) {
 done:
   fmbd_free(C), fmbd_free(Q), fmbd_free(tau), fmbd_free(jp), fmbd_free(ix), fmbd_free(sel);
   return rc;
+}
+
+// Singular positions (a dead point): the smallest singular value s of the unit-normalised
+// Jacobian rows of the kept constraints at the current positions (the eigenvalues of C'C,
+// s^2, are resolved down to s ~ 1e-7 by round-off); when s < tol, buf names the joints and
+// drivers whose rows make up the dependent combination (the right singular vector's entries
+// above 0.1 of its largest). Dense O(n nc^2): skipped (false) above 4e6 entries, where a
+// failed step stays described by its residual. Runs only when a step has failed.
+bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len) {
+  int64_t n = m->n, ne = 0, nc = 0;
+  bool sing = false;
+  double *C = NULL, *G = NULL, *w = NULL;
+  int64_t *ix = NULL;
+  *smin = -1;
+  for (int64_t e = 0; e < m->neq; e++) {
+    if (m->eq[e].kind != EQ_NORM && m->eq[e].kept) ne++;
+  }
+  if (ne == 0 || (double)n * (double)ne > 4e6) return false;
+  C = fmbd_calloc((size_t)(n * ne), sizeof(double));
+  G = fmbd_calloc((size_t)(ne * ne), sizeof(double));
+  w = fmbd_calloc((size_t)ne, sizeof(double));
+  ix = fmbd_malloc(sizeof(int64_t) * (size_t)ne);
+  if (!C || !G || !w || !ix) goto done;
+  mbs_eval_constraints(m, m->x, m->t, true);
+  constraint_columns(m, true, m->nscale, C, ix, &nc);
+  fmbd_dense_gemm('T', 'N', nc, nc, n, 1.0, C, n, C, n, 0.0, G, nc);
+  if (fmbd_dense_syev(nc, G, w) != FMBD_OK) goto done;
+  *smin = sqrt(fmax(w[0], 0));
+  if (*smin >= tol) goto done;
+  sing = true;
+  const double *v = G;  // eigenvector of the smallest eigenvalue
+  double vmax = 0;
+  for (int64_t k = 0; k < nc; k++) vmax = fmax(vmax, fabs(v[k]));
+  // the owners (joints, then drivers) of the combination, each once, in the scene's order:
+  // "joints 'a', 'b' and 'c' and driver 'd'"
+  size_t pos = 0;
+  buf[0] = 0;
+  for (int pass = 0; pass < 2; pass++) {
+    int kind = pass == 0 ? EQ_JOINT : EQ_DRIVER, cnt = 0, nw = 0;
+    for (int sweep = 0; sweep < 2; sweep++) {  // count, then write
+      for (int64_t k = 0; k < nc; k++) {
+        const meq *q = &m->eq[ix[k]];
+        if (q->kind != kind || fabs(v[k]) < 0.1 * vmax) continue;
+        bool seen = false;
+        for (int64_t k2 = 0; k2 < k && !seen; k2++) {
+          const meq *q2 = &m->eq[ix[k2]];
+          seen = q2->kind == kind && q2->owner == q->owner && fabs(v[k2]) >= 0.1 * vmax;
+        }
+        if (seen) continue;
+        if (sweep == 0) {
+          cnt++;
+          continue;
+        }
+        const char *name = kind == EQ_JOINT ? m->j[q->owner].name : m->d[q->owner].name;
+        const char *sep = nw == 0 ? (pos > 0 ? " and " : "") : nw == cnt - 1 ? " and " : ", ";
+        const char *word = nw > 0             ? ""
+                           : kind == EQ_JOINT ? (cnt > 1 ? "joints " : "joint ")
+                                              : (cnt > 1 ? "drivers " : "driver ");
+        if (pos < len) {
+          int r = snprintf(buf + pos, len - pos, "%s%s'%s'", sep, word, name);
+          if (r > 0) pos += (size_t)r;
+        }
+        nw++;
+      }
+    }
+  }
+done:
+  fmbd_free(C), fmbd_free(G), fmbd_free(w), fmbd_free(ix);
+  return sing;
 }
 
 // second time derivative of the kept constraints along x' (without the Phi_x x'' part):

@@ -216,6 +216,15 @@ int mbs_factor(fmbd_mbs *m) {
       unknown_describe(m, col, what, sizeof what);
     else
       snprintf(what, sizeof what, "unknown column");
+    char who[600];
+    double smin;
+    if (mbs_constraints_singular(m, SINGULAR_TOL, &smin, who, sizeof who)) {
+      FMBD_FAIL(FMBD_ERR_SINGULAR,
+                "t = %.6g s: the constraints are singular (a dead point or singular position): "
+                "the equations of %s are dependent (smallest singular value %.2g of their "
+                "unit-normalised rows); singular iteration matrix at %s",
+                m->t, who, smin, what);
+    }
     FMBD_FAIL(FMBD_ERR_SINGULAR,
               "t = %.6g s: singular iteration matrix (mass matrix or constraint Jacobian) at %s",
               m->t, what);
