@@ -221,6 +221,12 @@ with h5py.File(os.path.join(TMP, "mk", "ref.gm.h5"), "r") as f:
 os.utime(os.path.join(TMP, "ref.yaml"))
 dry = subprocess.run(["make", "-n", "mk/gms.run.h5"], cwd=TMP, capture_output=True, text=True).stdout
 check("gmsolve ref.yaml" in dry and "mesh2fe" not in dry, "ref.yaml touched: make remakes the basis, not the body")
+# without make: gm_scene, the existing basis file says how it was made (its recorded scene and
+# the options that fix its content)
+write("gmsrec.yaml", open(os.path.join(TMP, "gmsmk.yaml")).read().replace(", gm_scene: ref.yaml, gmsolve: --modes 4", ""))
+rec = run("fmbd-run", "-M", "gmsrec.yaml", "--body-dir", "mk", "-o", "mk/rec.run.h5").stdout
+check("mk/ref.gm.h5: ref.yaml" in rec and "\tgmsolve ref.yaml --body-dir mk --modes 4 --rank-tol 0.001 -o $@" in rec,
+      "fmbd-run -M without gm_scene: gmsolve's rule from the scene and options the basis file records")
 write("badmk.yaml", REF.replace("mesh2fe: --size 0.03 --interface end0 --interface end1",
                                 "gm_scene: ref.yaml"))
 p = subprocess.run(["fmbd-run", "-M", "badmk.yaml"], cwd=TMP, capture_output=True, text=True)
