@@ -158,6 +158,7 @@ typedef struct mbody {
   mbs_fe *fe;        // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
   double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
   bool spin_warned;  // mbs_spin_check warned
+  bool rate_warned;  // mbs_spin_check warned of h Omega > 1 - rho_inf
 } mbody;
 // unit of a body's flexible coordinates in the scales: sqrt(m) for mass-normalised modal
 // coordinates, 1 for FE dofs (m, rad)
