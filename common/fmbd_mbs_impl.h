@@ -159,10 +159,22 @@ typedef struct mbody {
   double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
   bool spin_warned;  // mbs_spin_check warned
   bool rate_warned;  // mbs_spin_check warned of h Omega > 1 - rho_inf
+  // shared modal coordinates (GMs, fmbd_mbs_share_modal): the bodies of a set use one block of
+  // nm coordinates, stored after the frame of the set's first body (its owner)
+  int share;           // owner body of the set, or -1 (the body's own coordinates)
+  int64_t qoff;        // first elastic coordinate in x (off + 7 unless shared)
+  int64_t gn;          // coordinates of x stored at off: n, or 7 for a non-owner of a shared set
+  double qunit;        // unit of the elastic coordinates in the scales (fmbd_mbs_init: QUNIT)
+  bool mff_unchecked;  // added for a shared set: Mff's definiteness is checked by fmbd_mbs_init
 } mbody;
 // unit of a body's flexible coordinates in the scales: sqrt(m) for mass-normalised modal
-// coordinates, 1 for FE dofs (m, rad)
-#define QUNIT(b) ((b)->fe ? 1.0 : sqrt((b)->m))
+// coordinates, 1 for FE dofs (m, rad); shared coordinates: sqrt of the set's total mass (set by
+// fmbd_mbs_init in qunit)
+#define QUNIT(b) ((b)->qunit)
+// the global coordinate of a body's local coordinate i (0..6 frame, 7.. elastic)
+static inline int64_t mbs_col(const mbody *b, int64_t i) {
+  return i < 7 ? b->off + i : b->qoff + (i - 7);
+}
 
 typedef struct mpoint {
   int body;
@@ -300,6 +312,7 @@ typedef struct side {
 // --- internal functions ----------------------------------------------------------------------
 // fmbd_mbs.c
 bool mbs_finite_n(const double *v, int64_t n);
+int mbs_spd(const double *A, int64_t n);
 const char *mbs_joint_kind_name(int kind);
 // fmbd_mbs_fn.c: copy a function (table arrays owned by the copy; `what` names it in messages)
 int mbs_fn_copy(const fmbd_mbs_fn *src, fmbd_mbs_fn *dst, const char *what);

@@ -310,13 +310,14 @@ void mbs_update_scales(fmbd_mbs *m) {
   // the body's deformation, not against their own tiny amplitude; likewise for accelerations
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
+    if (b->share >= 0 && b->share != ib) continue;  // a shared set: once, by its owner
     double qm = 0, am = 0;
     for (int k = 0; k < b->nm; k++) {
-      qm = fmax(qm, m->scale[b->off + 7 + k]);
-      am = fmax(am, m->ascale[b->off + 7 + k]);
+      qm = fmax(qm, m->scale[b->qoff + k]);
+      am = fmax(am, m->ascale[b->qoff + k]);
     }
     for (int k = 0; k < b->nm; k++) {
-      int64_t i = b->off + 7 + k;
+      int64_t i = b->qoff + k;
       m->scale[i] = qm, m->ascale[i] = am;
       m->nscale[i] = fmax(qm, 1e-3 * m->Lref * QUNIT(b));
     }
@@ -362,6 +363,34 @@ static int init_settings(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   return FMBD_OK;
 }
 
+// the elastic mass block of each shared set (the sum of its bodies' Mff) and the Mff of a body
+// added for a set but left alone must be positive definite
+static int check_shared_mass(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  double *S = NULL;
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (!(b->share == ib || (b->share < 0 && b->mff_unchecked)) || b->nm == 0) continue;
+    size_t n2 = (size_t)b->nm * (size_t)b->nm;
+    FMBD_GALLOC(S = fmbd_calloc(n2, sizeof(double)));
+    for (int k = 0; k < m->nb; k++) {
+      if (k != ib && (b->share < 0 || m->b[k].share != ib)) continue;
+      for (size_t i = 0; i < n2; i++) S[i] += m->b[k].Mff[i];
+    }
+    int pd = mbs_spd(S, b->nm);
+    fmbd_free(S);
+    S = NULL;
+    FMBD_CHECK(pd >= 0, FMBD_ERR_NOMEM, "out of memory");
+    FMBD_CHECK(pd, FMBD_ERR_SINGULAR,
+               "%s '%s': the modal mass matrix of the shared coordinates (the sum of the bodies' "
+               "Mff) is not positive definite: a coordinate moves no body",
+               b->share >= 0 ? "shared set of body" : "body", b->name);
+  }
+done:
+  fmbd_free(S);
+  return rc;
+}
+
 // dimensions: coordinate offsets, equation count, the state and workspace arrays
 static int init_dimensions(fmbd_mbs *m) {
   int rc = FMBD_OK;
@@ -369,11 +398,25 @@ static int init_dimensions(fmbd_mbs *m) {
   m->maxn = 7;
   m->maxb = 7;
   for (int ib = 0; ib < m->nb; ib++) {
-    m->b[ib].off = n;
-    n += m->b[ib].n;
-    if (m->b[ib].n > m->maxb) m->maxb = m->b[ib].n;
-    if (!m->b[ib].fe && m->b[ib].n > m->maxn) m->maxn = m->b[ib].n;
+    mbody *b = &m->b[ib];
+    b->off = n;
+    // a shared set's elastic coordinates follow its owner's frame (fmbd_mbs_share_modal)
+    b->gn = b->share >= 0 && b->share != ib ? 7 : b->n;
+    n += b->gn;
+    if (b->n > m->maxb) m->maxb = b->n;
+    if (!b->fe && b->n > m->maxn) m->maxn = b->n;
   }
+  for (int ib = 0; ib < m->nb; ib++) {
+    mbody *b = &m->b[ib];
+    b->qoff = (b->share >= 0 ? m->b[b->share].off : b->off) + 7;
+    b->qunit = b->fe ? 1.0 : sqrt(b->m);
+    if (b->share >= 0) {  // sqrt of the set's mass: GMs coordinates are mass-normalised on it
+      double ms = 0;
+      for (int k = 0; k < m->nb; k++) ms += m->b[k].share == b->share ? m->b[k].m : 0;
+      b->qunit = sqrt(ms);
+    }
+  }
+  FMBD_GCALL(check_shared_mass(m));
   for (int ip = 0; ip < m->np; ip++) {
     if (m->p[ip].sup && 7 + m->p[ip].nsup > m->maxn) m->maxn = 7 + m->p[ip].nsup;
   }
@@ -412,7 +455,7 @@ static int eq_side_cols(const fmbd_mbs *m, const meq *q, const int pts[2], int s
   int cnt = 0;
   if (!b->fe) {
     for (int i = 0; i < b->n; i++, cnt++)
-      if (cols) cols[cnt] = b->off + i;
+      if (cols) cols[cnt] = mbs_col(b, i);
     return cnt;
   }
   for (int i = 0; i < 7; i++, cnt++)
@@ -506,7 +549,8 @@ static void init_state(fmbd_mbs *m) {
     const mbody *b = &m->b[ib];
     double *x = m->x + b->off, *xd = m->xd + b->off;
     memcpy(x, b->x0, sizeof(double) * 7);
-    if (b->nm) memcpy(x + 7, b->q0, sizeof(double) * (size_t)b->nm);
+    if (b->nm && (b->share < 0 || b->share == ib))  // a shared set: its owner's
+      memcpy(m->x + b->qoff, b->q0, sizeof(double) * (size_t)b->nm);
     memcpy(xd, b->v0, sizeof(double) * 3);
     double A[9], G[12], wl[3];
     quat_to_A(x + 3, A);
@@ -514,7 +558,8 @@ static void init_state(fmbd_mbs *m) {
     mtv3(A, b->w0, wl);
     for (int c = 0; c < 4; c++)
       xd[3 + c] = 0.5 * (G[c] * wl[0] + G[4 + c] * wl[1] + G[8 + c] * wl[2]);
-    if (b->nm) memcpy(xd + 7, b->qd0, sizeof(double) * (size_t)b->nm);
+    if (b->nm && (b->share < 0 || b->share == ib))
+      memcpy(m->xd + b->qoff, b->qd0, sizeof(double) * (size_t)b->nm);
   }
 }
 
@@ -540,7 +585,7 @@ static void init_scales(fmbd_mbs *m) {
   m->Lref = fmax(L, 1e-3);
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
-    for (int i = 0; i < b->n; i++) {
+    for (int i = 0; i < b->gn; i++) {
       int64_t k = b->off + i;
       if (i < 3)
         m->floor_[k] = 1e-3 * m->Lref, m->nscale[k] = m->Lref;
@@ -666,9 +711,13 @@ static int init_velocities(fmbd_mbs *m) {
         mbs_fe_block_mul(b, m->Ax, m->xd + b->off, m->rhs + b->off);
         continue;
       }
+      // a shared set's elastic block holds the sum of its bodies': added once, by the owner
+      bool other = b->share >= 0 && b->share != ib;
       for (int j = 0; j < b->n; j++) {
-        for (int i = 0; i < b->n; i++)
-          m->rhs[b->off + i] += m->Ax[pos[i + b->n * j]] * m->xd[b->off + j];
+        for (int i = 0; i < b->n; i++) {
+          if (other && i >= 7 && j >= 7) continue;
+          m->rhs[mbs_col(b, i)] += m->Ax[pos[i + b->n * j]] * m->xd[mbs_col(b, j)];
+        }
       }
     }
     for (int64_t e = 0; e < neq; e++) {

@@ -36,7 +36,7 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
   } else if (wi >= 0 && wi < m->n) {
     for (int ib = 0; ib < m->nb; ib++) {
       const mbody *b = &m->b[ib];
-      if (wi < b->off || wi >= b->off + b->n) continue;
+      if (wi < b->off || wi >= b->off + b->gn) continue;
       int k = (int)(wi - b->off);
       if (k < 3)
         snprintf(what, sizeof what, "body '%s' translational equation of motion (%c)", b->name,

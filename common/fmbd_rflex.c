@@ -148,8 +148,8 @@ int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int
         !(r->stress_row ? r->stress_row[p] >= 0 : !!r->stress))
       held[p] &= (unsigned char)~FMBD_RFLEX_HELD_STRESS;
   }
-  // stress asked where the body has none (cbcheck --no-stress, a beam body): the nodes keep
-  // their motion, and fmbd-run says that the body has no /modes/stress when an output asks
+  FMBD_GCHECK(nstress == 0 || r->stress, FMBD_ERR_VALUE,
+              "stress asked at %lld nodes, but the body has no modal stress", (long long)nstress);
   // the dofs the held nodes' /expand rows read, renumbered in their order
   const fmbd_csr *X = r->expand;
   FMBD_GALLOC(dmap = fmbd_malloc(sizeof(int64_t) * (size_t)(nd + 1)));
@@ -623,7 +623,14 @@ int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out) {
   FMBD_GALLOC(eig = xcalloc((size_t)nm, sizeof(double)));
   memcpy(A, Kff, sizeof(double) * (size_t)(nm * nm));
   memcpy(B, Mff, sizeof(double) * (size_t)(nm * nm));
-  rc = fmbd_dense_sygv(nm, A, B, eig);
+  if (in->semidefinite) {
+    for (int64_t k = 0; k < nm; k++) {
+      double mk = Mff[k + nm * k];
+      eig[k] = mk > 0 ? Kff[k + nm * k] / mk : 0.0;
+    }
+  } else {
+    rc = fmbd_dense_sygv(nm, A, B, eig);
+  }
   if (rc == FMBD_ERR_SINGULAR) {
     FMBD_GFAIL(FMBD_ERR_VALUE,
                "the %lld shapes of the basis are linearly dependent (S'MS is not positive "

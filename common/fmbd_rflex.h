@@ -148,6 +148,9 @@ typedef struct fmbd_rflex_basis {
   const double *Mff, *Kff;   ///< nm x nm: S'MS and S'KS when M, K are NULL (the caller knows
                              ///< them, e.g. from the modal body the shapes are combinations of)
   bool stress;               ///< compute /modes/stress
+  bool semidefinite;         ///< S'MS may be singular (a body's part of a GMs basis, whose
+                             ///< coordinates other bodies share): /modes/eigenvalue gets the
+                             ///< Rayleigh quotients Kff_kk / Mff_kk (0 where Mff_kk is 0)
 } fmbd_rflex_basis;
 
 /// @brief The body fmbd-run integrates for ANY basis S of displacement fields (a global-mode
@@ -203,8 +206,8 @@ int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma);
 /// also keep their motion); the /dofs, shapes and /expand columns that no kept node reads are
 /// dropped. Node positions, interfaces, invariants are unchanged. Applying it to a subset body
 /// keeps the intersection with what it holds.
-/// Stress asked where r has none keeps the nodes' motion only.
-/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range), FMBD_ERR_NOMEM
+/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range, or stress asked where r has none),
+///         FMBD_ERR_NOMEM
 int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int64_t nstress,
                       const int64_t *stress);
 
