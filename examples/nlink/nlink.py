@@ -13,7 +13,9 @@
 #   GMc  gmsolve --keep-drivers on the reference scene (the global modes of the chain with the
 #        driven joint held), the body's rows of the first m global modes
 #   GMc-free  the same with the driven joint free in the global modes (gmsolve's default)
-#   GMs  written by gmsolve, not read by fmbd-run yet (not run)
+#   GMc-nbm   GMc of the first n_b m global modes (up to m columns per link, as the paper's GMc)
+#   GMs  the GMs basis of the same file (driven joint held): m coordinates shared by all links
+#        (basis_kind: gms; fmbd-run reads it since wip/gmshared)
 # Reference: each link as the modal body of all its 6 NE free-free flexible modes (fe2cb --method
 # nm): a complete basis, which spans every FE dof, i.e. the full model in modal coordinates with
 # the consistent rigid-flexible coupling (THEORY section 9). The full model as .fe.h5 beam bodies
@@ -48,7 +50,7 @@ def sh(out, *args, may_fail=False):
     return p
 
 
-def scene(path, nb, t_end, step, body_file, basis=None, keep=None):
+def scene(path, nb, t_end, step, body_file, basis=None, keep=None, kind="gmc"):
     lines = ["title: %d-link pendulum of beams" % nb, "gravity: [0, 0, -9.81]",
              ("solver: {t_end: %g, step: %g}" % (t_end, step) if step else
               "solver: {t_end: %g, max_step: 1e-3}" % t_end), "bodies:"]
@@ -62,6 +64,8 @@ def scene(path, nb, t_end, step, body_file, basis=None, keep=None):
         extra = ""
         if basis:
             extra = ", basis: %s, modes: %d" % (basis, keep)
+            if kind == "gms":
+                extra += ", basis_kind: gms"
         lines.append("  - {name: link%d, type: flexible, file: %s, position: [0, 0, %g], "
                      "orientation: {axis: y, angle: 1.5707963267948966}, velocity: [%.17g, 0, 0], "
                      "angular_velocity: [0, %.17g, 0]%s}" % (k, body_file, -k * L, -w * k * L, w, extra))
@@ -94,7 +98,7 @@ def main():
     ap.add_argument("--modes", default="1,2,4,6")
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--step", type=float, default=0, help="fixed step (s); 0: variable, max 1e-3 s")
-    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMc-free")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMc-free, GMc-nbm, GMs")
     ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
@@ -119,35 +123,42 @@ def main():
         scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, "ref.cb.h5")
         # GMc: the global modes with the driven joint held (--keep-drivers: the boundary condition
         # the prescribed motion imposes); GMc-free: with it left free (gmsolve's default)
-        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "--keep-drivers", "-o", "ref%d.gm.h5" % nb,
-           "-q")
+        kmax = max(modes) * (nb if "GMc-nbm" in methods else 1)
+        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(kmax), "--keep-drivers", "-o", "ref%d.gm.h5" % nb, "-q")
         if "GMc-free" in methods:
             sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "free%d.gm.h5" % nb, "-q")
         sh(out, "fmbd-run", "ref%d.yaml" % nb, "-o", "ref%d.run.h5" % nb, "-q")
         ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
         rows.append((nb, "ref (NM all %d)" % nfull, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
         for m in modes:
-            for meth, body, basis, nflex in (("NM", "nm%d.cb.h5" % m, None, m),
-                                             ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m),
-                                             ("CB", "cb%d.cb.h5" % m, None, m + 6),
-                                             ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m)):
+            # (method, body file, basis file, flexible coordinates per link, global modes kept)
+            for meth, body, basis, nflex, keep in (("NM", "nm%d.cb.h5" % m, None, m, 0),
+                                                   ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m, m),
+                                                   ("CB", "cb%d.cb.h5" % m, None, m + 6, 0),
+                                                   ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m),
+                                                   ("GMc-nbm", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m * nb),
+                                                   ("GMs", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m)):
                 if meth not in methods:
                     continue
-                nfl = [nflex] * nb
-                if basis:       # the GMc columns each link has from the first m global modes
+                nfl, shown_f = [nflex] * nb, str(nflex)
+                if meth == "GMs":       # keep coordinates shared by all links
+                    nfl, shown_f = [keep] + [0] * (nb - 1), "%d shared" % keep
+                elif basis:             # the GMc columns each link has from the first keep global modes
                     with h5py.File(os.path.join(out, basis), "r") as f:
-                        nfl = [int(np.sum(f["gmc/link%d/global_mode" % k][()] <= m)) for k in range(nb)]
-                shown_f = str(nflex) if not basis else "%d..%d" % (min(nfl), max(nfl))
+                        nfl = [int(np.sum(f["gmc/link%d/global_mode" % k][()] <= keep)) for k in range(nb)]
+                    shown_f = "%d..%d" % (min(nfl), max(nfl))
                 # the paper's n_tot: 7 n_b + sum f_i coordinates, 5 n_b + 1 constraint equations
                 ntot = 12 * nb + sum(nfl) + 1
                 name = "%s%d_%d" % (meth, nb, m)
-                scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, m)
+                label = "%s m=%d" % (meth, m) + (" (%d global modes)" % keep if meth == "GMc-nbm" else "")
+                scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, keep,
+                      "gms" if meth == "GMs" else "gmc")
                 if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
-                    rows.append((nb, "%s m=%d" % (meth, m), shown_f, math.nan, math.nan, ntot, []))
+                    rows.append((nb, label, shown_f, math.nan, math.nan, ntot, []))
                     continue
                 pos, cpu = result(os.path.join(out, name + ".run.h5"), nb)
                 each = [math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref)]
-                rows.append((nb, "%s m=%d" % (meth, m), shown_f, cpu, max(each), ntot, each))
+                rows.append((nb, label, shown_f, cpu, max(each), ntot, each))
     print("| n_b | basis | flexible coordinates per link | n_tot | CPU (s) | eps_RMS, largest over the link ends (m) "
           "| eps_RMS of P1 .. Pn_b (m) |")
     print("|---|---|---|---|---|---|---|")

@@ -19,6 +19,7 @@
 #   NM   fe2cb --method nm --modes m         free-free normal modes
 #   CB   fe2cb --modes m                     m fixed-interface + 12 constraint modes (m + 6)
 #   GMc  gmsolve on the linearisation scene (links as in the reference), basis: GMc, modes m
+#   GMs  the same file's GMs basis: m coordinates shared by the four links (basis_kind: gms)
 #   reference (--ref complete, the default): NM with all 6 NE flexible modes, a complete basis
 #        (the FM in modal coordinates), checked against CB with all 6 NE - 6 fixed-interface modes;
 #        --ref fm: the links as full .fe.h5 beam bodies
@@ -84,9 +85,9 @@ def poses(ze):
     return e, limbs
 
 
-def scene(path, ze, t_end, step, files, basis=None, keep=None):
+def scene(path, ze, t_end, step, files, basis=None, keep=None, kind="gmc"):
     """files: the body file of each link (dict; None: a rigid link); basis: a .gm.h5 (GMc, first
-    keep modes)."""
+    keep modes; kind gms: the GMs basis, one set of keep coordinates shared by the links)."""
     e, limbs = poses(ze)
     lines = ["title: Sarrus six-link mechanism, platform at z = %g" % ze,
              "gravity: [0, 0, -9.81]",
@@ -98,6 +99,8 @@ def scene(path, ze, t_end, step, files, basis=None, keep=None):
         for name, p0, p1 in (("prox%d" % (k + 1), a, b), ("dist%d" % (k + 1), b, c)):
             r = frame(p1 - p0, axis)
             extra = ", basis: %s, modes: %d" % (basis, keep) if basis else ""
+            if basis and kind == "gms":
+                extra += ", basis_kind: gms"
             if files[name] is None:     # a rigid link (the rigid twin of the mechanism)
                 kind = "geometry: {shape: cylinder, length: %g, radius: %g, density: %g, axis: x, center: [%g, 0, 0]}" \
                     % (L, RADIUS, RHO, L / 2)
@@ -148,7 +151,7 @@ def main():
     ap.add_argument("--t-end", type=float, default=0.15)
     ap.add_argument("--step", type=float, default=1e-4)
     ap.add_argument("--ref", choices=("fm", "complete"), default="complete")
-    ap.add_argument("--methods", default="NM,CB,GMc")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMs")
     ap.add_argument("--table8", action="store_true", help="print the first 20 global modes")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "sarrus"))
     a = ap.parse_args()
@@ -210,13 +213,15 @@ def main():
             elif meth == "CB":
                 body, basis, nf = "cb%d.cb.h5" % m, None, "%d + 6" % m
                 sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", body, "-q")
+            elif meth == "GMs":
+                body, basis, nf = reffile, "lin.gm.h5", "%d shared" % m
             else:
                 body, basis = reffile, "lin.gm.h5"
                 with h5py.File(os.path.join(out, "lin.gm.h5"), "r") as f:
                     nk = [int(np.sum(f["gmc/%s/global_mode" % n][()] <= m)) for n in LINKS]
                 nf = "/".join(str(x) for x in nk)
             name = "%s%d" % (meth, m)
-            scene(os.path.join(out, name + ".yaml"), 0.0, a.t_end, a.step, files_of(body), basis, m)
+            scene(os.path.join(out, name + ".yaml"), 0.0, a.t_end, a.step, files_of(body), basis, m, meth.lower())
             if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
                 print("| %s m=%d | %s | - | run failed |" % (meth, m, nf))
                 continue
