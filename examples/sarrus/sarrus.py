@@ -102,12 +102,12 @@ def scene(path, ze, t_end, step, files, basis=None, keep=None, kind="gmc"):
             if basis and kind == "gms":
                 extra += ", basis_kind: gms"
             if files[name] is None:     # a rigid link (the rigid twin of the mechanism)
-                kind = "geometry: {shape: cylinder, length: %g, radius: %g, density: %g, axis: x, center: [%g, 0, 0]}" \
+                what = "geometry: {shape: cylinder, length: %g, radius: %g, density: %g, axis: x, center: [%g, 0, 0]}" \
                     % (L, RADIUS, RHO, L / 2)
             else:
-                kind = "type: flexible, file: %s" % files[name]
+                what = "type: flexible, file: %s" % files[name]
             lines.append("  - {name: %s, %s, position: %s, orientation: {matrix: [%s]}%s}"
-                         % (name, kind, vec(p0), ", ".join("%.15g" % x for x in r.ravel()), extra))
+                         % (name, what, vec(p0), ", ".join("%.15g" % x for x in r.ravel()), extra))
     lines.append("  - {name: platform, geometry: {shape: box, size: [%g, %g, %g], density: %g}, position: %s}"
                  % (PLATE + (RHO_PLATE, vec(e))))
     lines.append("joints:")
