@@ -85,11 +85,12 @@ def poses(ze):
     return e, limbs
 
 
-def scene(path, ze, t_end, step, files, basis=None, keep=None, kind="gmc"):
+def scene(path, ze, t_end, step, files, basis=None, keep=None, kind="gmc", make=None, header=""):
     """files: the body file of each link (dict; None: a rigid link); basis: a .gm.h5 (GMc, first
-    keep modes; kind gms: the GMs basis, one set of keep coordinates shared by the links)."""
+    keep modes; kind gms: the GMs basis, one set of keep coordinates shared by the links); make: the
+    make chain of the links' file (on the first link: fmbd-run -M); header: comment lines."""
     e, limbs = poses(ze)
-    lines = ["title: Sarrus six-link mechanism, platform at z = %g" % ze,
+    lines = header.splitlines() + ["title: Sarrus six-link mechanism, platform at z = %g" % ze,
              "gravity: [0, 0, -9.81]",
              "solver: {t_end: %g, step: %g, rho_inf: 0.9}" % (t_end, step), "bodies:"]
 
@@ -108,6 +109,8 @@ def scene(path, ze, t_end, step, files, basis=None, keep=None, kind="gmc"):
                 what = "type: flexible, file: %s" % files[name]
             lines.append("  - {name: %s, %s, position: %s, orientation: {matrix: [%s]}%s}"
                          % (name, what, vec(p0), ", ".join("%.15g" % x for x in r.ravel()), extra))
+            if make and name == LINKS[0]:
+                lines[-1] = lines[-1][:-1] + ",\n     make: {%s}}" % ", ".join("%s: %s" % kv for kv in make.items())
     lines.append("  - {name: platform, geometry: {shape: box, size: [%g, %g, %g], density: %g}, position: %s}"
                  % (PLATE + (RHO_PLATE, vec(e))))
     lines.append("joints:")
@@ -154,7 +157,21 @@ def main():
     ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMs")
     ap.add_argument("--table8", action="store_true", help="print the first 20 global modes")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "sarrus"))
+    ap.add_argument("--write-scene", metavar="YAML", help="write the scene (NM all modes, make chain) and exit")
     a = ap.parse_args()
+    if a.write_scene:
+        mesh = "--size %.12g --circle %g --E 210e9 --nu 0.3 --rho %g --interface end0 --interface end1" % (
+            L / a.ne, RADIUS, RHO)
+        head = ("# examples/sarrus/sarrus.yaml: the Sarrus six-link mechanism falling from p0 = (0.282, 0.282, 0)\n"
+                "# (README.md), each link the modal body of all its %d free-free modes (the full model in\n"
+                "# modal coordinates). Written by: sarrus.py --write-scene sarrus.yaml. Run:\n"
+                "#   fmbd-run -M sarrus.yaml --body-dir out > out/sarrus.mk\n"
+                "#   make -f out/sarrus.mk out/link.cb.h5\n"
+                "#   fmbd-run sarrus.yaml --body-dir out -o out/sarrus.run.h5\n" % (6 * a.ne))
+        scene(a.write_scene, 0.0, a.t_end, a.step, files_of("link.cb.h5"), header=head,
+              make={"geometry": "link.geo", "mesh2fe": mesh, "fe": "link.fe.h5",
+                    "fe2cb": "--method nm --modes %d" % (6 * a.ne)})
+        return
     out = os.path.abspath(a.out)
     os.makedirs(out, exist_ok=True)
     os.environ["PATH"] = os.path.join(ROOT, "build", "bin") + os.pathsep + os.environ["PATH"]

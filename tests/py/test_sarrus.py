@@ -13,7 +13,8 @@
 #    same motion of the platform centre E;
 # 3. GMc converges: the error of E against that reference falls as global modes are added
 #    (m = 1, 2, 4, 8), and with 8 it is far below what the flexibility does to E (the lateral
-#    excursion of E, which a rigid mechanism does not have: the rigid twin keeps E on its line).
+#    excursion of E, which a rigid mechanism does not have: the rigid twin keeps E on its line);
+# 4. examples/sarrus/sarrus.yaml is the scene sarrus.py writes (they cannot drift apart).
 import os
 import subprocess
 import sys
@@ -102,4 +103,8 @@ print("GMc m = 1, 2, 4, 8: eps_RMS of E %s m; lateral excursion %.2e m" % (["%.2
 check(all(b < a for a, b in zip(errs, errs[1:])), "GMc: the error of E falls as modes are added")
 # measured 4e-10 m against 1.2e-5 m: 1e-3 of the flexible effect leaves a margin of 30
 check(errs[-1] < 1e-3 * lateral, "GMc 8 modes: error %.1e m below 1e-3 of the lateral excursion" % errs[-1])
+# --- the committed scene is the one the driver writes --------------------------------------------
+run(sys.executable, os.path.join(ROOT, "examples", "sarrus", "sarrus.py"), "--write-scene", "written.yaml")
+with open(path("written.yaml")) as a, open(os.path.join(ROOT, "examples", "sarrus", "sarrus.yaml")) as b:
+    check(a.read() == b.read(), "examples/sarrus/sarrus.yaml is what sarrus.py --write-scene writes")
 finish()
