@@ -195,7 +195,7 @@ def main():
     # the global modes at the linearisation point, the links as in the reference
     scene(os.path.join(out, "lin.yaml"), -0.031, a.t_end, a.step, reffiles)
     kmax = max(max(modes), 20 if a.table8 else 0)
-    p = sh(out, "gmsolve", "lin.yaml", "--modes", str(kmax), "-o", "lin.gm.h5", "-v")
+    p = sh(out, "gmsolve", "lin.yaml", "--modes", str(kmax), "--plot", "sarrus", "-o", "lin.gm.h5", "-v")
     for line in p.stderr.splitlines():
         if "mobility" in line or "redundan" in line or line.startswith("gmsolve: lin"):
             print(line)
