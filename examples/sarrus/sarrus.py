@@ -27,7 +27,8 @@
 # (fmbd-run --reference; docs/THEORY.md section 7).
 #
 #   /usr/bin/python3 examples/sarrus/sarrus.py [--ne 10] [--modes 2,4,7,9] [--t-end 0.15]
-#       [--step 1e-4] [--ref fm|cb] [--table8] [--out build/sarrus]
+#       [--step 1e-4] [--ref fm|complete] [--methods NM,CB,GMc,GMs] [--z0 Z] [--table8]
+#       [--write-scene YAML] [--out build/sarrus]
 import argparse
 import math
 import os
@@ -157,6 +158,8 @@ def main():
     ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMs")
     ap.add_argument("--table8", action="store_true", help="print the first 20 global modes")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "sarrus"))
+    ap.add_argument("--z0", type=float, default=0.0,
+                    help="the platform centre's initial height (m); -0.031: start at the linearisation configuration")
     ap.add_argument("--write-scene", metavar="YAML", help="write the scene (NM all modes, make chain) and exit")
     a = ap.parse_args()
     if a.write_scene:
@@ -208,13 +211,13 @@ def main():
             print("|---|---|---|---|---|")
             for i in range(min(20, len(fr))):
                 print("| %d | %.2f | %.3e | %.3e | %.3e |" % ((i + 1, fr[i]) + tuple(pm[i])))
-    scene(os.path.join(out, "ref.yaml"), 0.0, a.t_end, a.step, reffiles)
+    scene(os.path.join(out, "ref.yaml"), a.z0, a.t_end, a.step, reffiles)
     sh(out, "fmbd-run", "ref.yaml", "-o", "ref.run.h5", "-q")
     with h5py.File(os.path.join(out, "ref.run.h5"), "r") as f:
         cref = float(f["stats"].attrs["cpu_time_s"])
         pe = f["outputs/E/position"][()]
     if a.ref == "complete":
-        scene(os.path.join(out, "cball.yaml"), 0.0, a.t_end, a.step, files_of("cball.cb.h5"))
+        scene(os.path.join(out, "cball.yaml"), a.z0, a.t_end, a.step, files_of("cball.cb.h5"))
         sh(out, "fmbd-run", "cball.yaml", "-o", "cball.run.h5", "-q")
         eps, cpu, _, _ = rms(os.path.join(out, "cball.run.h5"), os.path.join(out, "ref.run.h5"))
         print("the other complete basis, CB all %d + 6: eps_RMS of E %.2e m, CPU %.2f s" % (nfull - 6, eps, cpu))
@@ -238,7 +241,7 @@ def main():
                     nk = [int(np.sum(f["gmc/%s/global_mode" % n][()] <= m)) for n in LINKS]
                 nf = "/".join(str(x) for x in nk)
             name = "%s%d" % (meth, m)
-            scene(os.path.join(out, name + ".yaml"), 0.0, a.t_end, a.step, files_of(body), basis, m, meth.lower())
+            scene(os.path.join(out, name + ".yaml"), a.z0, a.t_end, a.step, files_of(body), basis, m, meth.lower())
             if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
                 print("| %s m=%d | %s | - | run failed |" % (meth, m, nf))
                 continue
