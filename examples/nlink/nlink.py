@@ -8,6 +8,8 @@
 #
 # Bases of every link, m = number of modes:
 #   NM   fe2cb --method nm --modes m           (free-free normal modes, rigid ones removed)
+#   NM-held  fe2cb --method nm --hold --modes m of a link whose only interface is end0: the
+#        link's modes held at its joint end0 (cantilever modes; the frame at the joint node)
 #   CB   fe2cb --modes m                       (m fixed-interface + the 12 constraint modes:
 #                                               m + 6 flexible modes)
 #   GMc  gmsolve --keep-drivers on the reference scene (the global modes of the chain with the
@@ -50,7 +52,8 @@ def sh(out, *args, may_fail=False):
     return p
 
 
-def scene(path, nb, t_end, step, body_file, basis=None, keep=None, kind="gmc"):
+def scene(path, nb, t_end, step, body_file, basis=None, keep=None, kind="gmc", end1="interface: end1"):
+    """end1: the place of a link's far end (a link file without that interface: its end node)."""
     lines = ["title: %d-link pendulum of beams" % nb, "gravity: [0, 0, -9.81]",
              ("solver: {t_end: %g, step: %g}" % (t_end, step) if step else
               "solver: {t_end: %g, max_step: 1e-3}" % t_end), "bodies:"]
@@ -74,13 +77,13 @@ def scene(path, nb, t_end, step, body_file, basis=None, keep=None, kind="gmc"):
                  "at2: {interface: end0}}")
     for k in range(1, nb):
         lines.append("  - {name: j%d, type: revolute, body1: link%d, body2: link%d, point: [0, 0, %g], axis: y, "
-                     "at1: {interface: end1}, at2: {interface: end0}}" % (k, k - 1, k, -k * L))
+                     "at1: {%s}, at2: {interface: end0}}" % (k, k - 1, k, -k * L, end1))
     lines.append("drivers:")
     lines.append("  - {name: theta1, joint: j0, function: {type: sine, amplitude: %.17g, frequency_hz: 1}}"
                  % (-math.pi / 6))
     lines.append("outputs:\n  every: 0.005\n  points:")
     for k in range(nb):
-        lines.append("    - {name: end%d, body: link%d, interface: end1, quantities: [position]}" % (k, k))
+        lines.append("    - {name: end%d, body: link%d, %s, quantities: [position]}" % (k, k, end1))
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
 
@@ -98,7 +101,7 @@ def main():
     ap.add_argument("--modes", default="1,2,4,6")
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--step", type=float, default=0, help="fixed step (s); 0: variable, max 1e-3 s")
-    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMc-free, GMc-nbm, GMs")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, NM-held, CB, GMc, GMc-free, GMc-nbm, GMs")
     ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
@@ -111,12 +114,17 @@ def main():
     sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--size", "%.12g" % (L / a.ne), "--circle", "0.01",
        "--E", "210e9", "--nu", "0.3",
        "--rho", "7850", "--interface", "end0", "--interface", "end1", "-o", "link.fe.h5", "-q")
+    if "NM-held" in methods:
+        sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--size", "%.12g" % (L / a.ne), "--circle", "0.01",
+           "--E", "210e9", "--nu", "0.3", "--rho", "7850", "--interface", "end0", "-o", "link0.fe.h5", "-q")
     # reference: every link as the modal body of all its 6 NE free-free flexible modes, a complete
     # basis (every FE dof: the full model in modal coordinates, with the consistent coupling)
     nfull = 6 * a.ne
     sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(nfull), "-o", "ref.cb.h5", "-q")
     for m in modes:
         sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(m), "-o", "nm%d.cb.h5" % m, "-q")
+        if "NM-held" in methods:
+            sh(out, "fe2cb", "link0.fe.h5", "--method", "nm", "--hold", "--modes", str(m), "-o", "nmh%d.cb.h5" % m, "-q")
         sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", "cb%d.cb.h5" % m, "-q")
     rows = []
     for nb in links:
@@ -133,6 +141,7 @@ def main():
         for m in modes:
             # (method, body file, basis file, flexible coordinates per link, global modes kept)
             for meth, body, basis, nflex, keep in (("NM", "nm%d.cb.h5" % m, None, m, 0),
+                                                   ("NM-held", "nmh%d.cb.h5" % m, None, m, 0),
                                                    ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m, m),
                                                    ("CB", "cb%d.cb.h5" % m, None, m + 6, 0),
                                                    ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m),
@@ -152,7 +161,8 @@ def main():
                 name = "%s%d_%d" % (meth, nb, m)
                 label = "%s m=%d" % (meth, m) + (" (%d global modes)" % keep if meth == "GMc-nbm" else "")
                 scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, keep,
-                      "gms" if meth == "GMs" else "gmc")
+                      "gms" if meth == "GMs" else "gmc",
+                      "nearest: [%g, 0, 0]" % L if meth == "NM-held" else "interface: end1")
                 if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
                     rows.append((nb, label, shown_f, math.nan, math.nan, ntot, []))
                     continue
