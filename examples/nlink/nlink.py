@@ -27,7 +27,8 @@
 # over the links; CPU: the run's /stats cpu_time_s.
 #
 #   /usr/bin/python3 examples/nlink/nlink.py [--links 2,4] [--modes 1,2,4,6] [--t-end 0.5]
-#       [--ne 10] [--step H] [--methods NM,CB,GMc,GMc-free] [--out build/nlink]
+#       [--ne 10] [--step H] [--methods NM,NM-held,CB,GMc,GMc-free,GMc-nbm,GMs] [--ref complete|fm]
+#       [--out build/nlink]
 #       (programs from build/bin)
 import argparse
 import math
@@ -102,6 +103,8 @@ def main():
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--step", type=float, default=0, help="fixed step (s); 0: variable, max 1e-3 s")
     ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, NM-held, CB, GMc, GMc-free, GMc-nbm, GMs")
+    ap.add_argument("--ref", choices=("complete", "fm"), default="complete",
+                    help="reference: all free-free modes of each link, or the full .fe.h5 links")
     ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
@@ -120,7 +123,9 @@ def main():
     # reference: every link as the modal body of all its 6 NE free-free flexible modes, a complete
     # basis (every FE dof: the full model in modal coordinates, with the consistent coupling)
     nfull = 6 * a.ne
+    # (--ref fm: the links as full .fe.h5 beam bodies, once fmbd-run runs them)
     sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(nfull), "-o", "ref.cb.h5", "-q")
+    reffile, refname = ("link.fe.h5", "FM") if a.ref == "fm" else ("ref.cb.h5", "NM all %d" % nfull)
     for m in modes:
         sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(m), "-o", "nm%d.cb.h5" % m, "-q")
         if "NM-held" in methods:
@@ -128,7 +133,7 @@ def main():
         sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", "cb%d.cb.h5" % m, "-q")
     rows = []
     for nb in links:
-        scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, "ref.cb.h5")
+        scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, reffile)
         # GMc: the global modes with the driven joint held (--keep-drivers: the boundary condition
         # the prescribed motion imposes); GMc-free: with it left free (gmsolve's default)
         kmax = max(modes) * (nb if "GMc-nbm" in methods else 1)
@@ -137,16 +142,16 @@ def main():
             sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "free%d.gm.h5" % nb, "-q")
         sh(out, "fmbd-run", "ref%d.yaml" % nb, "-o", "ref%d.run.h5" % nb, "-q")
         ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
-        rows.append((nb, "ref (NM all %d)" % nfull, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
+        rows.append((nb, "ref (%s)" % refname, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
         for m in modes:
             # (method, body file, basis file, flexible coordinates per link, global modes kept)
             for meth, body, basis, nflex, keep in (("NM", "nm%d.cb.h5" % m, None, m, 0),
                                                    ("NM-held", "nmh%d.cb.h5" % m, None, m, 0),
-                                                   ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m, m),
+                                                   ("GMc-free", reffile, "free%d.gm.h5" % nb, m, m),
                                                    ("CB", "cb%d.cb.h5" % m, None, m + 6, 0),
-                                                   ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m),
-                                                   ("GMc-nbm", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m * nb),
-                                                   ("GMs", "ref.cb.h5", "ref%d.gm.h5" % nb, m, m)):
+                                                   ("GMc", reffile, "ref%d.gm.h5" % nb, m, m),
+                                                   ("GMc-nbm", reffile, "ref%d.gm.h5" % nb, m, m * nb),
+                                                   ("GMs", reffile, "ref%d.gm.h5" % nb, m, m)):
                 if meth not in methods:
                     continue
                 nfl, shown_f = [nflex] * nb, str(nflex)
