@@ -28,7 +28,7 @@
 #
 #   /usr/bin/python3 examples/nlink/nlink.py [--links 2,4] [--modes 1,2,4,6] [--t-end 0.5]
 #       [--ne 10] [--step H] [--methods NM,NM-held,CB,GMc,GMc-free,GMc-nbm,GMs] [--ref complete|fm]
-#       [--out build/nlink]
+#       [--plot PREFIX] [--out build/nlink]
 #       (programs from build/bin)
 import argparse
 import math
@@ -96,6 +96,32 @@ def result(path, nb):
     return pos, cpu
 
 
+def plot(prefix, rows):
+    """PREFIX-cpu.svg: CPU time against n_tot (the paper's Figure 10), PREFIX-error.svg: the
+    largest eps_RMS of the link ends against n_b (Table 5), one line per basis."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    series = {}
+    for nb, meth, nf, cpu, eps, nt, each in rows:
+        if not math.isnan(cpu):
+            series.setdefault(meth, []).append((nb, nt, cpu, eps))
+    for what, xi, yi, xlabel, ylabel in (("cpu", 1, 2, "n_tot", "CPU time of the run (s)"),
+                                         ("error", 0, 3, "n_b", "eps_RMS, largest over the link ends (m)")):
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for meth, pts in series.items():
+            if what == "error" and meth.startswith("ref"):
+                continue
+            ax.semilogy([p[xi] for p in pts], [p[yi] for p in pts], "o-", label=meth)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig("%s-%s.svg" % (prefix, what))
+        plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--links", default="2,4")
@@ -105,6 +131,7 @@ def main():
     ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, NM-held, CB, GMc, GMc-free, GMc-nbm, GMs")
     ap.add_argument("--ref", choices=("complete", "fm"), default="complete",
                     help="reference: all free-free modes of each link, or the full .fe.h5 links")
+    ap.add_argument("--plot", metavar="PREFIX", help="PREFIX-cpu.svg and PREFIX-error.svg")
     ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
@@ -174,6 +201,8 @@ def main():
                 pos, cpu = result(os.path.join(out, name + ".run.h5"), nb)
                 each = [math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref)]
                 rows.append((nb, label, shown_f, cpu, max(each), ntot, each))
+    if a.plot:
+        plot(a.plot, rows)
     print("| n_b | basis | flexible coordinates per link | n_tot | CPU (s) | eps_RMS, largest over the link ends (m) "
           "| eps_RMS of P1 .. Pn_b (m) |")
     print("|---|---|---|---|---|---|---|")
