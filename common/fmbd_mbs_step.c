@@ -122,7 +122,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       m->xd[i] += gp * dx;
       m->xdd[i] += bp * dx;
       double tx = m->set.newton_tol * fmin(m->nscale[i], m->ascale[i] / bp);
-      tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), m->nscale[i]));
+      tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), fmax(m->nscale[i], m->rscale[i])));
       double v = fabs(dx) / tx;
       if (!(v <= nrm)) nrm = v, m->worst_dx = i;
     }
