@@ -255,6 +255,7 @@ struct fmbd_mbs {
   // --- generalized alpha ---
   double am, af, beta, gamma;
   double h_next, h_fact, h_prop, h_prev;
+  double err_prev[2];  // scaled local errors of the last two accepted steps (0: none yet)
   int64_t k_out;
   int64_t worst_i;  // largest scaled residual of the last iterate
   double worst_v;

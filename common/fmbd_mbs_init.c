@@ -788,6 +788,7 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->h_next = m->set.fixed ? m->set.step : m->set.first_step;
   m->h_fact = 0;
   m->h_prop = 0;
+  m->err_prev[0] = m->err_prev[1] = 0;
   m->k_out = 0;
   m->st.coordinates = m->n;
   m->st.equations = m->m;
