@@ -192,8 +192,17 @@ MPICC        ?= mpicc
 PETSC_CFLAGS ?= $(shell $(PKG_CONFIG) --cflags slepc petsc 2>/dev/null)
 PETSC_LIBS   ?= $(shell $(PKG_CONFIG) --libs slepc petsc 2>/dev/null)
 MPI_OBJ      := $(BUILD)/mpi/fmbd_slepc.o $(BUILD)/fe2cb-mpi/main.o
+CBMPI_OBJ    := $(BUILD)/mpi/fmbd_slepc.o $(BUILD)/cbcheck-mpi/main.o $(BUILD)/cbcheck-mpi/cbcheck.o
 .PHONY: mpi
-mpi: $(BUILD)/bin/fe2cb-mpi
+mpi: $(BUILD)/bin/fe2cb-mpi $(BUILD)/bin/cbcheck-mpi
+$(BUILD)/cbcheck-mpi/%.o: cbcheck-mpi/%.c
+	$(call msg,MPICC,$<)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_CPPFLAGS) -Impi $(PETSC_CFLAGS) $(CPPFLAGS) $(FMBD_CFLAGS) $(CFLAGS) -c -o $@ $<
+$(BUILD)/bin/cbcheck-mpi: $(CBMPI_OBJ) $(LIB)
+	$(call msg,LD,$@)
+	@mkdir -p $(@D)
+	$(Q)$(MPICC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(CBMPI_OBJ) $(LIB) $(PETSC_LIBS) $(FMBD_LDLIBS) $(LDLIBS)
 $(BUILD)/mpi/%.o: mpi/%.c
 	$(call msg,MPICC,$<)
 	@mkdir -p $(@D)
@@ -207,7 +216,7 @@ $(BUILD)/bin/fe2cb-mpi: $(MPI_OBJ) $(LIB)
 	@mkdir -p $(@D)
 	$(Q)$(MPICC) $(FMBD_LDFLAGS) $(LDFLAGS) -o $@ $(MPI_OBJ) $(LIB) $(PETSC_LIBS) $(FMBD_LDLIBS) $(LDLIBS)
 ifneq ($(strip $(PETSC_LIBS)),)
-check-build: $(BUILD)/bin/fe2cb-mpi
+check-build: $(BUILD)/bin/fe2cb-mpi $(BUILD)/bin/cbcheck-mpi
 endif
 # <<< batch and distributed <<<
 

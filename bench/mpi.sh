@@ -9,6 +9,9 @@
 # scaling model in docs/SCALE.md. Checks that every run's eigenvalues agree (1e-10 relative).
 # Environment: BUILD, PYTHON, BENCH_OUT, BENCH_SIZES="0.0047 0.0029" (element sizes, m),
 # BENCH_LARGE=1 adds 0.0023 (about 380 k dofs), BENCH_MODES=20.
+# BENCH_LOGVIEW=1: instead, where the time of fe2cb-mpi goes on 1 and 2 processes (PETSc's
+# -log_view: MUMPS analysis and factorisations, the solves, the waits for messages) on one
+# rod of BENCH_LOGVIEW_SIZE=0.0033 (about 130 k dofs), each run twice, the lower kept.
 set -u
 ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}
 BUILD=${BUILD:-build}
@@ -39,6 +42,44 @@ run() {  # NAME THREADS CMD...: wall/cpu/rss of the command (GNU time) into glob
 mpi_figures() {  # NAME: fe2cb-mpi -v figures
   sed -n 's/.*peak memory: process 0 \([0-9]*\) MB, largest process \([0-9]*\) MB.*/p0 \1 MB, largest \2 MB/p' "$1.err"
 }
+
+if [ "${BENCH_LOGVIEW:-0}" = 1 ]; then
+  h=${BENCH_LOGVIEW_SIZE:-0.0033}
+  fe=rod-$h.fe.h5
+  [ -f "$fe" ] || mesh2fe "$ROOT/examples/geometry/rod.geo" --size "$h" --interface end0 \
+    --interface end1 -o "$fe" -q || exit 1
+  for rep in 1 2; do
+    for np in 1 2; do
+      PETSC_OPTIONS="-log_view :lv-np$np-r$rep.log" run lv-np$np-r$rep 1 "${MPIRUN[@]}" -np $np \
+        fe2cb-mpi "$fe" --modes "$N" -o lv-np$np-r$rep.cb.h5 -v || exit 1
+      echo "  np $np, run $rep: $wall s wall, load $(cut -d' ' -f1-3 /proc/loadavg)"
+    done
+  done
+  "$PYTHON" - "$fe" <<'PY'
+import re, sys, h5py
+n = h5py.File(sys.argv[1], "r")["dofs"].shape[0]
+def events(f):  # event -> (count, max time over the processes)
+    e = {}
+    for line in open(f):
+        m = re.match(r"^(\w+)\s+(\d+)\s+[\d.]+\s+([\d.e+-]+)\s", line)
+        if m: e[m.group(1)] = (int(m.group(2)), float(m.group(3)))
+        m = re.match(r"^Time \(sec\):\s+([\d.e+-]+)", line)
+        if m: e["total"] = (1, float(m.group(1)))
+    return e
+print(f"fe2cb-mpi, {n} dofs, -log_view (seconds, slowest process; the lower total of two runs)")
+print(f"{'':4} {'total':>7} {'analysis':>9} {'numeric':>8} {'solves':>14} {'waits':>7} {'Krylov-Schur':>13}")
+for np in (1, 2):
+    runs = [events(f"lv-np{np}-r{r}.log") for r in (1, 2)]
+    e = min(runs, key=lambda x: x["total"][1])
+    g = lambda k: e.get(k, (0, 0.0))
+    print(f"np {np} {g('total')[1]:7.1f} {g('MatCholFctrSym')[1]:9.1f} {g('MatCholFctrNum')[1]:8.1f} "
+          f"{g('MatSolve')[1]:7.1f} ({g('MatSolve')[0]:3d}) {g('VecScatterEnd')[1]:7.1f} {g('EPSSolve')[1]:13.1f}")
+print("analysis, numeric: MatCholFctrSym/Num (the Cholesky of Ks and the Sturm LDL'); solves:")
+print("MatSolve (count); waits: VecScatterEnd (messages of the mat-vecs and gathers)")
+PY
+  echo "load average $(cut -d' ' -f1-3 /proc/loadavg) at the end"
+  exit 0
+fi
 
 printf '%-7s %8s | %-22s | %-22s | %-30s | %-30s\n' h dofs "fe2cb 1 thread" "fe2cb 2 threads" \
   "fe2cb-mpi 1 process" "fe2cb-mpi -np 2"

@@ -12,7 +12,9 @@ prints memory and time per process for 1 M to 20 M dofs on P processes:
 
   memory/process = ovh 8 nnz(L) / P                         (MUMPS factor, measured overhead ovh)
                  + 3 x 12 x r n / P                         (Ks, Ms in PETSc, MUMPS's copy of Ks)
-                 + read: 2 x 12 x r n (this implementation: every process reads all of K, M)
+                 (each process reads its row block of K, M, 2 x 12 x r n / P, freed before
+                 the factor; before the row-block reader every process read all of K and M,
+                 2 x 12 x r n: printed apart)
   process 0 in addition: 8 ns (nd + 4 nb) bytes (the dense blocks of the .cb.h5, gathered)
   time           = flops / (P r_f e_f)  +  S c_s nnz(L) / (P e_s)
 with r (entries per row of K, measured), r_f (factor flop rate of one process, measured), c_s
@@ -86,7 +88,7 @@ def main():
     eff = {1: (1.0, 1.0), 8: (0.6, 0.4), 32: (0.4, 0.25), 128: (0.25, 0.12)}
     print(f"assumed parallel efficiencies (factor, solve) by P: {eff} -- assumptions, not measured")
     print(f"nd = {nd} modes, nb = {nb} boundary dofs, S = {S:.0f} solves\n")
-    print("| dofs | nnz(L) | factor flops | P | memory/process: factor + matrices | + whole K, M read (now) | process 0: dense blocks | time/process: factor + solves |")
+    print("| dofs | nnz(L) | factor flops | P | memory/process: factor + matrices | whole K, M (before the row-block reader) | process 0: dense blocks | time/process: factor + solves |")
     print("|---|---|---|---|---|---|---|---|")
     for N in (1e6, 2e6, 5e6, 1e7, 2e7):
         l = math.exp(la) * N ** alpha

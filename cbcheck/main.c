@@ -25,6 +25,13 @@
 #include "fmbd_rflex.h"
 #include "fmbd_svg.h"
 
+// cbcheck-mpi compiles this file again under its own name, with a note in the help and main
+// renamed (cbcheck-mpi/cbcheck.c): one program, two eigensolvers behind --exact
+#ifndef CBCHECK_PROG
+#define CBCHECK_PROG "cbcheck"
+#define CBCHECK_USAGE_NOTE ""
+#endif
+
 static const char *usage_text =
     "Usage: cbcheck BODY.cb.h5 [--fe BODY.fe.h5] [--tol E] [--range NM] [--init N0]\n"
     "               [--exact] [--csv FILE|-] [--plot PREFIX] [-o BODY.rflex.h5]\n"
@@ -80,7 +87,7 @@ static const char *usage_text =
     "the CSV goes to standard output.\n"
     "\n"
     "Example:\n"
-    "  cbcheck rod.cb.h5 --tol 1e-3 --range 10 -o rod.rflex.h5\n";
+    "  cbcheck rod.cb.h5 --tol 1e-3 --range 10 -o rod.rflex.h5\n" CBCHECK_USAGE_NOTE;
 
 // Smallest --tol accepted. The estimates compare eigenvalues that the Lanczos and the dense
 // reduced solves give to about 1e-12..1e-9 relative (the fe2cb tests: 1e-9 against scipy),
@@ -504,7 +511,7 @@ done:
 
 // --- main ----------------------------------------------------------------------------------------
 int main(int argc, char **argv) {
-  fmbd_cli_init("cbcheck", argc, argv);
+  fmbd_cli_init(CBCHECK_PROG, argc, argv);
   args a = {0};
   bool done_early = false;
   int st = parse_args(argc, argv, &a, &done_early);

@@ -307,6 +307,14 @@ int fmbd_check_extend(void *ctx, fmbd_est *e, int64_t nd_wanted) {
   return FMBD_OK;
 }
 
+static fmbd_check_exact_engine exact_engine;  // NULL: fmbd_eig_solve
+static void *exact_engine_ctx;
+
+void fmbd_check_set_exact_engine(fmbd_check_exact_engine fn, void *ctx) {
+  exact_engine = fn;
+  exact_engine_ctx = ctx;
+}
+
 int fmbd_check_exact(fmbd_check *c, const fmbd_est_modes *m, int64_t nflex, double **chi) {
   *chi = fmbd_calloc((size_t)nflex + 1, sizeof(double));
   FMBD_CHECK(*chi, FMBD_ERR_NOMEM, "out of memory");
@@ -330,7 +338,15 @@ int fmbd_check_exact(fmbd_check *c, const fmbd_est_modes *m, int64_t nflex, doub
   fmbd_eig_result res = {0};
   double t0 = fmbd_wall_s(), c0 = fmbd_cpu_s();
   fmbd_err_context(c->fe_name, "/K");
-  int rc = fmbd_eig_solve(c->fe->K, c->fe->M, NULL, &eo, &res);
+  int rc = FMBD_OK;
+  if (exact_engine) {
+    res.lambda = fmbd_calloc((size_t)eo.nev, sizeof(double));
+    FMBD_CHECK(res.lambda, FMBD_ERR_NOMEM, "out of memory");
+    rc = exact_engine(exact_engine_ctx, c->fe_name, c->fe->K, c->fe->M, eo.nev, eo.free_body,
+                      res.lambda);
+  } else {
+    rc = fmbd_eig_solve(c->fe->K, c->fe->M, NULL, &eo, &res);
+  }
   fmbd_progress(NULL);
   c->t_exact_s += fmbd_wall_s() - t0;
   c->c_exact_s += fmbd_cpu_s() - c0;

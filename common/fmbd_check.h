@@ -92,6 +92,16 @@ int fmbd_check_extend(void *ctx, fmbd_est *e, int64_t nd_wanted);
 /// are exact eigenpairs, so chi = their eigenvalues (m, no eigensolution).
 int fmbd_check_exact(fmbd_check *c, const fmbd_est_modes *m, int64_t nflex, double **chi);
 
+/// An engine for fmbd_check_exact's eigensolution in place of fmbd_eig_solve (cbcheck-mpi:
+/// SLEPc on MPI processes, docs/SCALE.md): the lowest nev eigenvalues of K x = lambda M x of
+/// the fe file fe_path (c->fe's K and M, read from it), ascending, into lambda (nev), with
+/// fmbd_eig_solve's guarantee that none was skipped; free_body as fmbd_eig_opts.
+typedef int (*fmbd_check_exact_engine)(void *ctx, const char *fe_path, const fmbd_csr *K,
+                                       const fmbd_csr *M, int64_t nev, bool free_body,
+                                       double *lambda);
+/// @brief Set (fn NULL: reset to fmbd_eig_solve) the engine of every later fmbd_check_exact.
+void fmbd_check_set_exact_engine(fmbd_check_exact_engine fn, void *ctx);
+
 /// The reduced flexible body of the first nm flexible modes of m (Xi: the reduced eigenvectors
 /// of fmbd_est_run, nr x m->nmodes). With holds, the held problem's modes are completed by the
 /// held dofs' constraint modes (fmbd_est_held_modes): *nkept >= nm modes.

@@ -173,6 +173,9 @@ int fmbd_fe_write(fmbd_h5 *f, const fmbd_fe_body *b);
 /// the root `format` (fmbd_h5_check_format). Validates shapes, index ranges and the dof list.
 /// @param[out] out caller destroys with fmbd_fe_body_destroy
 int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out);
+/// @brief fmbd_fe_read without /K and /M (left NULL): the description, for a distributed
+/// program whose processes read their row blocks of K and M (fmbd_h5_read_csr_rows).
+int fmbd_fe_read_description(fmbd_h5 *f, fmbd_fe_body **out);
 
 /// @brief Copy /mesh /dofs /material /interfaces /clamped /body /expand (everything but /K
 /// and /M) from src to dst.

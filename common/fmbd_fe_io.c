@@ -116,7 +116,7 @@ static int check_nodes(fmbd_h5 *f, const char *path, int64_t n, const int64_t *v
   return FMBD_OK;
 }
 
-int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
+static int fe_read(fmbd_h5 *f, bool matrices, fmbd_fe_body **out) {
   int rc = FMBD_OK;
   fmbd_fe_body *b = NULL;
   int nnames = 0;
@@ -220,14 +220,14 @@ int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
     goto done;
   }
   // --- matrices ---
-  if (fmbd_h5_exists(f, "/K")) {
+  if (matrices && fmbd_h5_exists(f, "/K")) {
     FMBD_GCALL(fmbd_h5_read_csr(f, "/K", &b->K));
     if (b->K->nrows != b->ndof || b->K->ncols != b->ndof) {
       RFAIL("/K", "shape (%lld, %lld), expected (%lld, %lld) from /dofs", (long long)b->K->nrows,
             (long long)b->K->ncols, (long long)b->ndof, (long long)b->ndof);
     }
   }
-  if (fmbd_h5_exists(f, "/M")) {
+  if (matrices && fmbd_h5_exists(f, "/M")) {
     FMBD_GCALL(fmbd_h5_read_csr(f, "/M", &b->M));
     if (b->M->nrows != b->ndof || b->M->ncols != b->ndof) {
       RFAIL("/M", "shape (%lld, %lld), expected (%lld, %lld) from /dofs", (long long)b->M->nrows,
@@ -313,6 +313,14 @@ done:
   fmbd_free(str);
   fmbd_fe_body_destroy(&b);
   return rc;
+}
+
+int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
+  return fe_read(f, true, out);
+}
+
+int fmbd_fe_read_description(fmbd_h5 *f, fmbd_fe_body **out) {
+  return fe_read(f, false, out);
 }
 
 int fmbd_fe_copy_description(fmbd_h5 *src, fmbd_h5 *dst) {

@@ -1043,6 +1043,77 @@ done:
   return rc;
 }
 
+// count entries from start of a 1-D dataset (any length >= start + count) into buf
+static int read_slab(fmbd_h5 *f, const char *path, hid_t mtype, int64_t start, int64_t count,
+                     void *buf) {
+  int rc = FMBD_OK;
+  hid_t d = -1, fsp = -1, msp = -1;
+  int64_t dims[1] = {-1};
+  bool fl;
+  FMBD_GCALL(open_numeric(f, path, 1, dims, &d, &fl));
+  FMBD_GCHECK(!(fl && mtype == H5T_NATIVE_INT64), FMBD_ERR_FORMAT,
+              "floating-point dataset where integers are expected");
+  FMBD_GCHECK(start >= 0 && count >= 0 && start + count <= dims[0], FMBD_ERR_FORMAT,
+              "entries %lld .. %lld asked for, the dataset has %lld", (long long)start,
+              (long long)(start + count - 1), (long long)dims[0]);
+  if (count > 0) {
+    hsize_t st[1] = {(hsize_t)start}, cnt[1] = {(hsize_t)count};
+    FMBD_H5(fsp = H5Dget_space(d), FMBD_ERR_EXTERNAL, "H5Dget_space failed");
+    FMBD_H5(H5Sselect_hyperslab(fsp, H5S_SELECT_SET, st, NULL, cnt, NULL), FMBD_ERR_EXTERNAL,
+            "H5Sselect_hyperslab failed");
+    FMBD_H5(msp = H5Screate_simple(1, cnt, NULL), FMBD_ERR_EXTERNAL, "H5Screate_simple failed");
+    FMBD_H5(H5Dread(d, mtype, msp, fsp, H5P_DEFAULT, buf), FMBD_ERR_FORMAT, "cannot read dataset");
+  }
+done:
+  close_id(&msp, H5Sclose);
+  close_id(&fsp, H5Sclose);
+  close_id(&d, H5Dclose);
+  return rc;
+}
+
+int fmbd_h5_read_csr_rows(fmbd_h5 *f, const char *path, int64_t r0, int64_t r1, int64_t *nrows_all,
+                          fmbd_csr **out) {
+  int rc = FMBD_OK;
+  char p[1100];
+  fmbd_csr *A = NULL;
+  int64_t shape[2], *ip = NULL;
+  const char *at = path;
+  *out = NULL;
+  FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing sparse matrix");
+  FMBD_GCHECK(is_group(f, path), FMBD_ERR_FORMAT, "not a CSR group");
+  FMBD_GCALL(fmbd_h5_read_attr_i64(f, path, "shape", 2, shape));
+  FMBD_GCHECK(shape[0] >= 0 && shape[1] >= 0 && shape[0] < INT64_MAX / 16, FMBD_ERR_FORMAT,
+              "bad shape (%lld, %lld)", (long long)shape[0], (long long)shape[1]);
+  FMBD_GCHECK(0 <= r0 && r0 <= r1 && r1 <= shape[0], FMBD_ERR_VALUE,
+              "rows %lld .. %lld asked for, the matrix has %lld", (long long)r0,
+              (long long)(r1 - 1), (long long)shape[0]);
+  int64_t nr = r1 - r0;
+  FMBD_GALLOC(ip = fmbd_malloc((size_t)(nr + 1) * sizeof *ip));
+  FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+  at = p;
+  FMBD_GCALL(read_slab(f, p, H5T_NATIVE_INT64, r0, nr + 1, ip));
+  int64_t base = ip[0], nnz = ip[nr] - ip[0];
+  FMBD_GCHECK(base >= 0 && nnz >= 0 && (shape[1] == 0 ? nnz == 0 : nnz / shape[1] <= nr),
+              FMBD_ERR_FORMAT, "indptr[%lld] = %lld, indptr[%lld] = %lld: not a row block",
+              (long long)r0, (long long)ip[0], (long long)r1, (long long)ip[nr]);
+  FMBD_GCALL(fmbd_csr_create(nr, shape[1], nnz, &A));
+  for (int64_t i = 0; i <= nr; i++) A->indptr[i] = ip[i] - base;
+  FMBD_GCALL(join(p, sizeof p, path, "indices"));
+  FMBD_GCALL(read_slab(f, p, H5T_NATIVE_INT64, base, nnz, A->indices));
+  FMBD_GCALL(join(p, sizeof p, path, "data"));
+  FMBD_GCALL(read_slab(f, p, H5T_NATIVE_DOUBLE, base, nnz, A->data));
+  at = path;
+  FMBD_GCALL(fmbd_csr_check(A));
+  if (nrows_all) *nrows_all = shape[0];
+  *out = A;
+  A = NULL;
+done:
+  fmbd_free(ip);
+  fmbd_csr_destroy(&A);
+  if (rc) ctx(f, at);
+  return rc;
+}
+
 // --- listing ---------------------------------------------------------------------------------
 typedef struct list_ctx {
   int n, cap;

@@ -113,6 +113,14 @@ int fmbd_h5_delete(fmbd_h5 *f, const char *path);
 int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A);
 /// @brief Read and validate (fmbd_csr_check) a CSR group. @param[out] out caller destroys
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
+/// @brief Read rows r0 .. r1-1 of a CSR group (HDF5 hyperslabs: the indptr slice, then the
+/// indices and data slices it points to), so a process of a distributed program holds only its
+/// row block (docs/SCALE.md). *out is (r1 - r0) x ncols with indptr from 0 and the column
+/// indices of the whole matrix; validated as fmbd_h5_read_csr validates (fmbd_csr_check).
+/// *nrows_all gets the whole matrix's rows (may be NULL). 0 <= r0 <= r1 <= rows, else
+/// FMBD_ERR_VALUE. @param[out] out caller destroys
+int fmbd_h5_read_csr_rows(fmbd_h5 *f, const char *path, int64_t r0, int64_t r1, int64_t *nrows_all,
+                          fmbd_csr **out);
 /// @brief Names of the members of a group, sorted. @param[out] names caller frees each and
 /// the array with fmbd_free. A missing group gives n = 0 and FMBD_OK.
 int fmbd_h5_list(fmbd_h5 *f, const char *group, int *n, char ***names);

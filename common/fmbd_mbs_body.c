@@ -181,7 +181,9 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   mbody *b = &m->b[ib];
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
-  const double *p = x + 3, *q = x + 7, *pd = xd + 3, *qd = xd + 7;
+  // elastic coordinates at qoff (off + 7, or a shared set's block)
+  const double *p = x + 3, *q = xg + b->qoff, *pd = xd + 3, *qd = xdg + b->qoff;
+  const double *qdd = xddg ? xddg + b->qoff : NULL;
   double *A = b->A, *G = b->G, w[3], wd[3];
   mbs_frame_kin(b, p, pd, xdd ? xdd + 3 : NULL, w, wd);
   // --- inertia at q: c, J, H_k, Mwf, H ---
@@ -282,7 +284,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   if (xdd) {
     double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
     matvec_add(n6, 6, Mb, acc6, 1.0, rb);
-    matvec_add(n6, nm, Mb + (size_t)n6 * 6, xdd + 7, 1.0, rb);
+    matvec_add(n6, nm, Mb + (size_t)n6 * 6, qdd, 1.0, rb);
   }
   // r = T' rb
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];

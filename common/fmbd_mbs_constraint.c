@@ -44,7 +44,7 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, c
   const int nm = P->sup ? P->nsup : b->nm, n = 7 + nm;
   const int64_t *sup = P->sup;
   s->n = n;
-  const double *x = xg + b->off, *p = x + 3, *q = x + 7;
+  const double *x = xg + b->off, *p = x + 3, *q = xg + b->qoff;
   double A[9], G[12], pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
   quat_to_A(p, A);
   quat_G(p, G);
@@ -266,11 +266,11 @@ void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac)
     } else {
       const mbody *b = &m->b[d->body];
       int c = d->coord < 3 ? d->coord : 7 + (d->coord - 3);
-      q->phi = x[b->off + c] - f;
+      q->phi = x[mbs_col(b, c)] - f;
       if (want_jac) {
         memset(q->jac, 0, sizeof(double) * (size_t)q->nj);
         for (int i = 0; i < q->nj; i++) {
-          if (q->cols[i] == b->off + c) q->jac[i] = 1;
+          if (q->cols[i] == mbs_col(b, c)) q->jac[i] = 1;
         }
       }
     }

@@ -7,6 +7,7 @@
 // MatGetInertia with ICNTL(13) = 1 on more than one process); MUMPS 5.5 Users' guide, ICNTL(13).
 #include "fmbd_slepc.h"
 
+#include <limits.h>
 #include <math.h>
 #include <slepceps.h>
 #include <stdio.h>
@@ -76,6 +77,7 @@ void fmbd_slepc_defaults(fmbd_slepc_opts *o) {
   o->resid_tol = 1e-6;
   o->sturm = true;
   o->rigid_rtol = 1e-6;
+  o->sym_rtol = 1e-10;
 }
 
 static double tmax(double t) {
@@ -174,7 +176,185 @@ static int cmp_idx_val(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
-int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t *boundary,
+// rows of every process's block (in rank order) stacked on process 0 into *out0 (NULL
+// elsewhere): the row blocks of a matrix whose rows are split over the processes in order
+static int gather_rows0(const fmbd_csr *loc, fmbd_csr **out0) {
+  int rc = FMBD_OK;
+  const int rank = fmbd_slepc_rank(), np = fmbd_slepc_size();
+  int *cnt = NULL, *disp = NULL, *ncnt = NULL, *ndisp = NULL, *all = NULL;
+  int64_t *len = NULL, *rowlen = NULL;
+  fmbd_csr *A = NULL;
+  int64_t nnz = loc->indptr[loc->nrows];
+  FMBD_GCHECK(loc->nrows < INT_MAX && nnz < INT_MAX, FMBD_ERR_VALUE,
+              "%lld rows, %lld entries in one process's block: beyond MPI's int counts",
+              (long long)loc->nrows, (long long)nnz);
+  int my[2] = {(int)loc->nrows, (int)nnz};
+  FMBD_GALLOC(all = fmbd_malloc((size_t)(2 * np) * sizeof(int)));
+  (void)MPI_Gather(my, 2, MPI_INT, all, 2, MPI_INT, 0, PETSC_COMM_WORLD);
+  FMBD_GALLOC(rowlen = fmbd_malloc((size_t)(loc->nrows + 1) * sizeof(int64_t)));
+  for (int64_t i = 0; i < loc->nrows; i++) rowlen[i] = loc->indptr[i + 1] - loc->indptr[i];
+  if (rank == 0) {
+    FMBD_GALLOC(cnt = fmbd_calloc((size_t)np, sizeof(int)));
+    FMBD_GALLOC(disp = fmbd_calloc((size_t)np, sizeof(int)));
+    FMBD_GALLOC(ncnt = fmbd_calloc((size_t)np, sizeof(int)));
+    FMBD_GALLOC(ndisp = fmbd_calloc((size_t)np, sizeof(int)));
+    int64_t rows = 0, tot = 0;
+    for (int q = 0; q < np; q++) {
+      cnt[q] = all[2 * q];
+      ncnt[q] = all[2 * q + 1];
+      disp[q] = (int)rows;
+      ndisp[q] = (int)tot;
+      rows += cnt[q];
+      tot += ncnt[q];
+    }
+    FMBD_GCHECK(rows < INT_MAX && tot < INT_MAX, FMBD_ERR_VALUE,
+                "%lld rows, %lld entries gathered: beyond MPI's int counts", (long long)rows,
+                (long long)tot);
+    FMBD_GCALL(fmbd_csr_create(rows, loc->ncols, tot, &A));
+    FMBD_GALLOC(len = fmbd_malloc((size_t)(rows + 1) * sizeof(int64_t)));
+  }
+  (void)MPI_Gatherv(rowlen, my[0], MPI_INT64_T, len, cnt, disp, MPI_INT64_T, 0, PETSC_COMM_WORLD);
+  (void)MPI_Gatherv(loc->indices, my[1], MPI_INT64_T, A ? A->indices : NULL, ncnt, ndisp,
+                    MPI_INT64_T, 0, PETSC_COMM_WORLD);
+  (void)MPI_Gatherv(loc->data, my[1], MPI_DOUBLE, A ? A->data : NULL, ncnt, ndisp, MPI_DOUBLE, 0,
+                    PETSC_COMM_WORLD);
+  if (rank == 0) {
+    A->indptr[0] = 0;
+    for (int64_t i = 0; i < A->nrows; i++) A->indptr[i + 1] = A->indptr[i] + len[i];
+    *out0 = A;
+    A = NULL;
+  }
+done:
+  fmbd_free(all);
+  fmbd_free(cnt);
+  fmbd_free(disp);
+  fmbd_free(ncnt);
+  fmbd_free(ndisp);
+  fmbd_free(len);
+  fmbd_free(rowlen);
+  fmbd_csr_destroy(&A);
+  return rc;
+}
+
+// the checks fmbd_cb_check_body makes on the whole body, on this process's rows r0.. of K and
+// M (row blocks with the whole matrix's columns): a positive diagonal of K, a non-negative one
+// of M (collective: the same code on every process)
+static int check_rows(const fmbd_csr *K, const fmbd_csr *M, int64_t r0) {
+  int rc = FMBD_OK;
+  for (int64_t i = 0; i < K->nrows; i++) {
+    double k = fmbd_csr_get(K, i, r0 + i), m = fmbd_csr_get(M, i, r0 + i);
+    if (!(k > 0.0)) {
+      fmbd_err_context(NULL, "/K");
+      FMBD_GFAIL(FMBD_ERR_VALUE,
+                 "diagonal entry %.6g at dof %lld (a stiffness matrix has a positive diagonal)", k,
+                 (long long)(r0 + i));
+    }
+    if (m < 0.0) {
+      fmbd_err_context(NULL, "/M");
+      FMBD_GFAIL(FMBD_ERR_VALUE, "diagonal entry %.6g at dof %lld (negative mass)", m,
+                 (long long)(r0 + i));
+    }
+  }
+done:
+  return rc;
+}
+
+// A symmetric to rtol max|A| (fmbd_cb_check_body's test, on the distributed matrix)
+static int check_symmetric(Mat A, const char *name, double rtol) {
+  int rc = FMBD_OK;
+  PetscBool sym = PETSC_FALSE;
+  PetscReal amax = 0;
+  PCALL(MatNorm(A, NORM_MAX, &amax));
+  PCALL(MatIsSymmetric(A, rtol * amax, &sym));
+  if (!sym) {
+    fmbd_err_context(NULL, name);
+    FMBD_GFAIL(FMBD_ERR_VALUE, "matrix is not symmetric (|A(i,j) - A(j,i)| > %.0e max|A|)", rtol);
+  }
+done:
+  return rc;
+}
+
+// SLEPc Krylov-Schur for the lowest `want` pairs of A x = lambda B x, shift-and-invert at
+// `target` (below every wanted eigenvalue), the factor of A - target B by MUMPS' Cholesky; set
+// up (factored) on return, *ksp/*pc its linear solver
+static int eps_setup(Mat A, Mat B, double target, int64_t want, double tol, EPS *eps, KSP *ksp,
+                     PC *pc) {
+  int rc = FMBD_OK;
+  ST st = NULL;
+  PCALL(EPSCreate(PETSC_COMM_WORLD, eps));
+  PCALL(EPSSetOperators(*eps, A, B));
+  PCALL(EPSSetProblemType(*eps, EPS_GHEP));
+  PCALL(EPSSetType(*eps, EPSKRYLOVSCHUR));
+  PCALL(EPSSetWhichEigenpairs(*eps, EPS_TARGET_MAGNITUDE));
+  PCALL(EPSSetTarget(*eps, target));
+  PCALL(EPSSetDimensions(*eps, (PetscInt)want, PETSC_DEFAULT, PETSC_DEFAULT));
+  PCALL(EPSSetTolerances(*eps, tol, 1000));
+  PCALL(EPSGetST(*eps, &st));
+  PCALL(STSetType(st, STSINVERT));
+  PCALL(STGetKSP(st, ksp));
+  PCALL(KSPSetType(*ksp, KSPPREONLY));
+  PCALL(KSPGetPC(*ksp, pc));
+  PCALL(PCSetType(*pc, PCCHOLESKY));
+  PCALL(PCFactorSetMatSolverType(*pc, MATSOLVERMUMPS));
+  PCALL(EPSSetFromOptions(*eps));  // PETSC_OPTIONS may change any of it (-eps_view etc.)
+  PCALL(EPSSetUp(*eps));           // the MUMPS factorisation (analysis + numeric)
+done:
+  return rc;
+}
+
+// MUMPS' figures of the factor behind pc into t
+static int factor_figures(PC pc, fmbd_slepc_timing *t) {
+  int rc = FMBD_OK;
+  Mat F = NULL;
+  PetscInt entries = 0, mb_max = 0, mb_sum = 0;
+  PetscReal flops = 0;
+  PCALL(PCFactorGetMatrix(pc, &F));
+  PCALL(MatMumpsGetInfog(F, 29, &entries));
+  PCALL(MatMumpsGetInfog(F, 21, &mb_max));
+  PCALL(MatMumpsGetInfog(F, 22, &mb_sum));
+  PCALL(MatMumpsGetRinfog(F, 3, &flops));
+  // INFOG(29) < 0: -entries in millions (MUMPS guide, overflow of 32-bit integers)
+  t->factor_entries = entries >= 0 ? (double)entries : -1e6 * (double)entries;
+  t->factor_flops = flops;
+  t->factor_mb_max = (double)mb_max;
+  t->factor_mb_sum = (double)mb_sum;
+done:
+  return rc;
+}
+
+// the converged eigenvalues of eps, ascending, with their SLEPc indices (*order, *lam: want)
+static int sorted_values(EPS eps, int64_t want, idx_val **order, double **lam) {
+  int rc = FMBD_OK;
+  FMBD_GALLOC(*order = fmbd_malloc((size_t)want * sizeof **order));
+  FMBD_GALLOC(*lam = fmbd_malloc((size_t)want * sizeof(double)));
+  for (int64_t k = 0; k < want; k++) {
+    PetscScalar kr = 0, ki = 0;
+    PCALL(EPSGetEigenvalue(eps, (PetscInt)k, &kr, &ki));
+    (*order)[k] = (idx_val){kr, k};
+  }
+  qsort(*order, (size_t)want, sizeof **order, cmp_idx_val);
+  for (int64_t k = 0; k < want; k++) (*lam)[k] = (*order)[k].v;
+done:
+  return rc;
+}
+
+// relative residual ||A x - lam B x|| / max(||A x||, max(|lam|, |scale|) ||B x||) (fmbd_eig's;
+// scale keeps rigid-body pairs, A x ~ 0, meaningful); y, z: work vectors
+static int residual(Mat A, Mat B, Vec x, double lam, double scale, Vec y, Vec z, double *r) {
+  int rc = FMBD_OK;
+  PetscReal nk = 0, nm = 0, nr = 0;
+  PCALL(MatMult(A, x, y));
+  PCALL(MatMult(B, x, z));
+  PCALL(VecNorm(y, NORM_2, &nk));
+  PCALL(VecNorm(z, NORM_2, &nm));
+  PCALL(VecAXPY(y, -lam, z));
+  PCALL(VecNorm(y, NORM_2, &nr));
+  *r = nr / fmax(nk, fmax(fabs(lam), fabs(scale)) * nm);
+done:
+  return rc;
+}
+
+int fmbd_slepc_cb_reduce(fmbd_h5 *f, int64_t n, int64_t nb, const int64_t *boundary,
                          const fmbd_slepc_opts *oin, fmbd_cb **out, fmbd_slepc_timing *t) {
   int rc = FMBD_OK;
   fmbd_slepc_opts o;
@@ -184,21 +364,22 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
     fmbd_slepc_defaults(&o);
   }
   memset(t, 0, sizeof *t);
-  const int rank = fmbd_slepc_rank();
+  const int rank = fmbd_slepc_rank(), np = fmbd_slepc_size();
   fmbd_cb *cb = NULL;
-  fmbd_csr *Ksl = NULL, *Msl = NULL, *Kcl = NULL, *Mcl = NULL;
+  fmbd_csr *Kr = NULL, *Mr = NULL;  // this process's rows of the whole K and M
+  fmbd_csr *Ksl = NULL, *Msl = NULL, *Kcl = NULL, *Mcl = NULL, *Kbl = NULL, *Mbl = NULL;
   fmbd_csr *Kc = NULL, *Mc = NULL, *Kb = NULL, *Mb = NULL;
   char *mark = NULL;
+  int64_t *lrows = NULL;
   idx_val *order = NULL;
   double *lam = NULL;
   Mat Ks = NULL, Ms = NULL;
   EPS eps = NULL;
   KSP ksp = NULL;
+  PC pc = NULL;
   Vec x = NULL, y = NULL, z = NULL, x0 = NULL;
   VecScatter sc = NULL;
   *out = NULL;
-  const fmbd_csr *K = *Kp, *M = *Mp;
-  int64_t n = K->nrows;
   double t0 = MPI_Wtime();
 
   // --- the partition (every process, as fmbd_cb_reduce) ---
@@ -232,7 +413,10 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
       cb->interior[a++] = i;
   }
 
-  // --- this process's rows of Ks, Ms, Kc, Mc; process 0 keeps the boundary blocks ---
+  // --- this process's rows: interior rows rstart.. (PETSc's split), read from the file as the
+  // contiguous block of the whole matrix's rows g0 .. g1-1 that holds them and the boundary rows
+  // up to the next process's first interior row (process 0 from row 0, the last to row n), so
+  // that every row is read by exactly one process ---
   PetscInt nloc = PETSC_DECIDE, Ns = (PetscInt)ns, rstart = 0;
   PCALL(PetscSplitOwnership(PETSC_COMM_WORLD, &nloc, &Ns));
   {
@@ -240,68 +424,58 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
     MPI_Scan(&nloc, &end, 1, MPIU_INT, MPI_SUM, PETSC_COMM_WORLD);
     rstart = end - nloc;
   }
-  const int64_t *rows = cb->interior + rstart;
-  FMBD_GCALL(fmbd_csr_submatrix(K, nloc, rows, ns, cb->interior, &Ksl));
-  FMBD_GCALL(fmbd_csr_submatrix(M, nloc, rows, ns, cb->interior, &Msl));
-  FMBD_GCALL(fmbd_csr_submatrix(K, nloc, rows, nb, cb->boundary, &Kcl));
-  FMBD_GCALL(fmbd_csr_submatrix(M, nloc, rows, nb, cb->boundary, &Mcl));
-  if (rank == 0) {
-    FMBD_GCALL(fmbd_csr_submatrix(K, ns, cb->interior, nb, cb->boundary, &Kc));
-    FMBD_GCALL(fmbd_csr_submatrix(M, ns, cb->interior, nb, cb->boundary, &Mc));
-    FMBD_GCALL(fmbd_csr_submatrix(K, nb, cb->boundary, nb, cb->boundary, &Kb));
-    FMBD_GCALL(fmbd_csr_submatrix(M, nb, cb->boundary, nb, cb->boundary, &Mb));
-  }
-  fmbd_csr_destroy(Kp);  // the whole body is not needed any more (peak memory)
-  fmbd_csr_destroy(Mp);
-  K = M = NULL;
+  int64_t g0 = rank == 0 ? 0 : (rstart < ns ? cb->interior[rstart] : n);
+  int64_t g1 = rank == np - 1 ? n : (rstart + nloc < ns ? cb->interior[rstart + nloc] : n);
+  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/K", g0, g1, NULL, &Kr));
+  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/M", g0, g1, NULL, &Mr));
+  FMBD_GCHECK(Kr->ncols == n && Mr->ncols == n, FMBD_ERR_FORMAT,
+              "/K or /M has %lld or %lld columns, /dofs %lld rows", (long long)Kr->ncols,
+              (long long)Mr->ncols, (long long)n);
+  FMBD_GCALL(check_rows(Kr, Mr, g0));
+  int64_t b0 = 0, b1 = 0;  // the boundary dofs in g0 .. g1-1: boundary[b0 .. b1-1]
+  while (b0 < nb && cb->boundary[b0] < g0) b0++;
+  for (b1 = b0; b1 < nb && cb->boundary[b1] < g1;) b1++;
+  int64_t nl = (int64_t)nloc > b1 - b0 ? (int64_t)nloc : b1 - b0;
+  FMBD_GALLOC(lrows = fmbd_malloc((size_t)(nl ? nl : 1) * sizeof(int64_t)));
+  for (int64_t i = 0; i < nloc; i++) lrows[i] = cb->interior[rstart + i] - g0;
+  FMBD_GCALL(fmbd_csr_submatrix(Kr, nloc, lrows, ns, cb->interior, &Ksl));
+  FMBD_GCALL(fmbd_csr_submatrix(Mr, nloc, lrows, ns, cb->interior, &Msl));
+  FMBD_GCALL(fmbd_csr_submatrix(Kr, nloc, lrows, nb, cb->boundary, &Kcl));
+  FMBD_GCALL(fmbd_csr_submatrix(Mr, nloc, lrows, nb, cb->boundary, &Mcl));
+  for (int64_t k = b0; k < b1; k++) lrows[k - b0] = cb->boundary[k] - g0;
+  FMBD_GCALL(fmbd_csr_submatrix(Kr, b1 - b0, lrows, nb, cb->boundary, &Kbl));
+  FMBD_GCALL(fmbd_csr_submatrix(Mr, b1 - b0, lrows, nb, cb->boundary, &Mbl));
+  fmbd_csr_destroy(&Kr);  // the block is not needed any more (peak memory)
+  fmbd_csr_destroy(&Mr);
+  // process 0 gets the (sparse) coupling and boundary blocks: Kc, Mc (ns x nb), Kb, Mb
+  FMBD_GCALL(gather_rows0(Kcl, &Kc));
+  FMBD_GCALL(gather_rows0(Mcl, &Mc));
+  FMBD_GCALL(gather_rows0(Kbl, &Kb));
+  FMBD_GCALL(gather_rows0(Mbl, &Mb));
+  fmbd_csr_destroy(&Kbl);
+  fmbd_csr_destroy(&Mbl);
   FMBD_GCALL(to_petsc(Ksl, nloc, Ns, nloc, Ns, &Ks));
   fmbd_csr_destroy(&Ksl);
   FMBD_GCALL(to_petsc(Msl, nloc, Ns, nloc, Ns, &Ms));
   fmbd_csr_destroy(&Msl);
+  FMBD_GCALL(check_symmetric(Ks, "/K", o.sym_rtol));
+  FMBD_GCALL(check_symmetric(Ms, "/M", o.sym_rtol));
   PCALL(MatSetOption(Ks, MAT_SYMMETRIC, PETSC_TRUE));
   PCALL(MatSetOption(Ks, MAT_SPD, PETSC_TRUE));
   PCALL(MatSetOption(Ms, MAT_SYMMETRIC, PETSC_TRUE));
   t->distribute = tmax(MPI_Wtime() - t0);
+  {
+    double mine = 0;
+    fmbd_slepc_peak_mb(&mine, &t->read_peak_mb);
+  }
 
   // --- fixed-interface modes: Krylov-Schur, shift-and-invert at 0, MUMPS Cholesky of Ks ---
   double t1 = MPI_Wtime(), c1 = fmbd_cpu_s();
   int64_t nd = o.nmodes, want = nd + 1 < ns ? nd + 1 : nd;  // one more: kappa_next
-  ST st = NULL;
-  PC pc = NULL;
-  PCALL(EPSCreate(PETSC_COMM_WORLD, &eps));
-  PCALL(EPSSetOperators(eps, Ks, Ms));
-  PCALL(EPSSetProblemType(eps, EPS_GHEP));
-  PCALL(EPSSetType(eps, EPSKRYLOVSCHUR));
-  PCALL(EPSSetWhichEigenpairs(eps, EPS_TARGET_MAGNITUDE));
-  PCALL(EPSSetTarget(eps, 0.0));
-  PCALL(EPSSetDimensions(eps, (PetscInt)want, PETSC_DEFAULT, PETSC_DEFAULT));
-  PCALL(EPSSetTolerances(eps, o.tol, 1000));
-  PCALL(EPSGetST(eps, &st));
-  PCALL(STSetType(st, STSINVERT));
-  PCALL(STGetKSP(st, &ksp));
-  PCALL(KSPSetType(ksp, KSPPREONLY));
-  PCALL(KSPGetPC(ksp, &pc));
-  PCALL(PCSetType(pc, PCCHOLESKY));
-  PCALL(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
-  PCALL(EPSSetFromOptions(eps));  // PETSC_OPTIONS may change any of it (-eps_view etc.)
-  PCALL(EPSSetUp(eps));           // the MUMPS factorisation of Ks (analysis + numeric)
+  FMBD_GCALL(eps_setup(Ks, Ms, 0.0, want, o.tol, &eps, &ksp, &pc));
   t->factor = tmax(MPI_Wtime() - t1);
   t->factor_cpu = fmbd_cpu_s() - c1;
-  {
-    Mat F = NULL;
-    PetscInt entries = 0, mb_max = 0, mb_sum = 0;
-    PetscReal flops = 0;
-    PCALL(PCFactorGetMatrix(pc, &F));
-    PCALL(MatMumpsGetInfog(F, 29, &entries));
-    PCALL(MatMumpsGetInfog(F, 21, &mb_max));
-    PCALL(MatMumpsGetInfog(F, 22, &mb_sum));
-    PCALL(MatMumpsGetRinfog(F, 3, &flops));
-    // INFOG(29) < 0: -entries in millions (MUMPS guide, overflow of 32-bit integers)
-    t->factor_entries = entries >= 0 ? (double)entries : -1e6 * (double)entries;
-    t->factor_flops = flops;
-    t->factor_mb_max = (double)mb_max;
-    t->factor_mb_sum = (double)mb_sum;
-  }
+  FMBD_GCALL(factor_figures(pc, t));
   t1 = MPI_Wtime();
   PCALL(EPSSolve(eps));
   {
@@ -327,15 +501,7 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
   PCALL(MatCreateVecs(Ks, &x, &y));
   PCALL(VecDuplicate(x, &z));
   PCALL(VecScatterCreateToZero(x, &sc, &x0));
-  FMBD_GALLOC(order = fmbd_malloc((size_t)want * sizeof *order));
-  FMBD_GALLOC(lam = fmbd_malloc((size_t)want * sizeof(double)));
-  for (int64_t k = 0; k < want; k++) {
-    PetscScalar kr = 0, ki = 0;
-    PCALL(EPSGetEigenvalue(eps, (PetscInt)k, &kr, &ki));
-    order[k] = (idx_val){kr, k};
-  }
-  qsort(order, (size_t)want, sizeof *order, cmp_idx_val);
-  for (int64_t k = 0; k < want; k++) lam[k] = order[k].v;
+  FMBD_GCALL(sorted_values(eps, want, &order, &lam));
   cb->nd = nd;
   if (want > nd) cb->kappa_next = lam[nd];
   FMBD_GALLOC(cb->kappa = fmbd_malloc((size_t)nd * sizeof(double)));
@@ -361,16 +527,9 @@ int fmbd_slepc_cb_reduce(fmbd_csr **Kp, fmbd_csr **Mp, int64_t nb, const int64_t
       // |min| > max strictly, or equal magnitude with the minimum first
       if (-vmin > vmax || (-vmin == vmax && imax < imx)) PCALL(VecScale(x, -1.0));
     }
-    // relative residual ||Ks x - kappa Ms x|| / max(||Ks x||, kappa ||Ms x||) (fmbd_eig's)
     {
-      PetscReal nk = 0, nm = 0, nr = 0;
-      PCALL(MatMult(Ks, x, y));
-      PCALL(MatMult(Ms, x, z));
-      PCALL(VecNorm(y, NORM_2, &nk));
-      PCALL(VecNorm(z, NORM_2, &nm));
-      PCALL(VecAXPY(y, -lam[k], z));
-      PCALL(VecNorm(y, NORM_2, &nr));
-      double r = nr / fmax(nk, fabs(lam[k]) * nm);
+      double r = 0;
+      FMBD_GCALL(residual(Ks, Ms, x, lam[k], 0.0, y, z, &r));
       if (r > cb->max_residual) cb->max_residual = r;
     }
     FMBD_GCALL(gather0(sc, x, x0, rank == 0 ? cb->Phi + k * ns : NULL));
@@ -455,6 +614,11 @@ done:
   VecDestroy(&z);
   VecDestroy(&x0);
   VecScatterDestroy(&sc);
+  fmbd_csr_destroy(&Kr);
+  fmbd_csr_destroy(&Mr);
+  fmbd_csr_destroy(&Kbl);
+  fmbd_csr_destroy(&Mbl);
+  fmbd_free(lrows);
   fmbd_csr_destroy(&Ksl);
   fmbd_csr_destroy(&Msl);
   fmbd_csr_destroy(&Kcl);
@@ -464,6 +628,173 @@ done:
   fmbd_csr_destroy(&Kb);
   fmbd_csr_destroy(&Mb);
   fmbd_free(mark);
+  fmbd_free(order);
+  fmbd_free(lam);
+  return rc;
+}
+
+int fmbd_slepc_exact(fmbd_h5 *f, int64_t nev, bool free_body, const fmbd_slepc_opts *oin,
+                     double *lambda, fmbd_slepc_exact_info *info) {
+  int rc = FMBD_OK;
+  fmbd_slepc_opts o;
+  if (oin) {
+    o = *oin;
+  } else {
+    fmbd_slepc_defaults(&o);
+  }
+  memset(info, 0, sizeof *info);
+  info->sturm_shift = NAN;
+  info->sturm_count = -1;
+  fmbd_csr *Kr = NULL, *Mr = NULL;
+  Mat K = NULL, M = NULL;
+  EPS eps = NULL;
+  KSP ksp = NULL;
+  PC pc = NULL;
+  Vec x = NULL, y = NULL, z = NULL;
+  idx_val *order = NULL;
+  double *lam = NULL;
+  int64_t shape[2] = {0, 0};
+  double t0 = MPI_Wtime();
+
+  // --- this process's rows of the whole K and M (PETSc's split of the n rows) ---
+  FMBD_GCALL(fmbd_h5_read_attr_i64(f, "/K", "shape", 2, shape));
+  int64_t n = shape[0];
+  FMBD_GCHECK(n >= 2 && shape[1] == n && n < PETSC_MAX_INT, FMBD_ERR_FORMAT,
+              "/K has shape (%lld, %lld): not a square matrix of at least 2 rows within this "
+              "PETSc's 32-bit indices",
+              (long long)shape[0], (long long)shape[1]);
+  FMBD_GCHECK(nev >= 1 && nev < n - 1, FMBD_ERR_VALUE,
+              "%lld eigenvalues asked for, the body has %lld dofs", (long long)nev, (long long)n);
+  PetscInt nloc = PETSC_DECIDE, N = (PetscInt)n, rstart = 0;
+  PCALL(PetscSplitOwnership(PETSC_COMM_WORLD, &nloc, &N));
+  {
+    PetscInt end = 0;
+    MPI_Scan(&nloc, &end, 1, MPIU_INT, MPI_SUM, PETSC_COMM_WORLD);
+    rstart = end - nloc;
+  }
+  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/K", rstart, rstart + nloc, NULL, &Kr));
+  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/M", rstart, rstart + nloc, NULL, &Mr));
+  FMBD_GCHECK(Kr->ncols == n && Mr->ncols == n, FMBD_ERR_FORMAT,
+              "/K has %lld columns and /M %lld, /K %lld rows", (long long)Kr->ncols,
+              (long long)Mr->ncols, (long long)n);
+  FMBD_GCALL(check_rows(Kr, Mr, rstart));
+  // the upper end of the spectrum, max K_ii / M_ii (fmbd_eig_spectrum_scale), over the processes
+  double scale = 0.0;
+  for (int64_t i = 0; i < Kr->nrows; i++) {
+    double m = fmbd_csr_get(Mr, i, rstart + i);
+    if (m > 0) scale = fmax(scale, fmbd_csr_get(Kr, i, rstart + i) / m);
+  }
+  (void)MPI_Allreduce(MPI_IN_PLACE, &scale, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  FMBD_GCALL(to_petsc(Kr, nloc, N, nloc, N, &K));
+  fmbd_csr_destroy(&Kr);
+  FMBD_GCALL(to_petsc(Mr, nloc, N, nloc, N, &M));
+  fmbd_csr_destroy(&Mr);
+  FMBD_GCALL(check_symmetric(K, "/K", o.sym_rtol));
+  FMBD_GCALL(check_symmetric(M, "/M", o.sym_rtol));
+  PCALL(MatSetOption(K, MAT_SYMMETRIC, PETSC_TRUE));
+  PCALL(MatSetOption(M, MAT_SYMMETRIC, PETSC_TRUE));
+  info->t_read = tmax(MPI_Wtime() - t0);
+
+  // --- the shift: fmbd_eig's strategy (docs/THEORY.md section 8). K may be singular (rigid-
+  // body modes): a loose first pass of 12 pairs at -1e-6 scale finds the first flexible
+  // eigenvalue lambda_f (the lowest above 1e-6 of the largest found), and the real pass shifts
+  // to -lambda_f / 2, where rigid and flexible modes are of the same order for the operator ---
+  double sigma = 0.0;
+  if (free_body) {
+    double t1 = MPI_Wtime();
+    int64_t w1 = n - 2 < 12 ? n - 2 : 12;
+    FMBD_GCALL(eps_setup(K, M, -1e-6 * scale, w1, 1e-6, &eps, &ksp, &pc));
+    PCALL(EPSSolve(eps));
+    PetscInt nc = 0;
+    PCALL(EPSGetConverged(eps, &nc));
+    FMBD_GCHECK(nc >= 1, FMBD_ERR_CONVERGE,
+                "SLEPc Krylov-Schur: no eigenvalue converged in the first pass (shift %.3g)",
+                -1e-6 * scale);
+    FMBD_GCALL(sorted_values(eps, nc, &order, &lam));
+    double lf = NAN;
+    for (int64_t k = 0; k < nc; k++) {
+      if (lam[k] > 1e-6 * lam[nc - 1]) {
+        lf = lam[k];
+        break;
+      }
+    }
+    sigma = isfinite(lf) ? -0.5 * lf : -1e-6 * scale;
+    fmbd_free(order);
+    fmbd_free(lam);
+    order = NULL;
+    lam = NULL;
+    EPSDestroy(&eps);
+    info->t_first = tmax(MPI_Wtime() - t1);
+  }
+  info->sigma = sigma;
+
+  // --- the pairs: nev and one more (the Sturm shift goes between them) ---
+  double t1 = MPI_Wtime();
+  int64_t want = nev + 1;
+  FMBD_GCALL(eps_setup(K, M, sigma, want, o.tol, &eps, &ksp, &pc));
+  info->t_factor = tmax(MPI_Wtime() - t1);
+  t1 = MPI_Wtime();
+  PCALL(EPSSolve(eps));
+  {
+    PetscInt nconv = 0, its = 0;
+    PCALL(EPSGetConverged(eps, &nconv));
+    PCALL(EPSGetIterationNumber(eps, &its));
+    info->nconv = nconv;
+    info->its = its;
+    FMBD_GCHECK(nconv >= want, FMBD_ERR_CONVERGE,
+                "SLEPc Krylov-Schur: %lld of %lld eigenpairs converged (tol %g)", (long long)nconv,
+                (long long)want, o.tol);
+  }
+  FMBD_GCALL(sorted_values(eps, want, &order, &lam));
+  PCALL(MatCreateVecs(K, &x, &y));
+  PCALL(VecDuplicate(x, &z));
+  for (int64_t k = 0; k < nev; k++) {
+    double r = 0;
+    PCALL(EPSGetEigenvector(eps, (PetscInt)order[k].i, x, NULL));
+    PetscScalar xmx = 0;  // M-normalised (SLEPc's B-normalisation, at our round-off)
+    PCALL(MatMult(M, x, y));
+    PCALL(VecDot(x, y, &xmx));
+    PCALL(VecScale(x, 1.0 / sqrt(xmx)));
+    FMBD_GCALL(residual(K, M, x, lam[k], sigma, y, z, &r));
+    if (r > info->max_residual) info->max_residual = r;
+  }
+  FMBD_GCHECK(info->max_residual <= o.resid_tol, FMBD_ERR_CONVERGE,
+              "largest relative residual of the eigenpairs %.3g > %.3g", info->max_residual,
+              o.resid_tol);
+  info->t_solve = tmax(MPI_Wtime() - t1);
+  info->next = lam[nev];
+  EPSDestroy(&eps);  // the factor: freed before the Sturm factor (as large)
+
+  // --- never missed: the inertia of K - s M, s midway between the last pair and the next ---
+  {
+    t1 = MPI_Wtime();
+    double lo = lam[nev - 1], hi = lam[nev];
+    FMBD_GCHECK(hi - lo > 1e-6 * fabs(hi), FMBD_ERR_CONVERGE,
+                "eigenvalues %lld and %lld are equal to 1e-6 (%.10g): no gap to place the Sturm "
+                "shift in (ask for one more mode)",
+                (long long)nev, (long long)(nev + 1), hi);
+    double s = 0.5 * (lo + hi);
+    int64_t count = -1;
+    FMBD_GCALL(sturm_count(K, M, s, &count));
+    info->sturm_shift = s;
+    info->sturm_count = count;
+    FMBD_GCHECK(count == nev, FMBD_ERR_CONVERGE,
+                "Sturm count %lld eigenvalues below %.6g Hz, Krylov-Schur found %lld: a mode was "
+                "skipped",
+                (long long)count, sqrt(fabs(s)) / (2 * M_PI), (long long)nev);
+    info->t_sturm = tmax(MPI_Wtime() - t1);
+  }
+  memcpy(lambda, lam, (size_t)nev * sizeof(double));
+done:
+  rc = fmbd_slepc_agree(rc);
+  EPSDestroy(&eps);
+  MatDestroy(&K);
+  MatDestroy(&M);
+  VecDestroy(&x);
+  VecDestroy(&y);
+  VecDestroy(&z);
+  fmbd_csr_destroy(&Kr);
+  fmbd_csr_destroy(&Mr);
   fmbd_free(order);
   fmbd_free(lam);
   return rc;
