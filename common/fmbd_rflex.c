@@ -148,8 +148,8 @@ int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int
         !(r->stress_row ? r->stress_row[p] >= 0 : !!r->stress))
       held[p] &= (unsigned char)~FMBD_RFLEX_HELD_STRESS;
   }
-  // stress asked where the body has none (cbcheck --no-stress, a beam body): the nodes keep
-  // their motion, and fmbd-run says that the body has no /modes/stress when an output asks
+  FMBD_GCHECK(nstress == 0 || r->stress, FMBD_ERR_VALUE,
+              "stress asked at %lld nodes, but the body has no modal stress", (long long)nstress);
   // the dofs the held nodes' /expand rows read, renumbered in their order
   const fmbd_csr *X = r->expand;
   FMBD_GALLOC(dmap = fmbd_malloc(sizeof(int64_t) * (size_t)(nd + 1)));

@@ -206,8 +206,8 @@ int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma);
 /// also keep their motion); the /dofs, shapes and /expand columns that no kept node reads are
 /// dropped. Node positions, interfaces, invariants are unchanged. Applying it to a subset body
 /// keeps the intersection with what it holds.
-/// Stress asked where r has none keeps the nodes' motion only.
-/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range), FMBD_ERR_NOMEM
+/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range, or stress asked where r has none),
+///         FMBD_ERR_NOMEM
 int fmbd_rflex_subset(fmbd_rflex *r, int64_t nmotion, const int64_t *motion, int64_t nstress,
                       const int64_t *stress);
 
