@@ -754,8 +754,8 @@ int fmbd_mesh_read(const char *path, const fmbd_mesh_opts *opt, fmbd_mesh *m) {
     FMBD_FAIL(FMBD_ERR_USAGE, "element order %d (1 or 2 expected)", opt->order);
   }
   int is_msh = fmbd_mesh_ends_with(path, ".msh");
-  int is_geo = fmbd_mesh_ends_with(path, ".geo") || fmbd_mesh_ends_with(path, ".step") || fmbd_mesh_ends_with(path, ".stp") ||
-               fmbd_mesh_ends_with(path, ".brep");
+  int is_geo = fmbd_mesh_ends_with(path, ".geo") || fmbd_mesh_ends_with(path, ".step") ||
+               fmbd_mesh_ends_with(path, ".stp") || fmbd_mesh_ends_with(path, ".brep");
   int is_stl = fmbd_mesh_ends_with(path, ".stl");
   int is_off = fmbd_mesh_ends_with(path, ".off");
   if (!is_msh && !is_geo && !is_stl && !is_off) {
