@@ -236,6 +236,46 @@ static void h5_free(fmbd_h5 *f) {
   fmbd_free(f);
 }
 
+// SHA-256 of an input file, remembered for the process: a file is hashed once however often it
+// is opened or named as an input (cbcheck hashed the fe file twice: when opened, and as the
+// cb file's recorded input; fe2cb when it records the fe file it read). Keyed by device, inode,
+// size, modification and change times, looked at before and after the hash: a file written
+// meanwhile is hashed again. Only inputs (read, never written by this process) go through here.
+typedef struct sha_memo {
+  dev_t dev;
+  ino_t ino;
+  off_t size;
+  struct timespec mt, ct;
+  char hex[65];
+} sha_memo;
+static sha_memo g_memo[8];
+static int g_nmemo;
+static bool memo_same(const sha_memo *a, const struct stat *st) {
+  return a->dev == st->st_dev && a->ino == st->st_ino && a->size == st->st_size &&
+         a->mt.tv_sec == st->st_mtim.tv_sec && a->mt.tv_nsec == st->st_mtim.tv_nsec &&
+         a->ct.tv_sec == st->st_ctim.tv_sec && a->ct.tv_nsec == st->st_ctim.tv_nsec;
+}
+static int input_sha256(const char *path, char hex[65]) {
+  struct stat st0, st1;
+  bool have = stat(path, &st0) == 0 && S_ISREG(st0.st_mode);
+  for (int i = 0; have && i < g_nmemo; i++) {
+    if (memo_same(&g_memo[i], &st0)) {
+      memcpy(hex, g_memo[i].hex, 65);
+      return FMBD_OK;
+    }
+  }
+  FMBD_CALL(fmbd_sha256_file(path, hex));
+  if (have && stat(path, &st1) == 0 && st1.st_mtim.tv_sec == st0.st_mtim.tv_sec &&
+      st1.st_mtim.tv_nsec == st0.st_mtim.tv_nsec && st1.st_size == st0.st_size &&
+      st1.st_ctim.tv_sec == st0.st_ctim.tv_sec && st1.st_ctim.tv_nsec == st0.st_ctim.tv_nsec) {
+    sha_memo *e = &g_memo[g_nmemo < 8 ? g_nmemo++ : (int)(st0.st_ino % 8)];
+    e->dev = st0.st_dev, e->ino = st0.st_ino, e->size = st0.st_size;
+    e->mt = st0.st_mtim, e->ct = st0.st_ctim;
+    memcpy(e->hex, hex, 65);
+  }
+  return FMBD_OK;
+}
+
 int fmbd_h5_open(const char *name, fmbd_h5 **out) {
   int rc = FMBD_OK;
   fmbd_h5 *f = NULL;
@@ -262,7 +302,7 @@ int fmbd_h5_open(const char *name, fmbd_h5 **out) {
     struct stat st;
     if (stat(name, &st) != 0) FMBD_GFAIL(FMBD_ERR_IO, "cannot open: %s", strerror(errno));
     FMBD_GCHECK(!S_ISDIR(st.st_mode), FMBD_ERR_IO, "cannot open: is a directory");
-    FMBD_GCALL(fmbd_sha256_file(name, f->sha));
+    FMBD_GCALL(input_sha256(name, f->sha));
     FMBD_H5(f->fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT), FMBD_ERR_FORMAT,
             "not an HDF5 file, or truncated");
   }
@@ -337,7 +377,7 @@ static void warn_changed_inputs(fmbd_h5 *f) {
       fmbd_log(FMBD_LOG_DEBUG, "%s: input %s is not at hand: not compared", f->name, names[i]);
       continue;
     }
-    if (fmbd_sha256_file(path, now) != FMBD_OK) {
+    if (input_sha256(path, now) != FMBD_OK) {
       fmbd_err_clear();
       continue;
     }
@@ -504,7 +544,7 @@ int fmbd_h5_add_input(fmbd_h5 *f, const char *name, const char *sha256) {
   if (!sha256) {
     FMBD_GCHECK(strcmp(name, "-") != 0, FMBD_ERR_INTERNAL,
                 "standard input cannot be hashed again; pass fmbd_h5_sha256() of its handle");
-    FMBD_GCALL(fmbd_sha256_file(name, hex));
+    FMBD_GCALL(input_sha256(name, hex));
     sha256 = hex;
   }
   if (f->ninputs == f->cap) {
