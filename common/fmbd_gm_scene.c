@@ -174,6 +174,40 @@ static int dense_csr(int64_t nq, const double *A, fmbd_csr **out) {
   return FMBD_OK;
 }
 
+// /KIND/<name>/Mff and Kff of a basis of nc columns C: S'MS and S'KS with the FE matrices of a
+// full body (C: the shapes on its dofs, ndof x nc), else with the file's modal Mff, Kff (C: the
+// elastic coordinates' columns, nq x nc)
+static int gm_project(const fmbd_fe_body *fe, const fmbd_rflex *r, int64_t ndof, int64_t nq,
+                      int64_t nc, const double *C, fmbd_h5 *f, const char *kind, const char *name) {
+  int rc = FMBD_OK;
+  double *Mc = NULL, *Kc = NULL, *W = NULL;
+  char path[600];
+  int64_t nr = fe ? ndof : nq;
+  FMBD_GALLOC(Mc = fmbd_calloc((size_t)(nc * nc + 1), sizeof(double)));
+  FMBD_GALLOC(Kc = fmbd_calloc((size_t)(nc * nc + 1), sizeof(double)));
+  FMBD_GALLOC(W = fmbd_calloc((size_t)(nr * nc + 1), sizeof(double)));
+  if (fe) {
+    fmbd_csr_matmat(fe->M, nc, C, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nc, nc, ndof, 1.0, C, ndof, W, ndof, 0.0, Mc, nc);
+    fmbd_csr_matmat(fe->K, nc, C, ndof, W, ndof);
+    fmbd_dense_gemm('T', 'N', nc, nc, ndof, 1.0, C, ndof, W, ndof, 0.0, Kc, nc);
+  } else {
+    fmbd_dense_gemm('N', 'N', nq, nc, nq, 1.0, r->Mff, nq, C, nq, 0.0, W, nq);
+    fmbd_dense_gemm('T', 'N', nc, nc, nq, 1.0, C, nq, W, nq, 0.0, Mc, nc);
+    fmbd_dense_gemm('N', 'N', nq, nc, nq, 1.0, r->Kff, nq, C, nq, 0.0, W, nq);
+    fmbd_dense_gemm('T', 'N', nc, nc, nq, 1.0, C, nq, W, nq, 0.0, Kc, nc);
+  }
+  snprintf(path, sizeof path, "/%s/%s/Mff", kind, name);
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nc, nc, Mc));
+  snprintf(path, sizeof path, "/%s/%s/Kff", kind, name);
+  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nc, nc, Kc));
+done:
+  fmbd_free(Mc);
+  fmbd_free(Kc);
+  fmbd_free(W);
+  return rc;
+}
+
 // The GMs and GMc bases of flexible scene body bi. Its elastic coordinates in the mechanism
 // start at off + 7: the modal coordinates of a modal body (shapes on the FE dofs through the
 // file's modes), or the FE dofs of a full FE body other than its frame node's (fe_col).
@@ -186,7 +220,7 @@ int fmbd_gm_write_body(fmbd_h5 *f, const fmbd_scene *s, const fmbd_scene_model *
   const int64_t *col = fe ? md->fe_col[bi] : NULL;
   const char *name = s->bodies[bi].name;
   int64_t ndof = fe ? fe->ndof : r->ndof;
-  double *Q = NULL, *S = NULL, *B = NULL, *Mc = NULL, *Kc = NULL, *W = NULL;
+  double *Q = NULL, *S = NULL, *B = NULL;
   int64_t *keep = NULL, *kept = NULL;
   fmbd_csr *Wm = NULL;
   char path[600];
@@ -214,6 +248,9 @@ int fmbd_gm_write_body(fmbd_h5 *f, const fmbd_scene *s, const fmbd_scene_model *
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nq, nk, Q));
   snprintf(path, sizeof path, "/gms/%s/shapes", name);
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, ndof, nk, S));
+  // its mass and stiffness, S'MS and S'KS (nk x nk; singular when the body's rows of the modes
+  // are dependent: the set's sum over the bodies is regular), as for GMc below
+  FMBD_GCALL(gm_project(fe, r, ndof, nq, nk, fe ? S : Q, f, "gms", name));
   snprintf(path, sizeof path, "/gms/%s", name);
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "file", s->bodies[bi].file));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "file_sha256", sha ? sha : ""));
@@ -234,31 +271,12 @@ int fmbd_gm_write_body(fmbd_h5 *f, const fmbd_scene *s, const fmbd_scene_model *
   *ncols = nc;
   TO_DOFS(B, nc);
 #undef TO_DOFS
-  // Mff = S'MS, Kff = S'KS: with the FE matrices of a full body, else with the file's modal ones
-  FMBD_GALLOC(Mc = fmbd_calloc((size_t)(nc * nc + 1), sizeof(double)));
-  FMBD_GALLOC(Kc = fmbd_calloc((size_t)(nc * nc + 1), sizeof(double)));
-  if (fe) {
-    FMBD_GALLOC(W = fmbd_calloc((size_t)(ndof * nc + 1), sizeof(double)));
-    fmbd_csr_matmat(fe->M, nc, S, ndof, W, ndof);
-    fmbd_dense_gemm('T', 'N', nc, nc, ndof, 1.0, S, ndof, W, ndof, 0.0, Mc, nc);
-    fmbd_csr_matmat(fe->K, nc, S, ndof, W, ndof);
-    fmbd_dense_gemm('T', 'N', nc, nc, ndof, 1.0, S, ndof, W, ndof, 0.0, Kc, nc);
-  } else {
-    FMBD_GALLOC(W = fmbd_calloc((size_t)(nq * nc + 1), sizeof(double)));
-    fmbd_dense_gemm('N', 'N', nq, nc, nq, 1.0, r->Mff, nq, B, nq, 0.0, W, nq);
-    fmbd_dense_gemm('T', 'N', nc, nc, nq, 1.0, B, nq, W, nq, 0.0, Mc, nc);
-    fmbd_dense_gemm('N', 'N', nq, nc, nq, 1.0, r->Kff, nq, B, nq, 0.0, W, nq);
-    fmbd_dense_gemm('T', 'N', nc, nc, nq, 1.0, B, nq, W, nq, 0.0, Kc, nc);
-  }
+  FMBD_GCALL(gm_project(fe, r, ndof, nq, nc, fe ? S : B, f, "gmc", name));
   for (int64_t j = 0; j < nc; j++) keep[j] += 1;  // 1-based flexible mode numbers
   snprintf(path, sizeof path, "/gmc/%s/modal", name);
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nq, nc, B));
   snprintf(path, sizeof path, "/gmc/%s/shapes", name);
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, ndof, nc, S));
-  snprintf(path, sizeof path, "/gmc/%s/Mff", name);
-  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nc, nc, Mc));
-  snprintf(path, sizeof path, "/gmc/%s/Kff", name);
-  FMBD_GCALL(fmbd_h5_write_f64_cm(f, path, nc, nc, Kc));
   snprintf(path, sizeof path, "/gmc/%s/global_mode", name);
   int64_t d1[1] = {nc};
   FMBD_GCALL(fmbd_h5_write_i64(f, path, 1, d1, keep));
@@ -278,9 +296,6 @@ done:
   fmbd_free(Q);
   fmbd_free(S);
   fmbd_free(B);
-  fmbd_free(Mc);
-  fmbd_free(Kc);
-  fmbd_free(W);
   fmbd_free(keep);
   fmbd_free(kept);
   fmbd_csr_destroy(&Wm);

@@ -162,6 +162,7 @@ static int add_body(fmbd_mbs *m, const char *name, int nm, const fmbd_mbs_state0
   b->name = fmbd_strdup(name);
   FMBD_CHECK(b->name, FMBD_ERR_NOMEM, "out of memory");
   b->nm = nm, b->n = 7 + nm;
+  b->share = -1;
   memcpy(b->x0, s0->position, sizeof(double) * 3);
   A_to_quat(s0->rotation, b->x0 + 3);
   memcpy(b->v0, s0->velocity, sizeof(double) * 3);
@@ -222,6 +223,32 @@ int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double 
   return FMBD_OK;
 }
 
+// 1 when the symmetric n x n A (column-major) is positive definite (Cholesky, plain loops: n
+// is a body's number of modes), 0 when not, -1 out of memory
+int mbs_spd(const double *A, int64_t n) {
+  double *L = fmbd_malloc(sizeof(double) * (size_t)(n * n + 1));
+  if (!L) return -1;
+  memcpy(L, A, sizeof(double) * (size_t)(n * n));
+  int pd = 1;
+  for (int64_t j = 0; j < n && pd; j++) {
+    double s = L[j + n * j];
+    for (int64_t k = 0; k < j; k++) s -= L[j + n * k] * L[j + n * k];
+    if (!(s > 0)) {
+      pd = 0;
+      break;
+    }
+    s = sqrt(s);
+    L[j + n * j] = s;
+    for (int64_t i = j + 1; i < n; i++) {
+      double t = L[i + n * j];
+      for (int64_t k = 0; k < j; k++) t -= L[i + n * k] * L[j + n * k];
+      L[i + n * j] = t / s;
+    }
+  }
+  fmbd_free(L);
+  return pd;
+}
+
 int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d,
                       const fmbd_mbs_state0 *s0, int *id) {
   const char *nm_ = name ? name : "?";
@@ -242,29 +269,14 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
                FMBD_ERR_VALUE, "body '%s': non-finite modal invariants", nm_);
     FMBD_CHECK(isfinite(d->damping_ratio) && d->damping_ratio >= 0, FMBD_ERR_VALUE,
                "body '%s': damping ratio %g must be >= 0", nm_, d->damping_ratio);
-    // Mff positive definite (Cholesky, plain loops: nm is small)
-    double *L = fmbd_malloc(sizeof(double) * (size_t)(nm * nm));
-    FMBD_CHECK(L, FMBD_ERR_NOMEM, "out of memory");
-    memcpy(L, d->Mff, sizeof(double) * (size_t)(nm * nm));
-    bool pd = true;
-    for (int64_t j = 0; j < nm && pd; j++) {
-      double s = L[j + nm * j];
-      for (int64_t k = 0; k < j; k++) s -= L[j + nm * k] * L[j + nm * k];
-      if (!(s > 0)) {
-        pd = false;
-        break;
-      }
-      s = sqrt(s);
-      L[j + nm * j] = s;
-      for (int64_t i = j + 1; i < nm; i++) {
-        double t = L[i + nm * j];
-        for (int64_t k = 0; k < j; k++) t -= L[i + nm * k] * L[j + nm * k];
-        L[i + nm * j] = t / s;
-      }
+    // Mff positive definite (a shared body's may be semidefinite: its set's sum is checked by
+    // fmbd_mbs_init)
+    if (!d->shared) {
+      int pd = mbs_spd(d->Mff, nm);
+      FMBD_CHECK(pd >= 0, FMBD_ERR_NOMEM, "out of memory");
+      FMBD_CHECK(pd, FMBD_ERR_SINGULAR, "body '%s': modal mass matrix Mff is not positive definite",
+                 nm_);
     }
-    fmbd_free(L);
-    FMBD_CHECK(pd, FMBD_ERR_SINGULAR, "body '%s': modal mass matrix Mff is not positive definite",
-               nm_);
   }
   {
     // the rigid part of the mass matrix is regular iff the inertia about the centre of mass,
@@ -294,6 +306,7 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
   mbody *b;
   FMBD_CALL(add_body(m, name, (int)nm, s0, &b));
   set_inertia(b, d->mass, d->first_moment, d->second_moment);
+  b->mff_unchecked = d->shared;
   if (nm > 0) {
     size_t n1 = (size_t)nm;
     b->S1 = fmbd_malloc(sizeof(double) * 3 * n1);
@@ -366,6 +379,29 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
 
 static bool csr_shape(const fmbd_csr *A, int64_t nr, int64_t nc) {
   return A && A->nrows == nr && A->ncols == nc && mbs_finite_n(A->data, A->indptr[nr]);
+}
+
+int fmbd_mbs_share_modal(fmbd_mbs *m, int nids, const int *ids) {
+  FMBD_CHECK(!m->ready, FMBD_ERR_VALUE, "fmbd_mbs_share_modal after fmbd_mbs_init");
+  FMBD_CHECK(nids >= 1 && ids, FMBD_ERR_VALUE, "fmbd_mbs_share_modal: no bodies");
+  int own = ids[0];
+  for (int i = 0; i < nids; i++) {
+    FMBD_CHECK(ids[i] >= 0 && ids[i] < m->nb, FMBD_ERR_VALUE, "shared modes: no body %d", ids[i]);
+    const mbody *b = &m->b[ids[i]];
+    FMBD_CHECK(!b->fe && b->nm >= 1, FMBD_ERR_VALUE,
+               "shared modes: body '%s' is not a modal flexible body", b->name);
+    FMBD_CHECK(b->nm == m->b[ids[0]].nm, FMBD_ERR_VALUE,
+               "shared modes: body '%s' has %d modal coordinates, body '%s' %d: a shared set has "
+               "one number",
+               b->name, b->nm, m->b[ids[0]].name, m->b[ids[0]].nm);
+    FMBD_CHECK(b->share < 0, FMBD_ERR_VALUE, "shared modes: body '%s' is already in a set",
+               b->name);
+    for (int k = 0; k < i; k++)
+      FMBD_CHECK(ids[k] != ids[i], FMBD_ERR_VALUE, "shared modes: body '%s' twice", b->name);
+    if (ids[i] < own) own = ids[i];
+  }
+  for (int i = 0; i < nids; i++) m->b[ids[i]].share = own;
+  return FMBD_OK;
 }
 
 int fmbd_mbs_add_fe(fmbd_mbs *m, const char *name, const fmbd_mbs_fe_data *d,

@@ -211,10 +211,12 @@ typedef struct fmbd_mbs_flex_data {
   const double *S1;         ///< 3 x nm: S1[a + 3k]
   const double *XS;         ///< 3 x 3 x nm: XS[a + 3b + 9k] = int rho x0_a S_k,b
   const double *SS;         ///< 3 x 3 x nm x nm: SS[a + 3b + 9k + 9 nm l] = int rho S_k,a S_l,b
-  const double *Mff;        ///< nm x nm (symmetric positive definite)
+  const double *Mff;        ///< nm x nm (symmetric positive definite; semidefinite allowed with
+                            ///< shared, the set's sum is checked by fmbd_mbs_init)
   const double *Kff;        ///< nm x nm (symmetric positive semidefinite)
   double damping_ratio;     ///< modal damping ratio zeta of every mode (0: none)
   const double *q0, *qd0;   ///< initial modal coordinates and rates (nm each; NULL: zero)
+  bool shared;              ///< the body will join a set of fmbd_mbs_share_modal
 } fmbd_mbs_flex_data;
 
 /// A full finite-element body (docs/THEORY.md section 4b): every FE dof that the frame does
@@ -260,6 +262,16 @@ int fmbd_mbs_add_rigid(fmbd_mbs *m, const char *name, double mass, const double 
 /// @return FMBD_OK, FMBD_ERR_VALUE (mass <= 0, Mff not positive definite, ...), FMBD_ERR_NOMEM
 int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d,
                       const fmbd_mbs_state0 *s0, int *id);
+
+/// @brief Shared modal coordinates (the GMs basis of global modes, Cammarata 2021; docs/THEORY.md
+/// section 6): the modal bodies `ids` (added with d.shared, all with the same nm >= 1) use ONE
+/// set of nm elastic coordinates. Each body adds its mass, stiffness, damping, quadratic
+/// velocity and load terms and its joints' constraint rows into the same columns, so the
+/// system has 7 per body plus nm coordinates for the set. fmbd_mbs_init checks the summed
+/// elastic mass block (with the frames fixed) is positive definite; initial modal coordinates
+/// are the first body's. fmbd_mbs_linearise refuses such a model.
+/// @return FMBD_OK, FMBD_ERR_VALUE (after init, not modal, nm differs, already shared)
+int fmbd_mbs_share_modal(fmbd_mbs *m, int nids, const int *ids);
 
 /// @brief Add a full FE body (fmbd_mbs_fe_data). Its points (fmbd_mbs_add_point) take T and
 /// Rot as for a modal body (3 x n); only their nonzero columns are kept, so a point's

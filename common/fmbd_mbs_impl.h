@@ -158,10 +158,22 @@ typedef struct mbody {
   mbs_fe *fe;        // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
   double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
   bool spin_warned;  // mbs_spin_check warned
+  // shared modal coordinates (GMs, fmbd_mbs_share_modal): the bodies of a set use one block of
+  // nm coordinates, stored after the frame of the set's first body (its owner)
+  int share;           // owner body of the set, or -1 (the body's own coordinates)
+  int64_t qoff;        // first elastic coordinate in x (off + 7 unless shared)
+  int64_t gn;          // coordinates of x stored at off: n, or 7 for a non-owner of a shared set
+  double qunit;        // unit of the elastic coordinates in the scales (fmbd_mbs_init: QUNIT)
+  bool mff_unchecked;  // added for a shared set: Mff's definiteness is checked by fmbd_mbs_init
 } mbody;
 // unit of a body's flexible coordinates in the scales: sqrt(m) for mass-normalised modal
-// coordinates, 1 for FE dofs (m, rad)
-#define QUNIT(b) ((b)->fe ? 1.0 : sqrt((b)->m))
+// coordinates, 1 for FE dofs (m, rad); shared coordinates: sqrt of the set's total mass (set by
+// fmbd_mbs_init in qunit)
+#define QUNIT(b) ((b)->qunit)
+// the global coordinate of a body's local coordinate i (0..6 frame, 7.. elastic)
+static inline int64_t mbs_col(const mbody *b, int64_t i) {
+  return i < 7 ? b->off + i : b->qoff + (i - 7);
+}
 
 typedef struct mpoint {
   int body;
@@ -278,6 +290,14 @@ struct fmbd_mbs {
 #define SAFETY 0.9
 #define DEAD_LOW 0.85
 #define MODAL_FLOOR 1e-5
+// a failed step at the smallest step size is reported as a singular position when the
+// smallest singular value of the kept constraint rows (unit-normalised, coordinates in their
+// scales: L_ref for translations) is below SINGULAR_TOL. Measured on the spatial slider-crank
+// (docs/STABILITY.md, Constraints): 0.03 to 0.09 at regular positions (metre and millimetre
+// scale alike), 3e-5 where Newton fails at its dead point; the value falls as the square root
+// of the distance to the fold (2.8e-2 at 0.01 s before it), so 1e-3 is reached about 1.4e-5 s
+// (2.7e-6 m of travel) before the fold.
+#define SINGULAR_TOL 1e-3
 
 // --- constraints ---------------------------------------------------------------------------
 // Kinematics of one joint side: position r and up to 4 attached directions g[i], with their
@@ -291,6 +311,7 @@ typedef struct side {
 // --- internal functions ----------------------------------------------------------------------
 // fmbd_mbs.c
 bool mbs_finite_n(const double *v, int64_t n);
+int mbs_spd(const double *A, int64_t n);
 const char *mbs_joint_kind_name(int kind);
 // fmbd_mbs_fn.c: copy a function (table arrays owned by the copy; `what` names it in messages)
 int mbs_fn_copy(const fmbd_mbs_fn *src, fmbd_mbs_fn *dst, const char *what);
@@ -298,6 +319,8 @@ void mbs_fn_free(fmbd_mbs_fn *f);
 // After each accepted step: warn once per flexible body spinning fast enough for the missing
 // geometric stiffening to matter (fmbd_mbs_spin.c, docs/STABILITY.md).
 void mbs_spin_check(fmbd_mbs *m);
+// fmbd_mbs_init.c: the kept constraint rows (nearly) dependent at the current positions
+bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len);
 // fmbd_mbs_body.c: the residual r (n = 7 + nm) of body ib at (xg, xdg, xddg; xddg may be
 // NULL: zero accelerations) and optionally its block B = cm M + cc C + ck K (n x n, column
 // major); see the comment at the definition

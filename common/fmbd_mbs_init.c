@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "fmbd_alloc.h"
+#include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
@@ -64,6 +65,41 @@ static bool joints_form_free_tree(const fmbd_mbs *m) {
   return tree;
 }
 
+// The Jacobian rows of the constraint equations (all but the normalisations; only the kept
+// ones when kept_only) as unit columns of C (n x nc): the Euler-parameter direction of every
+// body projected out (the normalisations handle it), then coordinate i scaled by cs[i] (a
+// coordinate's unit; NULL: none). ix[k] = equation of column k.
+static void constraint_columns(fmbd_mbs *m, bool kept_only, const double *cs, double *C,
+                               int64_t *ix, int64_t *nc_out) {
+  int64_t n = m->n, k = 0;
+  for (int64_t e = 0; e < m->neq; e++) {
+    meq *q = &m->eq[e];
+    if (q->kind == EQ_NORM || (kept_only && !q->kept)) continue;
+    ix[k] = e;
+    double *col = C + n * k;
+    memset(col, 0, sizeof(double) * (size_t)n);
+    mbs_eq_jtv(m, q, 1.0, col);
+    for (int ib = 0; ib < m->nb; ib++) {
+      const double *p = m->x + m->b[ib].off + 3;
+      double *c = col + m->b[ib].off + 3;
+      double pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3], cp = 0;
+      for (int i = 0; i < 4; i++) cp += c[i] * p[i];
+      for (int i = 0; i < 4; i++) c[i] -= cp / pp * p[i];
+    }
+    if (cs) {
+      for (int64_t i = 0; i < n; i++) col[i] *= cs[i];
+    }
+    double nrm = 0;
+    for (int64_t i = 0; i < n; i++) nrm += col[i] * col[i];
+    nrm = sqrt(nrm);
+    if (nrm > 0) {
+      for (int64_t i = 0; i < n; i++) col[i] /= nrm;
+    }
+    k++;
+  }
+  *nc_out = k;
+}
+
 // Redundant equations: QR with column pivoting of the normalised Jacobian rows for the rank,
 // then a greedy in-order selection (Gram-Schmidt, twice) so that the equations declared
 // redundant are the later ones (the joint closing a loop); if the two disagree, the
@@ -85,29 +121,8 @@ static int find_redundant(fmbd_mbs *m) {
   FMBD_GALLOC(sel = fmbd_calloc((size_t)nc, sizeof(bool)));
   FMBD_GALLOC(jp = fmbd_calloc((size_t)nc, sizeof(lapack_int)));
   FMBD_GALLOC(tau = fmbd_calloc((size_t)(nc < n ? nc : n) + 1, sizeof(double)));
-  int64_t k = 0;
-  for (int64_t e = 0; e < m->neq; e++) {
-    meq *q = &m->eq[e];
-    if (q->kind == EQ_NORM) continue;
-    ix[k] = e;
-    double *col = C + n * k;
-    mbs_eq_jtv(m, q, 1.0, col);
-    // the Euler-parameter direction is handled by the normalisations: project it out
-    for (int ib = 0; ib < m->nb; ib++) {
-      const double *p = m->x + m->b[ib].off + 3;
-      double *c = col + m->b[ib].off + 3;
-      double pp = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3], cp = 0;
-      for (int i = 0; i < 4; i++) cp += c[i] * p[i];
-      for (int i = 0; i < 4; i++) c[i] -= cp / pp * p[i];
-    }
-    double nrm = 0;
-    for (int64_t i = 0; i < n; i++) nrm += col[i] * col[i];
-    nrm = sqrt(nrm);
-    if (nrm > 0) {
-      for (int64_t i = 0; i < n; i++) col[i] /= nrm;
-    }
-    k++;
-  }
+  int64_t k;
+  constraint_columns(m, false, NULL, C, ix, &k);
   memcpy(Q, C, sizeof(double) * (size_t)(n * nc));
   lapack_int info =
       LAPACKE_dgeqp3(LAPACK_COL_MAJOR, (lapack_int)n, (lapack_int)nc, Q, (lapack_int)n, jp, tau);
@@ -185,6 +200,75 @@ done:
   return rc;
 }
 
+// Singular positions (a dead point): the smallest singular value s of the unit-normalised
+// Jacobian rows of the kept constraints at the current positions (the eigenvalues of C'C,
+// s^2, are resolved down to s ~ 1e-7 by round-off); when s < tol, buf names the joints and
+// drivers whose rows make up the dependent combination (the right singular vector's entries
+// above 0.1 of its largest). Dense O(n nc^2): skipped (false) above 4e6 entries, where a
+// failed step stays described by its residual. Runs only when a step has failed.
+bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len) {
+  int64_t n = m->n, ne = 0, nc = 0;
+  bool sing = false;
+  double *C = NULL, *G = NULL, *w = NULL;
+  int64_t *ix = NULL;
+  *smin = -1;
+  for (int64_t e = 0; e < m->neq; e++) {
+    if (m->eq[e].kind != EQ_NORM && m->eq[e].kept) ne++;
+  }
+  if (ne == 0 || (double)n * (double)ne > 4e6) return false;
+  C = fmbd_calloc((size_t)(n * ne), sizeof(double));
+  G = fmbd_calloc((size_t)(ne * ne), sizeof(double));
+  w = fmbd_calloc((size_t)ne, sizeof(double));
+  ix = fmbd_malloc(sizeof(int64_t) * (size_t)ne);
+  if (!C || !G || !w || !ix) goto done;
+  mbs_eval_constraints(m, m->x, m->t, true);
+  constraint_columns(m, true, m->nscale, C, ix, &nc);
+  fmbd_dense_gemm('T', 'N', nc, nc, n, 1.0, C, n, C, n, 0.0, G, nc);
+  if (fmbd_dense_syev(nc, G, w) != FMBD_OK) goto done;
+  *smin = sqrt(fmax(w[0], 0));
+  if (*smin >= tol) goto done;
+  sing = true;
+  const double *v = G;  // eigenvector of the smallest eigenvalue
+  double vmax = 0;
+  for (int64_t k = 0; k < nc; k++) vmax = fmax(vmax, fabs(v[k]));
+  // the owners (joints, then drivers) of the combination, each once, in the scene's order:
+  // "joints 'a', 'b' and 'c' and driver 'd'"
+  size_t pos = 0;
+  buf[0] = 0;
+  for (int pass = 0; pass < 2; pass++) {
+    int kind = pass == 0 ? EQ_JOINT : EQ_DRIVER, cnt = 0, nw = 0;
+    for (int sweep = 0; sweep < 2; sweep++) {  // count, then write
+      for (int64_t k = 0; k < nc; k++) {
+        const meq *q = &m->eq[ix[k]];
+        if (q->kind != kind || fabs(v[k]) < 0.1 * vmax) continue;
+        bool seen = false;
+        for (int64_t k2 = 0; k2 < k && !seen; k2++) {
+          const meq *q2 = &m->eq[ix[k2]];
+          seen = q2->kind == kind && q2->owner == q->owner && fabs(v[k2]) >= 0.1 * vmax;
+        }
+        if (seen) continue;
+        if (sweep == 0) {
+          cnt++;
+          continue;
+        }
+        const char *name = kind == EQ_JOINT ? m->j[q->owner].name : m->d[q->owner].name;
+        const char *sep = nw == 0 ? (pos > 0 ? " and " : "") : nw == cnt - 1 ? " and " : ", ";
+        const char *word = nw > 0             ? ""
+                           : kind == EQ_JOINT ? (cnt > 1 ? "joints " : "joint ")
+                                              : (cnt > 1 ? "drivers " : "driver ");
+        if (pos < len) {
+          int r = snprintf(buf + pos, len - pos, "%s%s'%s'", sep, word, name);
+          if (r > 0) pos += (size_t)r;
+        }
+        nw++;
+      }
+    }
+  }
+done:
+  fmbd_free(C), fmbd_free(G), fmbd_free(w), fmbd_free(ix);
+  return sing;
+}
+
 // second time derivative of the kept constraints along x' (without the Phi_x x'' part):
 // gam_e = (Phi_x x')_x x' + Phi_tt, by a central difference of Phi_x x' along x'.
 static void constraint_gamma(fmbd_mbs *m, double *gam) {
@@ -226,13 +310,14 @@ void mbs_update_scales(fmbd_mbs *m) {
   // the body's deformation, not against their own tiny amplitude; likewise for accelerations
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
+    if (b->share >= 0 && b->share != ib) continue;  // a shared set: once, by its owner
     double qm = 0, am = 0;
     for (int k = 0; k < b->nm; k++) {
-      qm = fmax(qm, m->scale[b->off + 7 + k]);
-      am = fmax(am, m->ascale[b->off + 7 + k]);
+      qm = fmax(qm, m->scale[b->qoff + k]);
+      am = fmax(am, m->ascale[b->qoff + k]);
     }
     for (int k = 0; k < b->nm; k++) {
-      int64_t i = b->off + 7 + k;
+      int64_t i = b->qoff + k;
       m->scale[i] = qm, m->ascale[i] = am;
       m->nscale[i] = fmax(qm, 1e-3 * m->Lref * QUNIT(b));
     }
@@ -274,6 +359,34 @@ static int init_settings(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   return FMBD_OK;
 }
 
+// the elastic mass block of each shared set (the sum of its bodies' Mff) and the Mff of a body
+// added for a set but left alone must be positive definite
+static int check_shared_mass(fmbd_mbs *m) {
+  int rc = FMBD_OK;
+  double *S = NULL;
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (!(b->share == ib || (b->share < 0 && b->mff_unchecked)) || b->nm == 0) continue;
+    size_t n2 = (size_t)b->nm * (size_t)b->nm;
+    FMBD_GALLOC(S = fmbd_calloc(n2, sizeof(double)));
+    for (int k = 0; k < m->nb; k++) {
+      if (k != ib && (b->share < 0 || m->b[k].share != ib)) continue;
+      for (size_t i = 0; i < n2; i++) S[i] += m->b[k].Mff[i];
+    }
+    int pd = mbs_spd(S, b->nm);
+    fmbd_free(S);
+    S = NULL;
+    FMBD_CHECK(pd >= 0, FMBD_ERR_NOMEM, "out of memory");
+    FMBD_CHECK(pd, FMBD_ERR_SINGULAR,
+               "%s '%s': the modal mass matrix of the shared coordinates (the sum of the bodies' "
+               "Mff) is not positive definite: a coordinate moves no body",
+               b->share >= 0 ? "shared set of body" : "body", b->name);
+  }
+done:
+  fmbd_free(S);
+  return rc;
+}
+
 // dimensions: coordinate offsets, equation count, the state and workspace arrays
 static int init_dimensions(fmbd_mbs *m) {
   int rc = FMBD_OK;
@@ -281,11 +394,25 @@ static int init_dimensions(fmbd_mbs *m) {
   m->maxn = 7;
   m->maxb = 7;
   for (int ib = 0; ib < m->nb; ib++) {
-    m->b[ib].off = n;
-    n += m->b[ib].n;
-    if (m->b[ib].n > m->maxb) m->maxb = m->b[ib].n;
-    if (!m->b[ib].fe && m->b[ib].n > m->maxn) m->maxn = m->b[ib].n;
+    mbody *b = &m->b[ib];
+    b->off = n;
+    // a shared set's elastic coordinates follow its owner's frame (fmbd_mbs_share_modal)
+    b->gn = b->share >= 0 && b->share != ib ? 7 : b->n;
+    n += b->gn;
+    if (b->n > m->maxb) m->maxb = b->n;
+    if (!b->fe && b->n > m->maxn) m->maxn = b->n;
   }
+  for (int ib = 0; ib < m->nb; ib++) {
+    mbody *b = &m->b[ib];
+    b->qoff = (b->share >= 0 ? m->b[b->share].off : b->off) + 7;
+    b->qunit = b->fe ? 1.0 : sqrt(b->m);
+    if (b->share >= 0) {  // sqrt of the set's mass: GMs coordinates are mass-normalised on it
+      double ms = 0;
+      for (int k = 0; k < m->nb; k++) ms += m->b[k].share == b->share ? m->b[k].m : 0;
+      b->qunit = sqrt(ms);
+    }
+  }
+  FMBD_GCALL(check_shared_mass(m));
   for (int ip = 0; ip < m->np; ip++) {
     if (m->p[ip].sup && 7 + m->p[ip].nsup > m->maxn) m->maxn = 7 + m->p[ip].nsup;
   }
@@ -324,7 +451,7 @@ static int eq_side_cols(const fmbd_mbs *m, const meq *q, const int pts[2], int s
   int cnt = 0;
   if (!b->fe) {
     for (int i = 0; i < b->n; i++, cnt++)
-      if (cols) cols[cnt] = b->off + i;
+      if (cols) cols[cnt] = mbs_col(b, i);
     return cnt;
   }
   for (int i = 0; i < 7; i++, cnt++)
@@ -418,7 +545,8 @@ static void init_state(fmbd_mbs *m) {
     const mbody *b = &m->b[ib];
     double *x = m->x + b->off, *xd = m->xd + b->off;
     memcpy(x, b->x0, sizeof(double) * 7);
-    if (b->nm) memcpy(x + 7, b->q0, sizeof(double) * (size_t)b->nm);
+    if (b->nm && (b->share < 0 || b->share == ib))  // a shared set: its owner's
+      memcpy(m->x + b->qoff, b->q0, sizeof(double) * (size_t)b->nm);
     memcpy(xd, b->v0, sizeof(double) * 3);
     double A[9], G[12], wl[3];
     quat_to_A(x + 3, A);
@@ -426,7 +554,8 @@ static void init_state(fmbd_mbs *m) {
     mtv3(A, b->w0, wl);
     for (int c = 0; c < 4; c++)
       xd[3 + c] = 0.5 * (G[c] * wl[0] + G[4 + c] * wl[1] + G[8 + c] * wl[2]);
-    if (b->nm) memcpy(xd + 7, b->qd0, sizeof(double) * (size_t)b->nm);
+    if (b->nm && (b->share < 0 || b->share == ib))
+      memcpy(m->xd + b->qoff, b->qd0, sizeof(double) * (size_t)b->nm);
   }
 }
 
@@ -452,7 +581,7 @@ static void init_scales(fmbd_mbs *m) {
   m->Lref = fmax(L, 1e-3);
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
-    for (int i = 0; i < b->n; i++) {
+    for (int i = 0; i < b->gn; i++) {
       int64_t k = b->off + i;
       if (i < 3)
         m->floor_[k] = 1e-3 * m->Lref, m->nscale[k] = m->Lref;
@@ -578,9 +707,13 @@ static int init_velocities(fmbd_mbs *m) {
         mbs_fe_block_mul(b, m->Ax, m->xd + b->off, m->rhs + b->off);
         continue;
       }
+      // a shared set's elastic block holds the sum of its bodies': added once, by the owner
+      bool other = b->share >= 0 && b->share != ib;
       for (int j = 0; j < b->n; j++) {
-        for (int i = 0; i < b->n; i++)
-          m->rhs[b->off + i] += m->Ax[pos[i + b->n * j]] * m->xd[b->off + j];
+        for (int i = 0; i < b->n; i++) {
+          if (other && i >= 7 && j >= 7) continue;
+          m->rhs[mbs_col(b, i)] += m->Ax[pos[i + b->n * j]] * m->xd[mbs_col(b, j)];
+        }
       }
     }
     for (int64_t e = 0; e < neq; e++) {

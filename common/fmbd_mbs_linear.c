@@ -79,6 +79,10 @@ int fmbd_mbs_linearise(fmbd_mbs *m, double t, const double *x, const double *xd,
   double **blk[3] = {NULL, NULL, NULL}, *row = NULL, *xs = NULL, *xds = NULL;
   memset(L, 0, sizeof *L);
   FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "fmbd_mbs_linearise before fmbd_mbs_init");
+  for (int ib = 0; ib < m->nb; ib++)  // blocks_to_csr: the bodies' blocks must not overlap
+    FMBD_CHECK(m->b[ib].share < 0, FMBD_ERR_VALUE,
+               "fmbd_mbs_linearise: body '%s' shares its modal coordinates (not supported)",
+               m->b[ib].name);
   int64_t n = m->n;
   // evaluate at (x, xd): the model's own state is saved and restored
   FMBD_GALLOC(xs = fmbd_malloc(sizeof(double) * (size_t)n));

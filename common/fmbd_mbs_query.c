@@ -47,7 +47,7 @@ static void mbs_body_kin(const fmbd_mbs *m, const mbody *b, double *A, double *w
 // local position u, modal velocity and acceleration of a point (body frame)
 static void point_local(const fmbd_mbs *m, const mpoint *P, double *u, double *ud, double *udd) {
   const mbody *b = &m->b[P->body];
-  const double *q = m->x + b->off + 7, *qd = m->xd + b->off + 7, *qdd = m->xdd + b->off + 7;
+  const double *q = m->x + b->qoff, *qd = m->xd + b->qoff, *qdd = m->xdd + b->qoff;
   memcpy(u, P->x0, 3 * sizeof(double));
   for (int a = 0; a < 3; a++) ud[a] = udd[a] = 0;
   const int nk = P->sup ? P->nsup : b->nm;  // FE body: the coordinates that move the point
@@ -127,9 +127,9 @@ void fmbd_mbs_body_velocity(const fmbd_mbs *m, int body, double v[3], double w[3
 int64_t fmbd_mbs_modal(const fmbd_mbs *m, int body, const double **q, const double **qd,
                        const double **qdd) {
   const mbody *b = &m->b[body];
-  if (q) *q = m->x + b->off + 7;
-  if (qd) *qd = m->xd + b->off + 7;
-  if (qdd) *qdd = m->xdd + b->off + 7;
+  if (q) *q = m->x + b->qoff;
+  if (qd) *qd = m->xd + b->qoff;
+  if (qdd) *qdd = m->xdd + b->qoff;
   return b->nm;
 }
 
@@ -140,7 +140,7 @@ typedef struct binert {
 } binert;
 static void body_inert(const fmbd_mbs *m, int ib, binert *o) {
   const mbody *b = &m->b[ib];
-  const double *q = m->x + b->off + 7, *qd = m->xd + b->off + 7;
+  const double *q = m->x + b->qoff, *qd = m->xd + b->qoff;
   mbs_body_kin(m, b, o->A, o->w, NULL);
   if (b->fe) {
     mbs_fe_inert(m, ib, o->c, o->I, o->S1qd, o->Mwfqd, &o->Tq, &o->U);
@@ -185,7 +185,7 @@ void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, doub
     const mbody *b = &m->b[ib];
     binert o;
     body_inert(m, ib, &o);
-    const double *Rd = m->xd + b->off, *q = m->x + b->off + 7, *qd = m->xd + b->off + 7;
+    const double *Rd = m->xd + b->off, *q = m->x + b->qoff, *qd = m->xd + b->qoff;
     const int nm = b->nm;
     // T = 1/2 [R'; w; q']' Mb [R'; w; q']
     double Iw[3], Ac[9], Sc[9], v1[3], AS[3];

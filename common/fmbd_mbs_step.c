@@ -36,7 +36,7 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
   } else if (wi >= 0 && wi < m->n) {
     for (int ib = 0; ib < m->nb; ib++) {
       const mbody *b = &m->b[ib];
-      if (wi < b->off || wi >= b->off + b->n) continue;
+      if (wi < b->off || wi >= b->off + b->gn) continue;
       int k = (int)(wi - b->off);
       if (k < 3)
         snprintf(what, sizeof what, "body '%s' translational equation of motion (%c)", b->name,
@@ -210,6 +210,18 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
                     "t = %.9g s: the equations are not finite (overflow: a load, stiffness, "
                     "mass or initial velocity of absurd magnitude?); first at %s",
                     m->t + h, buf);
+        }
+        // at the smallest step: a dead point or singular position (the constraint rows
+        // dependent at the last accepted state) is named as such
+        char who[600];
+        double smin;
+        if (mbs_constraints_singular(m, SINGULAR_TOL, &smin, who, sizeof who)) {
+          FMBD_FAIL(FMBD_ERR_CONVERGE,
+                    "t = %.9g s: the constraints are singular (a dead point or singular "
+                    "position): the equations of %s are dependent (smallest singular value "
+                    "%.2g of their unit-normalised rows); Newton did not converge beyond it at "
+                    "h = %.3g s",
+                    m->t, who, smin, h);
         }
         FMBD_FAIL(FMBD_ERR_CONVERGE,
                   "t = %.9g s, h = %.3g s: Newton did not converge; largest residual: %s", m->t + h,

@@ -17,7 +17,7 @@
 void mbs_coord_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len) {
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
-    if (i >= b->off && i < b->off + b->n) {
+    if (i >= b->off && i < b->off + b->gn) {
       int k = (int)(i - b->off);
       static const char *nm[] = {"R_x",
                                  "R_y",
@@ -33,6 +33,9 @@ void mbs_coord_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len) {
                  (long long)b->fe->dofs[2 * (k - 7)], (long long)b->fe->dofs[2 * (k - 7) + 1]);
       else if (b->fe)
         snprintf(buf, len, "body '%s' FE dof %d", b->name, k - 7 + 1);
+      else if (b->share >= 0)
+        snprintf(buf, len, "shared modal coordinate %d (of body '%s' and others)", k - 7 + 1,
+                 b->name);
       else
         snprintf(buf, len, "body '%s' modal coordinate %d", b->name, k - 7 + 1);
       return;
@@ -60,8 +63,22 @@ static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len
 void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
                      double ck, bool add_lam) {
   if (matrix) memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
+  for (int ib = 0; ib < m->nb; ib++) {  // shared sets' elastic rows are sums: zeroed first
+    const mbody *b = &m->b[ib];
+    if (b->share == ib) memset(m->res + b->qoff, 0, sizeof(double) * (size_t)b->nm);
+  }
   for (int ib = 0; ib < m->nb; ib++) {
     mbody *b = &m->b[ib];
+    if (b->share >= 0) {  // shared elastic coordinates: residual rows added into the set's
+      mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->bres, matrix ? m->bblk : NULL, cm, cc, ck);
+      memcpy(m->res + b->off, m->bres, sizeof(double) * 7);
+      for (int k = 0; k < b->nm; k++) m->res[b->qoff + k] += m->bres[7 + k];
+      if (matrix) {
+        const int64_t *pos = m->bpos[ib];
+        for (int i = 0; i < b->n * b->n; i++) m->Ax[pos[i]] += m->bblk[i];
+      }
+      continue;
+    }
     if (b->fe) {
       mbs_fe_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->Ax : NULL, cm, cc, ck);
       continue;
@@ -100,7 +117,7 @@ int mbs_build_pattern(fmbd_mbs *m) {
   int rc = FMBD_OK;
   slot *sl = NULL;
   int64_t *Ap = NULL, *Ai = NULL, *where = NULL;
-  int64_t N = m->N, cnt = 0;
+  int64_t N = m->N, cnt = 0, nz = 0;
   for (int ib = 0; ib < m->nb; ib++)
     cnt += m->b[ib].fe ? mbs_fe_nnz(&m->b[ib]) : (int64_t)m->b[ib].n * m->b[ib].n;
   for (int64_t e = 0; e < m->neq; e++) {
@@ -132,7 +149,7 @@ int mbs_build_pattern(fmbd_mbs *m) {
     FMBD_GALLOC(m->bpos[ib] = fmbd_malloc(sizeof(int64_t) * (size_t)(b->n * b->n)));
     for (int j = 0; j < b->n; j++) {
       for (int i = 0; i < b->n; i++, s++) {
-        sl[s].key = (b->off + j) * N + (b->off + i);
+        sl[s].key = mbs_col(b, j) * N + mbs_col(b, i);  // shared sets: repeated keys
         sl[s].id = s;
       }
     }
@@ -154,13 +171,15 @@ int mbs_build_pattern(fmbd_mbs *m) {
   FMBD_GALLOC(Ai = fmbd_malloc(sizeof(int64_t) * (size_t)(cnt ? cnt : 1)));
   FMBD_GALLOC(m->Ax = fmbd_calloc((size_t)(cnt ? cnt : 1), sizeof(double)));
   FMBD_GALLOC(where = fmbd_malloc(sizeof(int64_t) * (size_t)(cnt ? cnt : 1)));
-  for (int64_t k = 0; k < cnt; k++) {
+  for (int64_t k = 0; k < cnt; k++) {  // one entry per key: a shared set's bodies add into it
     int64_t col = sl[k].key / N, row = sl[k].key % N;
-    FMBD_ASSERT(k == 0 || sl[k].key != sl[k - 1].key);
-    Ai[k] = row;
-    Ap[col + 1]++;
-    where[sl[k].id] = k;
+    if (k == 0 || sl[k].key != sl[k - 1].key) {
+      Ai[nz++] = row;
+      Ap[col + 1]++;
+    }
+    where[sl[k].id] = nz - 1;
   }
+  m->nnz = nz;
   for (int64_t c = 0; c < N; c++) Ap[c + 1] += Ap[c];
   s = 0;
   for (int ib = 0; ib < m->nb; ib++) {
@@ -197,6 +216,15 @@ int mbs_factor(fmbd_mbs *m) {
       unknown_describe(m, col, what, sizeof what);
     else
       snprintf(what, sizeof what, "unknown column");
+    char who[600];
+    double smin;
+    if (mbs_constraints_singular(m, SINGULAR_TOL, &smin, who, sizeof who)) {
+      FMBD_FAIL(FMBD_ERR_SINGULAR,
+                "t = %.6g s: the constraints are singular (a dead point or singular position): "
+                "the equations of %s are dependent (smallest singular value %.2g of their "
+                "unit-normalised rows); singular iteration matrix at %s",
+                m->t, who, smin, what);
+    }
     FMBD_FAIL(FMBD_ERR_SINGULAR,
               "t = %.6g s: singular iteration matrix (mass matrix or constraint Jacobian) at %s",
               m->t, what);

@@ -339,6 +339,78 @@ int fmbd_mesh_check(const fmbd_mesh *m) {
   return check_mesh(m, NULL, NULL);
 }
 
+// Shape measures of one tetrahedron (docs/STABILITY.md, "Element shape"): the aspect ratio
+// h_max / (2 sqrt(6) r_in) of its corners (r_in = 3 V / total face area; 1 for the regular
+// tetrahedron, large for needles, wedges and slivers alike) and the scaled Jacobian: the
+// smallest over its corners of sqrt(2) 6V / (product of the corner's three edge lengths)
+// (1 regular, -> 0 as a corner flattens); for tet10 the curvature's distortion cr: the
+// smallest ratio of det J at the check points to its straight-sided value 6V (1 straight).
+static void tet_quality(const fmbd_mesh *m, const int64_t *nd, const double pts[15][3], int npts,
+                        double *ar, double *sj, double *cr) {
+  const double *x[4];
+  for (int a = 0; a < 4; a++) x[a] = m->xyz + 3 * nd[a];
+  double L[4][4] = {{0}}, hmax = 0;
+  for (int a = 0; a < 4; a++) {
+    for (int b = a + 1; b < 4; b++) {
+      double d2 = 0;
+      for (int k = 0; k < 3; k++) d2 += (x[a][k] - x[b][k]) * (x[a][k] - x[b][k]);
+      L[a][b] = L[b][a] = sqrt(d2);
+      hmax = fmax(hmax, L[a][b]);
+    }
+  }
+  double e[3][3];
+  for (int i = 0; i < 3; i++) {
+    for (int k = 0; k < 3; k++) e[i][k] = x[i + 1][k] - x[0][k];
+  }
+  double v6 = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+              e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+              e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+  v6 = fabs(v6);
+  static const int face[4][3] = {{1, 2, 3}, {0, 2, 3}, {0, 1, 3}, {0, 1, 2}};
+  double area = 0;
+  for (int f = 0; f < 4; f++) {
+    const double *p0 = x[face[f][0]], *p1 = x[face[f][1]], *p2 = x[face[f][2]];
+    double u[3], w[3], c[3];
+    for (int k = 0; k < 3; k++) u[k] = p1[k] - p0[k], w[k] = p2[k] - p0[k];
+    c[0] = u[1] * w[2] - u[2] * w[1], c[1] = u[2] * w[0] - u[0] * w[2],
+    c[2] = u[0] * w[1] - u[1] * w[0];
+    area += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+  }
+  double rin = area > 0 ? 0.5 * v6 / area : 0;  // 3 V / A, V = v6 / 6
+  *ar = rin > 0 ? hmax / (2 * sqrt(6.0) * rin) : INFINITY;
+  double s = INFINITY;
+  for (int a = 0; a < 4; a++) {
+    double p = 1;
+    for (int b = 0; b < 4; b++) {
+      if (b != a) p *= L[a][b];
+    }
+    s = fmin(s, p > 0 ? sqrt(2.0) * v6 / p : 0);
+  }
+  *sj = s;
+  *cr = 1;
+  if (m->tet_nodes == 10 && v6 > 0) {
+    for (int q = 0; q < npts; q++) *cr = fmin(*cr, tet_detj(m->xyz, 10, nd, pts[q]) / v6);
+  }
+}
+
+void fmbd_mesh_quality(const fmbd_mesh *m, fmbd_mesh_quality_stats *q) {
+  memset(q, 0, sizeof *q);
+  q->worst_ar = 0, q->min_sj = q->min_cr = INFINITY;
+  q->worst_ar_elem = q->min_sj_elem = q->min_cr_elem = -1;
+  if (m->ntet == 0) return;
+  double pts[15][3];
+  int npts = tet_check_points(m->tet_nodes, pts);
+  for (int64_t e = 0; e < m->ntet; e++) {
+    double ar, sj, cr;
+    tet_quality(m, m->tet + e * m->tet_nodes, (const double(*)[3])pts, npts, &ar, &sj, &cr);
+    if (!(cr >= q->min_cr)) q->min_cr = cr, q->min_cr_elem = e;
+    if (!(ar <= q->worst_ar)) q->worst_ar = ar, q->worst_ar_sj = sj, q->worst_ar_elem = e;
+    if (!(sj >= q->min_sj)) q->min_sj = sj, q->min_sj_ar = ar, q->min_sj_elem = e;
+    if (!(ar <= FMBD_MESH_AR_WARN)) q->n_ar_bad++;
+    if (!(sj >= FMBD_MESH_SJ_WARN)) q->n_sj_bad++;
+  }
+}
+
 double fmbd_mesh_volume(const fmbd_mesh *m) {
   double v = 0.0;
   int ng;

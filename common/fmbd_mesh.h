@@ -97,6 +97,29 @@ int fmbd_mesh_elevate(fmbd_mesh *m);
 /// carry a moment about every axis.
 int fmbd_mesh_group_affine_dim(const fmbd_mesh *m, int g);
 
+/// Element shape of the tetrahedra (fmbd_mesh_quality): the worst aspect ratio
+/// h_max / (2 sqrt 6 r_in) of the corners and the smallest scaled Jacobian (sqrt 2 x 6V over
+/// the product of a corner's edge lengths, smallest over the corners), both 1 for the
+/// regular tetrahedron; for tet10 also the smallest curvature ratio (det J at the check
+/// points over its straight-sided value 6V; 1 straight). Elements 0-based (as in
+/// /mesh/elements).
+typedef struct fmbd_mesh_quality_stats {
+  double worst_ar, min_sj;
+  double worst_ar_sj, min_sj_ar;       // the other measure of those two elements
+  int64_t worst_ar_elem, min_sj_elem;  // -1 without tetrahedra
+  double min_cr;                       // tet10 (1 for tet4)
+  int64_t min_cr_elem;
+  int64_t n_ar_bad, n_sj_bad;  // beyond the warning thresholds below
+} fmbd_mesh_quality_stats;
+// warning thresholds (docs/STABILITY.md, "Element shape"): K's condition grows as AR^2
+// (fe2cb's residual floor: 2.9e-7 at AR 6.3, 1.3e-4 at 85, 4.6e-4 at 169 on the same strip)
+// and a sliver's stiffness across its thin direction as 1/thickness. gmsh's meshes of the
+// examples stay below them (rod: AR 4.7, SJ 0.2; bracket: AR 20, SJ 0.057; SJ ~ 1/AR)
+#define FMBD_MESH_AR_WARN 30.0
+#define FMBD_MESH_SJ_WARN 0.02
+/// @brief Shape measures of every tetrahedron (no-op fields for beam meshes).
+void fmbd_mesh_quality(const fmbd_mesh *m, fmbd_mesh_quality_stats *q);
+
 /// @brief Volume of the tetrahedra (exact for straight-sided tet4/tet10; tet10 uses the
 /// 4-point rule on the quadratic geometry).
 double fmbd_mesh_volume(const fmbd_mesh *m);

@@ -623,7 +623,14 @@ int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out) {
   FMBD_GALLOC(eig = xcalloc((size_t)nm, sizeof(double)));
   memcpy(A, Kff, sizeof(double) * (size_t)(nm * nm));
   memcpy(B, Mff, sizeof(double) * (size_t)(nm * nm));
-  rc = fmbd_dense_sygv(nm, A, B, eig);
+  if (in->semidefinite) {
+    for (int64_t k = 0; k < nm; k++) {
+      double mk = Mff[k + nm * k];
+      eig[k] = mk > 0 ? Kff[k + nm * k] / mk : 0.0;
+    }
+  } else {
+    rc = fmbd_dense_sygv(nm, A, B, eig);
+  }
   if (rc == FMBD_ERR_SINGULAR) {
     FMBD_GFAIL(FMBD_ERR_VALUE,
                "the %lld shapes of the basis are linearly dependent (S'MS is not positive "

@@ -148,6 +148,9 @@ typedef struct fmbd_rflex_basis {
   const double *Mff, *Kff;   ///< nm x nm: S'MS and S'KS when M, K are NULL (the caller knows
                              ///< them, e.g. from the modal body the shapes are combinations of)
   bool stress;               ///< compute /modes/stress
+  bool semidefinite;         ///< S'MS may be singular (a body's part of a GMs basis, whose
+                             ///< coordinates other bodies share): /modes/eigenvalue gets the
+                             ///< Rayleigh quotients Kff_kk / Mff_kk (0 where Mff_kk is 0)
 } fmbd_rflex_basis;
 
 /// @brief The body fmbd-run integrates for ANY basis S of displacement fields (a global-mode

@@ -669,10 +669,15 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     }
   }
   snprintf(what, sizeof what, "body '%s'", b->name);
-  static const char *const keys[] = {
-      "name",  "type",          "mass", "com",      "inertia",     "geometry", "file",
-      "modes", "damping_ratio", "make", "position", "orientation", "velocity", "angular_velocity",
-      "basis", "basis_body",    NULL};
+  static const char *const keys[] = {"name",          "type",
+                                     "mass",          "com",
+                                     "inertia",       "geometry",
+                                     "file",          "modes",
+                                     "damping_ratio", "make",
+                                     "position",      "orientation",
+                                     "velocity",      "angular_velocity",
+                                     "basis",         "basis_body",
+                                     "basis_kind",    NULL};
   TRY(check_map(c, n, what, keys));
   const char *type = "rigid";
   if ((x = get(c, n, "type"))) TRY(as_str(c, x, "body type", &type));
@@ -680,8 +685,8 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   for (int i = 0; i < 9; i++) b->rotation[i] = (i % 4 == 0);
   if (!strcmp(type, "rigid")) {
     b->kind = FMBD_SCENE_RIGID;
-    static const char *const flexkeys[] = {"file",       "modes", "damping_ratio", "make", "basis",
-                                           "basis_body", NULL};
+    static const char *const flexkeys[] = {"file",  "modes",      "damping_ratio", "make",
+                                           "basis", "basis_body", "basis_kind",    NULL};
     for (int i = 0; flexkeys[i]; i++) {
       if ((x = get(c, n, flexkeys[i]))) {
         return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)",
@@ -754,6 +759,14 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       b->basis_body = fmbd_strdup(f);
       if (!b->basis_body) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
     }
+    if ((x = get(c, n, "basis_kind"))) {  // gmc (the body's own) or gms (shared coordinates)
+      if (!b->basis) return fail_at(c, x, "%s: 'basis_kind' needs 'basis'", what);
+      TRY(as_str(c, x, "basis_kind", &f));
+      if (!strcmp(f, "gms"))
+        b->basis_gms = true;
+      else if (strcmp(f, "gmc"))
+        return fail_at(c, x, "%s: basis_kind '%s': gmc or gms", what, f);
+    }
     if ((x = get(c, n, "modes"))) TRY(as_int(c, x, "modes", 1, &b->modes));
     if ((x = get(c, n, "damping_ratio"))) {
       TRY(as_double(c, x, "damping_ratio", &b->damping_ratio));
@@ -761,8 +774,8 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       b->damping_set = true;
     }
     if ((x = get(c, n, "make"))) {
-      static const char *const mk[] = {"geometry", "mesh2fe", "fe",    "fe2cb",
-                                       "cb",       "cbcheck", "whole", NULL};
+      static const char *const mk[] = {"geometry", "mesh2fe", "fe",       "fe2cb",   "cb",
+                                       "cbcheck",  "whole",   "gm_scene", "gmsolve", NULL};
       TRY(check_map(c, x, "make", mk));
       yaml_node_t *w = get(c, x, "whole");
       if (w) TRY(as_bool(c, w, "whole", &b->chain.whole));
@@ -775,7 +788,9 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
                     {"fe", &b->chain.fe, true},
                     {"fe2cb", &b->chain.fe2cb_args, false},
                     {"cb", &b->chain.cb, true},
-                    {"cbcheck", &b->chain.cbcheck_args, false}};
+                    {"cbcheck", &b->chain.cbcheck_args, false},
+                    {"gm_scene", &b->chain.gm_scene, true},
+                    {"gmsolve", &b->chain.gmsolve_args, false}};
       for (size_t i = 0; i < sizeof fields / sizeof fields[0]; i++) {
         yaml_node_t *y = get(c, x, fields[i].k);
         if (!y) continue;
@@ -785,8 +800,10 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
         } else {
           TRY(as_str(c, y, fields[i].k, &t));
         }
-        // the geometry is a source beside the scene; fe and cb files are made, beside the body file
-        const char *fdir = i == 0 ? c->s->dir : c->body_dir ? c->body_dir : c->s->dir;
+        // the geometry and the gm scene are sources beside the scene; fe and cb files are made,
+        // beside the body file
+        bool src = i == 0 || fields[i].p == &b->chain.gm_scene;
+        const char *fdir = src ? c->s->dir : c->body_dir ? c->body_dir : c->s->dir;
         size_t l2 = strlen(fdir) + strlen(t) + 2;
         *fields[i].p = fmbd_malloc(l2);
         if (!*fields[i].p) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
@@ -807,6 +824,11 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
         return fail_at(c, x, "make: 'fe2cb' options need 'fe'");
       if (b->chain.cbcheck_args && !b->chain.cb)
         return fail_at(c, x, "make: 'cbcheck' options need 'cb'");
+      if (b->chain.gm_scene && !b->basis)
+        return fail_at(c, x,
+                       "make: 'gm_scene' (the scene gmsolve makes the basis from) needs 'basis'");
+      if (b->chain.gmsolve_args && !b->chain.gm_scene)
+        return fail_at(c, x, "make: 'gmsolve' options need 'gm_scene'");
     }
   } else {
     return fail_at(c, x, "unknown body type '%s' (rigid or flexible)", type);
@@ -1216,6 +1238,7 @@ int fmbd_scene_parse_dir(const char *file, const char *body_dir, const char *tex
   fmbd_scene *s = fmbd_calloc(1, sizeof *s);
   FMBD_GALLOC(s);
   c.s = s;
+  if (body_dir) FMBD_GALLOC(s->body_dir = fmbd_strdup(body_dir));
   FMBD_GALLOC(s->file = fmbd_strdup(file));
   FMBD_GALLOC(s->text = fmbd_malloc((size_t)len + 1));
   memcpy(s->text, text, (size_t)len);
@@ -1329,6 +1352,8 @@ void fmbd_scene_destroy(fmbd_scene **sp) {
     fmbd_free(b->chain.fe2cb_args);
     fmbd_free(b->chain.cb);
     fmbd_free(b->chain.cbcheck_args);
+    fmbd_free(b->chain.gm_scene);
+    fmbd_free(b->chain.gmsolve_args);
   }
   for (int i = 0; i < s->njoints; i++) {
     fmbd_free(s->joints[i].name);
@@ -1359,6 +1384,7 @@ void fmbd_scene_destroy(fmbd_scene **sp) {
   fmbd_free(s->text);
   fmbd_free(s->file);
   fmbd_free(s->dir);
+  fmbd_free(s->body_dir);
   fmbd_free(s);
   *sp = NULL;
 }
@@ -1428,7 +1454,63 @@ static bool ends_with(const char *s, const char *suf) {
   return a >= b && !strcmp(s + a - b, suf);
 }
 
+// whether the rules text has a rule for target (a line starting "target:")
+static bool has_rule(const char *text, const char *target) {
+  size_t l = strlen(target);
+  for (const char *p = text; p && *p; p = strchr(p, '\n'), p = p ? p + 1 : NULL) {
+    if (!strncmp(p, target, l) && p[l] == ':') return true;
+  }
+  return false;
+}
+
+static int make_rules(const fmbd_scene *s, const char *target, int depth, char **text);
+
+// The rules of a global-mode basis named with make: gm_scene: gmsolve makes it from that scene
+// (its own rules, the chains of its full .fe.h5 bodies, follow), appended to b where b has no
+// rule for the same file yet.
+static int basis_rules(const fmbd_scene *s, const fmbd_scene_body *bd, int depth, sbuf *b) {
+  int rc = 0;
+  fmbd_scene *ref = NULL;
+  char *rt = NULL;
+  const fmbd_scene_chain *ch = &bd->chain;
+  FMBD_CHECK(depth < 4, FMBD_ERR_SCENE,
+             "%s: body '%s': gm_scene %s: bases made from scenes "
+             "that use bases, more than 4 deep (a loop?)",
+             s->file, bd->name, ch->gm_scene);
+  rc = fmbd_scene_read_dir(ch->gm_scene, s->body_dir, &ref);
+  if (rc) {
+    char msg[1100];
+    snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
+    FMBD_GFAIL(rc, "%s:%d: body '%s': make: gm_scene: %s", s->file, bd->loc.line, bd->name, msg);
+  }
+  FMBD_GCALL(make_rules(ref, bd->basis, depth + 1, &rt));
+  // first block: "basis: gm_scene files...\n"; then "\nTARGET: ...\n\trecipe\n" blocks
+  char *cut = strstr(rt, "\n\n");
+  size_t head = cut ? (size_t)(cut - rt) + 1 : strlen(rt);
+  sb_add(b, "\n%.*s\tgmsolve %s%s%s%s%s -o $@\n", (int)head, rt, ch->gm_scene,
+         s->body_dir ? " --body-dir " : "", s->body_dir ? s->body_dir : "",
+         ch->gmsolve_args && ch->gmsolve_args[0] ? " " : "",
+         ch->gmsolve_args ? ch->gmsolve_args : "");
+  for (char *p = cut ? cut + 1 : NULL; p && *p;) {  // p at "\nTARGET: ..."
+    char *e = strstr(p + 1, "\n\n");
+    size_t l = e ? (size_t)(e - p) + 1 : strlen(p);
+    const char *t = p + 1, *colon = strchr(t, ':');
+    char tg[1024];
+    snprintf(tg, sizeof tg, "%.*s", colon ? (int)(colon - t) : 0, t);
+    if (!b->p || !has_rule(b->p, tg)) sb_add(b, "%.*s", (int)l, p);
+    p = e ? e + 1 : NULL;
+  }
+done:
+  fmbd_free(rt);
+  fmbd_scene_destroy(&ref);
+  return rc;
+}
+
 int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) {
+  return make_rules(s, target, 0, text);
+}
+
+static int make_rules(const fmbd_scene *s, const char *target, int depth, char **text) {
   sbuf b = {0};
   *text = NULL;
   sb_add(&b, "%s: %s", target, s->file);
@@ -1439,8 +1521,8 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
     for (int k = 0; k < i; k++) seen |= s->bodies[k].file && !strcmp(s->bodies[k].file, bd->file);
     if (!seen) sb_add(&b, " \\\n  %s", bd->file);
   }
-  for (int i = 0; i < s->nbodies; i++) {        // global-mode bases (gmsolve makes them, from the
-    const fmbd_scene_body *bd = &s->bodies[i];  // scene it is given: no rule here)
+  for (int i = 0; i < s->nbodies; i++) {  // global-mode bases (rules below with make: gm_scene)
+    const fmbd_scene_body *bd = &s->bodies[i];
     if (bd->kind != FMBD_SCENE_FLEXIBLE || !bd->basis) continue;
     bool seen = false;
     for (int k = 0; k < i; k++)
@@ -1503,6 +1585,16 @@ int fmbd_scene_make_rules(const fmbd_scene *s, const char *target, char **text) 
       sb_add(&b, "\n%s: %s\n\tmesh2fe %s%s%s -o $@\n", ch->fe, ch->geometry, ch->geometry,
              ch->mesh2fe_args && ch->mesh2fe_args[0] ? " " : "",
              ch->mesh2fe_args ? ch->mesh2fe_args : "");
+    }
+  }
+  for (int i = 0; i < s->nbodies; i++) {  // a basis with gm_scene: gmsolve's rule
+    const fmbd_scene_body *bd = &s->bodies[i];
+    if (bd->kind != FMBD_SCENE_FLEXIBLE || !bd->basis || !bd->chain.gm_scene) continue;
+    if (b.p && has_rule(b.p, bd->basis)) continue;  // the same basis named by another body
+    int rc = basis_rules(s, bd, depth, &b);
+    if (rc) {
+      fmbd_free(b.p);
+      return rc;
     }
   }
   if (b.bad) {

@@ -15,6 +15,9 @@
 #ifndef FMBD_SCENE_H
 #define FMBD_SCENE_H
 
+/// most bodies that one GMs basis file shares its coordinates among (scene key basis_kind)
+#define FMBD_SCENE_GMS_MAX 256
+
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -34,6 +37,7 @@ typedef struct fmbd_scene_chain {
   char *fe, *fe2cb_args;          ///< fe file and fe2cb options
   char *cb, *cbcheck_args;        ///< cb file and cbcheck options (rflex bodies)
   bool whole;  ///< `whole: true`: the whole body, not one made for this scene (--for-scene)
+  char *gm_scene, *gmsolve_args;  ///< the scene gmsolve makes the `basis` file from, options
 } fmbd_scene_chain;
 
 typedef struct fmbd_scene_body {
@@ -51,6 +55,8 @@ typedef struct fmbd_scene_body {
                 ///< (NULL: the file's modes), resolved as file
   fmbd_scene_loc basis_loc;
   char *basis_body;  ///< the body's name in the basis file (NULL: this body's name)
+  bool basis_gms;    ///< basis_kind gms: the GMs basis, its coordinates shared by every body
+                     ///< naming the same basis file with gms (else the body's GMc basis)
   int64_t modes;     ///< first N flexible modes kept; 0 = all in the file
   bool damping_set;
   double damping_ratio;  ///< modal damping ratio of every kept mode (default 0)
@@ -134,8 +140,9 @@ typedef struct fmbd_scene_output {
 } fmbd_scene_output;
 
 typedef struct fmbd_scene {
-  char *file;  ///< the scene file's name as given
-  char *dir;   ///< its folder ("." if none), against which body files resolve
+  char *file;      ///< the scene file's name as given
+  char *dir;       ///< its folder ("." if none), against which body files resolve
+  char *body_dir;  ///< the body_dir it was read with (NULL: none; -M reads gm_scene with it)
   char *title;
   char *text;         ///< the scene file's text as read (provenance in the run file)
   double gravity[3];  ///< default 0

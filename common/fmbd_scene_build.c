@@ -243,15 +243,19 @@ static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
   return 0;
 }
 
-// --- a global-mode (GMc) basis instead of the file's modes ----------------------------------
+// --- a global-mode (GMc or GMs) basis instead of the file's modes ----------------------------
 // The body's GMc basis from a gmsolve file (/gmc/<body>: shapes on the FE dofs, Mff, Kff),
 // turned into the body by fmbd_rflex_from_basis with the description of the body's own file
 // (f: a .rflex.h5, .cb.h5 or .fe.h5), which must be the file the basis was made from (its
 // SHA-256). A full FE body so becomes a modal body with the GMc shapes as its modes.
+// basis_kind gms: the body's rows of the first `modes` global modes (/gms/<body>), whose
+// coordinates the bodies naming the same file share (fmbd_mbs_share_modal, in
+// fmbd_scene_build); the body's own S'MS may then be singular.
 static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f, bool stress) {
   int rc = 0;
   const fmbd_scene_body *b = &s->bodies[bi];
   const char *name = b->basis_body ? b->basis_body : b->name;
+  const char *kind = b->basis_gms ? "gms" : "gmc", *KIND = b->basis_gms ? "GMs" : "GMc";
   fmbd_h5 *g = NULL;
   fmbd_fe_body *desc = NULL;
   fmbd_rflex *r = NULL;
@@ -265,12 +269,19 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
     SFAIL(s, b->basis_loc, rc, "body '%s': basis %s: %s", b->name, b->basis, msg);
   }
-  snprintf(path, sizeof path, "/gmc/%s", name);
+  snprintf(path, sizeof path, "/%s/%s", kind, name);
   if (!fmbd_h5_exists(g, path)) {
     SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
-          "body '%s': %s has no GMc basis of a body '%s' (name it with basis_body)", b->name,
-          b->basis, name);
+          "body '%s': %s has no %s basis of a body '%s' (name it with basis_body)", b->name,
+          b->basis, KIND, name);
   }
+  snprintf(path, sizeof path, "/%s/%s/Mff", kind, name);
+  if (!fmbd_h5_exists(g, path)) {
+    SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
+          "body '%s': %s has no %s (made by an older gmsolve: run it again)", b->name, b->basis,
+          path);
+  }
+  snprintf(path, sizeof path, "/%s/%s", kind, name);
   if (fmbd_h5_has_attr(g, path, "file_sha256")) {
     FMBD_GCALL(fmbd_h5_read_attr_str(g, path, "file_sha256", &sha));
     if (sha[0] && strcmp(sha, fmbd_h5_sha256(f))) {
@@ -281,14 +292,14 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
     }
   }
   int64_t ndof = -1, nc = -1, r1 = -1, c1 = -1, r2 = -1, c2 = -1;
-  snprintf(path, sizeof path, "/gmc/%s/shapes", name);
+  snprintf(path, sizeof path, "/%s/%s/shapes", kind, name);
   rc = fmbd_h5_read_f64_cm(g, path, &ndof, &nc, &S);
   if (!rc) {
-    snprintf(path, sizeof path, "/gmc/%s/Mff", name);
+    snprintf(path, sizeof path, "/%s/%s/Mff", kind, name);
     rc = fmbd_h5_read_f64_cm(g, path, &r1, &c1, &Mff);
   }
   if (!rc) {
-    snprintf(path, sizeof path, "/gmc/%s/Kff", name);
+    snprintf(path, sizeof path, "/%s/%s/Kff", kind, name);
     rc = fmbd_h5_read_f64_cm(g, path, &r2, &c2, &Kff);
   }
   if (rc) {
@@ -299,13 +310,25 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
   FMBD_GCALL(fmbd_fe_read(f, &desc));
   if (nc == 0 || r1 != nc || c1 != nc || r2 != nc || c2 != nc || ndof != desc->ndof) {
     SFAIL(s, b->basis_loc, FMBD_ERR_SCENE,
-          "body '%s': the GMc basis of '%s' in %s has %lld columns on %lld dofs (Mff %lld x %lld, "
+          "body '%s': the %s basis of '%s' in %s has %lld columns on %lld dofs (Mff %lld x %lld, "
           "Kff %lld x %lld); the body has %lld dofs%s",
-          b->name, name, b->basis, (long long)nc, (long long)ndof, (long long)r1, (long long)c1,
-          (long long)r2, (long long)c2, (long long)desc->ndof,
+          b->name, KIND, name, b->basis, (long long)nc, (long long)ndof, (long long)r1,
+          (long long)c1, (long long)r2, (long long)c2, (long long)desc->ndof,
           nc == 0 ? " (an empty basis: the body does not deform in the global modes)" : "");
   }
-  if (b->modes > 0) {  // the columns of the first `modes` global modes: a prefix (mode order)
+  if (b->basis_gms && b->modes > nc) {
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld global modes; %s has %lld",
+          b->name, (long long)b->modes, b->basis, (long long)nc);
+  }
+  if (b->basis_gms && b->modes > 0) {  // GMs: column k is global mode k + 1
+    for (int64_t j = 0; j < b->modes; j++) {
+      for (int64_t i = 0; i < b->modes; i++) {
+        Mff[i + b->modes * j] = Mff[i + nc * j];
+        Kff[i + b->modes * j] = Kff[i + nc * j];
+      }
+    }
+    nc = b->modes;
+  } else if (b->modes > 0) {  // the columns of the first `modes` global modes: a prefix
     int64_t ng = -1, *gmode = NULL, keep = 0;
     snprintf(path, sizeof path, "/gmc/%s/global_mode", name);
     rc = fmbd_h5_read_i64(g, path, 1, &ng, &gmode);
@@ -338,7 +361,7 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
   }
   // a full FE body's file has its M and K: the projections are made here; a modal body's
   // description has none: the file's Mff, Kff (gmsolve's projections with the modal matrices)
-  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress};
+  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress, b->basis_gms};
   rc = fmbd_rflex_from_basis(&in, &r);
   if (rc) SFAIL(s, b->basis_loc, rc, "body '%s': %s: %s", b->name, b->basis, fmbd_err_get()->msg);
   fmbd_rflex_destroy(&m->flex[bi]);
@@ -640,7 +663,8 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
                           .SS = r->SS,
                           .Mff = r->Mff,
                           .Kff = r->Kff,
-                          .damping_ratio = b->damping_ratio};
+                          .damping_ratio = b->damping_ratio,
+                          .shared = b->basis_gms};
   memcpy(d.first_moment, r->first_moment, sizeof d.first_moment);
   memcpy(d.second_moment, r->second_moment, sizeof d.second_moment);
   fmbd_mbs_state0 s0 = body_state0(b);
@@ -689,6 +713,34 @@ int fmbd_scene_build(const fmbd_scene *s, fmbd_scene_model **out) {
       }
       FMBD_GCALL(load_flex(m, s, i, need_stress));
     }
+  }
+  // --- GMs: the bodies naming one basis file with basis_kind gms share its coordinates ---
+  for (int i = 0; i < nb; i++) {
+    const fmbd_scene_body *b = &s->bodies[i];
+    if (b->kind != FMBD_SCENE_FLEXIBLE || !b->basis_gms) continue;
+    bool first = true;
+    for (int k = 0; k < i && first; k++)
+      first = !(s->bodies[k].kind == FMBD_SCENE_FLEXIBLE && s->bodies[k].basis_gms &&
+                !strcmp(s->bodies[k].basis, b->basis));
+    if (!first) continue;
+    int ids[FMBD_SCENE_GMS_MAX], cnt = 0;
+    for (int k = i; k < nb; k++) {
+      const fmbd_scene_body *o = &s->bodies[k];
+      if (o->kind != FMBD_SCENE_FLEXIBLE || !o->basis_gms || strcmp(o->basis, b->basis)) continue;
+      if (cnt == FMBD_SCENE_GMS_MAX) {
+        SFAIL(s, o->basis_loc, FMBD_ERR_SCENE, "body '%s': more than %d bodies share %s", o->name,
+              FMBD_SCENE_GMS_MAX, o->basis);
+      }
+      if (m->flex[k]->nm != m->flex[i]->nm) {
+        SFAIL(s, o->basis_loc, FMBD_ERR_SCENE,
+              "body '%s' takes %lld GMs coordinates of %s, body '%s' %lld: the bodies sharing "
+              "them need one number (modes)",
+              o->name, (long long)m->flex[k]->nm, o->basis, b->name, (long long)m->flex[i]->nm);
+      }
+      ids[cnt++] = m->body_id[k];
+    }
+    rc = fmbd_mbs_share_modal(m->mbs, cnt, ids);
+    if (rc) SFAIL(s, b->basis_loc, rc, "body '%s': %s", b->name, fmbd_err_get()->msg);
   }
   // --- joints ---
   for (int k = 0; k < s->njoints; k++) {

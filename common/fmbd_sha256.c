@@ -8,6 +8,12 @@
 
 #include "fmbd_err.h"
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <cpuid.h>
+#include <immintrin.h>
+#define FMBD_SHA_X86 1
+#endif
+
 // FIPS 180-4 section 4.2.2: the first 32 bits of the fractional parts of the cube roots of
 // the first 64 primes.
 static const uint32_t K256[64] = {
@@ -62,6 +68,83 @@ static void compress(uint32_t H[8], const unsigned char *blk) {
   H[7] += h;
 }
 
+#ifdef FMBD_SHA_X86
+// The same compression with the x86 SHA extensions (Intel, "Intel SHA Extensions", Gulley et
+// al. 2013: SHA256RNDS2 does two rounds on the state held as the pairs ABEF and CDGH,
+// SHA256MSG1/MSG2 the message schedule of section 6.2.2 step 1, four words at a time); nblk
+// consecutive 64-byte blocks. About ten times the portable code's speed: the whole-file hash
+// of every input (provenance) costs as much as reading it.
+__attribute__((target("sha,sse4.1,ssse3"))) static void compress_ni(uint32_t H[8],
+                                                                    const unsigned char *p,
+                                                                    uint64_t nblk) {
+  const __m128i bswap = _mm_set_epi64x(0x0c0d0e0f08090a0bLL, 0x0405060700010203LL);
+  __m128i t = _mm_loadu_si128((const __m128i *)H), s1 = _mm_loadu_si128((const __m128i *)(H + 4));
+  t = _mm_shuffle_epi32(t, 0xB1);          // lanes B A D C
+  s1 = _mm_shuffle_epi32(s1, 0x1B);        // lanes H G F E
+  __m128i s0 = _mm_alignr_epi8(t, s1, 8);  // lanes F E B A: the pair ABEF
+  s1 = _mm_blend_epi16(s1, t, 0xF0);       // lanes H G D C: the pair CDGH
+  for (; nblk > 0; nblk--, p += 64) {
+    const __m128i a0 = s0, c0 = s1;
+    __m128i w[4];
+    for (int g = 0; g < 16; g++) {  // rounds 4g .. 4g + 3 with the words W[4g .. 4g + 3]
+      __m128i x;
+      if (g < 4) {
+        x = _mm_shuffle_epi8(_mm_loadu_si128((const __m128i *)(p + 16 * g)), bswap);
+      } else {  // W[t-16] + s0(W[t-15]) + W[t-7] + s1(W[t-2])
+        x = _mm_sha256msg1_epu32(w[g & 3], w[(g + 1) & 3]);
+        x = _mm_add_epi32(x, _mm_alignr_epi8(w[(g + 3) & 3], w[(g + 2) & 3], 4));
+        x = _mm_sha256msg2_epu32(x, w[(g + 3) & 3]);
+      }
+      w[g & 3] = x;
+      __m128i k = _mm_add_epi32(x, _mm_loadu_si128((const __m128i *)(K256 + 4 * g)));
+      s1 = _mm_sha256rnds2_epu32(s1, s0, k);  // two rounds: s1 is the new ABEF
+      s0 = _mm_sha256rnds2_epu32(s0, s1, _mm_shuffle_epi32(k, 0x0E));
+    }
+    s0 = _mm_add_epi32(s0, a0);
+    s1 = _mm_add_epi32(s1, c0);
+  }
+  t = _mm_shuffle_epi32(s0, 0x1B);    // lanes A B E F
+  s1 = _mm_shuffle_epi32(s1, 0xB1);   // lanes G H C D
+  s0 = _mm_blend_epi16(t, s1, 0xF0);  // lanes A B C D
+  s1 = _mm_alignr_epi8(s1, t, 8);     // lanes E F G H
+  _mm_storeu_si128((__m128i *)H, s0);
+  _mm_storeu_si128((__m128i *)(H + 4), s1);
+}
+
+// 1 when the processor has the SHA extensions and SSE4.1 (CPUID leaf 7 EBX bit 29, leaf 1
+// ECX bits 19 and 9)
+static int cpu_has_sha(void) {
+  unsigned a, b, c, d;
+  if (!__get_cpuid(1, &a, &b, &c, &d) || !(c & (1u << 19)) || !(c & (1u << 9))) return 0;
+  if (__get_cpuid_max(0, NULL) < 7) return 0;
+  __cpuid_count(7, 0, a, b, c, d);
+  return (b >> 29) & 1u;
+}
+#endif
+
+// -1: not yet decided; 0: the portable code; 1: the SHA extensions
+static int g_hw = -1;
+
+int fmbd_sha256_hw(int enable) {
+#ifdef FMBD_SHA_X86
+  if (g_hw < 0 || enable >= 0) g_hw = cpu_has_sha() && enable != 0;
+#else
+  g_hw = 0;
+#endif
+  return g_hw;
+}
+
+static void compress_blocks(uint32_t H[8], const unsigned char *p, uint64_t nblk) {
+#ifdef FMBD_SHA_X86
+  if (g_hw < 0) fmbd_sha256_hw(-1);
+  if (g_hw) {
+    compress_ni(H, p, nblk);
+    return;
+  }
+#endif
+  for (; nblk > 0; nblk--, p += 64) compress(H, p);
+}
+
 void fmbd_sha256_init(fmbd_sha256 *s) {
   // section 5.3.3: the first 32 bits of the fractional parts of the square roots of the
   // first 8 primes
@@ -82,10 +165,12 @@ void fmbd_sha256_update(fmbd_sha256 *s, const void *data, uint64_t n) {
     p += take;
     n -= take;
     if (s->nbuf < 64) return;
-    compress(s->h, s->buf);
+    compress_blocks(s->h, s->buf, 1);
     s->nbuf = 0;
   }
-  for (; n >= 64; n -= 64, p += 64) compress(s->h, p);
+  compress_blocks(s->h, p, n / 64);
+  p += n / 64 * 64;
+  n %= 64;
   if (n) {
     memcpy(s->buf, p, (size_t)n);
     s->nbuf = (unsigned)n;

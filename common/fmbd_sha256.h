@@ -20,5 +20,8 @@ void fmbd_sha256_final(fmbd_sha256 *s, char hex[65]);
 void fmbd_sha256_hex(const void *data, uint64_t n, char hex[65]);
 /// @brief SHA-256 of a file's contents. FMBD_ERR_IO if it cannot be read.
 int fmbd_sha256_file(const char *path, char hex[65]);
+/// @brief Whether the x86 SHA extensions are used: enable 0 forces the portable code, 1 uses
+/// them when the processor has them, -1 only asks. Returns 1 when they are used.
+int fmbd_sha256_hw(int enable);
 
 #endif

@@ -454,6 +454,31 @@ int main(int argc, char **argv) {
            : mesh.tet_nodes == 10 ? "tet10"
                                   : "tet",
            (long long)mesh.nbeam, mesh.ngroups, fmbd_wall_s() - t0, fmbd_cpu_s() - c0);
+  if (mesh.ntet > 0) {
+    fmbd_mesh_quality_stats q;
+    fmbd_mesh_quality(&mesh, &q);
+    fmbd_log(FMBD_LOG_INFO,
+             "%s: element shape: worst aspect ratio %.3g (element %lld), smallest scaled "
+             "Jacobian %.3g (element %lld), smallest det J over its straight-sided value %.3g "
+             "(element %lld)",
+             a.input, q.worst_ar, (long long)q.worst_ar_elem, q.min_sj, (long long)q.min_sj_elem,
+             q.min_cr, (long long)q.min_cr_elem);
+    if (q.n_ar_bad > 0 || q.n_sj_bad > 0) {
+      bool by_ar = q.n_ar_bad > 0;
+      int64_t e = by_ar ? q.worst_ar_elem : q.min_sj_elem;
+      const int64_t *w = mesh.tet + e * mesh.tet_nodes;
+      fmbd_log(FMBD_LOG_WARN,
+               "%s: %lld tetrahedra with an aspect ratio above %g, %lld with a scaled Jacobian "
+               "below %g; the worst: element %lld (0-based, corner at (%.6g, %.6g, %.6g)), "
+               "aspect ratio %.3g, scaled Jacobian %.3g: K is ill-conditioned (fe2cb's "
+               "residuals show by how much) and slivers act as stiff penalties between their "
+               "nodes (docs/STABILITY.md, element shape)",
+               a.input, (long long)q.n_ar_bad, FMBD_MESH_AR_WARN, (long long)q.n_sj_bad,
+               FMBD_MESH_SJ_WARN, (long long)e, mesh.xyz[3 * w[0]], mesh.xyz[3 * w[0] + 1],
+               mesh.xyz[3 * w[0] + 2], by_ar ? q.worst_ar : q.min_sj_ar,
+               by_ar ? q.worst_ar_sj : q.min_sj);
+    }
+  }
   FMBD_GCALL(check_groups(&a, &mesh));
   if (mesh.nbeam > 0 && !(a.fe.area > 0)) {
     fmbd_err_context(a.input, "");

@@ -4,23 +4,27 @@
 # the first driven, theta_1(t) = -pi/2 - (pi/6) sin(2 pi t) (here: the chain starts hanging along
 # -z, theta_1 = -pi/2, and the driver prescribes -(pi/6) sin(2 pi t) from there), under gravity.
 # Our choices (the paper's copy we have gives none): link length 0.5 m, solid circular section of
-# radius 0.01 m, steel (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3), 5 elements per link.
+# radius 0.01 m, steel (E = 210 GPa, nu = 0.3, rho = 7850 kg/m^3), NE elements per link (10).
 #
 # Bases of every link, m = number of modes:
 #   NM   fe2cb --method nm --modes m           (free-free normal modes, rigid ones removed)
 #   CB   fe2cb --modes m                       (m fixed-interface + the 12 constraint modes:
 #                                               m + 6 flexible modes)
-#   GMc  gmsolve on the reference scene, the body's rows of the first m global modes
+#   GMc  gmsolve --keep-drivers on the reference scene (the global modes of the chain with the
+#        driven joint held), the body's rows of the first m global modes
+#   GMc-free  the same with the driven joint free in the global modes (gmsolve's default)
 #   GMs  written by gmsolve, not read by fmbd-run yet (not run)
-# Reference: each link as a CB body with 12 fixed-interface modes (18 of its 60 flexible modes;
-# richer bases make the beam's floating-frame mass matrix indefinite, as below). The full model (FM: .fe.h5 beam bodies) cannot be the reference today: with
-# beam elements its mass matrix in the floating frame is not positive definite (lumped-mass
-# inertia invariants against the consistent mass), and fmbd-run stops (see README.md).
+# Reference: each link as the modal body of all its 6 NE free-free flexible modes (fe2cb --method
+# nm): a complete basis, which spans every FE dof, i.e. the full model in modal coordinates with
+# the consistent rigid-flexible coupling (THEORY section 9). The full model as .fe.h5 beam bodies
+# (FM) does not run yet: their coupling uses the lumped nodal masses (THEORY section 6, "Limits").
+# Initial state: the rigid chain's motion under the driver at t = 0 (see scene()).
 # Error: eps_RMS of each link's end point over the run (docs/THEORY.md section 7), the largest
 # over the links; CPU: the run's /stats cpu_time_s.
 #
 #   /usr/bin/python3 examples/nlink/nlink.py [--links 2,4] [--modes 1,2,4,6] [--t-end 0.5]
-#       [--out build/nlink]      (programs from build/bin)
+#       [--ne 10] [--step H] [--methods NM,CB,GMc,GMc-free] [--out build/nlink]
+#       (programs from build/bin)
 import argparse
 import math
 import os
@@ -44,15 +48,23 @@ def sh(out, *args, may_fail=False):
     return p
 
 
-def scene(path, nb, t_end, body_file, basis=None, keep=None):
+def scene(path, nb, t_end, step, body_file, basis=None, keep=None):
     lines = ["title: %d-link pendulum of beams" % nb, "gravity: [0, 0, -9.81]",
-             "solver: {t_end: %g, max_step: 1e-3}" % t_end, "bodies:"]
+             ("solver: {t_end: %g, step: %g}" % (t_end, step) if step else
+              "solver: {t_end: %g, max_step: 1e-3}" % t_end), "bodies:"]
+    # the initial velocities are the rigid chain's under the driver, theta_1'(0) = -(pi/6) 2 pi about y
+    # (link k's frame origin at (0, 0, -k L) moves at w x r): the driver starts at full speed, and
+    # bodies started at rest would be set moving by fmbd-run's least-change projection, which
+    # puts part of the velocity jump into the modal velocities, differently in every basis
+    # (README.md: that made NM and GMc stall at 5.5e-3 m)
+    w = -math.pi / 6 * 2 * math.pi
     for k in range(nb):
         extra = ""
         if basis:
             extra = ", basis: %s, modes: %d" % (basis, keep)
         lines.append("  - {name: link%d, type: flexible, file: %s, position: [0, 0, %g], "
-                     "orientation: {axis: y, angle: 1.5707963267948966}%s}" % (k, body_file, -k * L, extra))
+                     "orientation: {axis: y, angle: 1.5707963267948966}, velocity: [%.17g, 0, 0], "
+                     "angular_velocity: [0, %.17g, 0]%s}" % (k, body_file, -k * L, -w * k * L, w, extra))
     lines.append("joints:")
     lines.append("  - {name: j0, type: revolute, body1: ground, body2: link0, point: [0, 0, 0], axis: y, "
                  "at2: {interface: end0}}")
@@ -81,6 +93,9 @@ def main():
     ap.add_argument("--links", default="2,4")
     ap.add_argument("--modes", default="1,2,4,6")
     ap.add_argument("--t-end", type=float, default=0.5)
+    ap.add_argument("--step", type=float, default=0, help="fixed step (s); 0: variable, max 1e-3 s")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMc-free")
+    ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
     out = os.path.abspath(a.out)
@@ -88,38 +103,58 @@ def main():
     os.environ["PATH"] = os.path.join(ROOT, "build", "bin") + os.pathsep + os.environ["PATH"]
     links = [int(x) for x in a.links.split(",")]
     modes = [int(x) for x in a.modes.split(",")]
-    sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--circle", "0.01", "--E", "210e9", "--nu", "0.3",
+    methods = a.methods.split(",")
+    sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--size", "%.12g" % (L / a.ne), "--circle", "0.01",
+       "--E", "210e9", "--nu", "0.3",
        "--rho", "7850", "--interface", "end0", "--interface", "end1", "-o", "link.fe.h5", "-q")
-    sh(out, "fe2cb", "link.fe.h5", "--modes", "12", "-o", "ref.cb.h5", "-q")
+    # reference: every link as the modal body of all its 6 NE free-free flexible modes, a complete
+    # basis (every FE dof: the full model in modal coordinates, with the consistent coupling)
+    nfull = 6 * a.ne
+    sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(nfull), "-o", "ref.cb.h5", "-q")
     for m in modes:
         sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(m), "-o", "nm%d.cb.h5" % m, "-q")
         sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", "cb%d.cb.h5" % m, "-q")
     rows = []
     for nb in links:
-        scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, "ref.cb.h5")
-        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "ref%d.gm.h5" % nb, "-q")
+        scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, "ref.cb.h5")
+        # GMc: the global modes with the driven joint held (--keep-drivers: the boundary condition
+        # the prescribed motion imposes); GMc-free: with it left free (gmsolve's default)
+        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "--keep-drivers", "-o", "ref%d.gm.h5" % nb,
+           "-q")
+        if "GMc-free" in methods:
+            sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "free%d.gm.h5" % nb, "-q")
         sh(out, "fmbd-run", "ref%d.yaml" % nb, "-o", "ref%d.run.h5" % nb, "-q")
         ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
-        with h5py.File(os.path.join(out, "ref%d.gm.h5" % nb), "r") as f:
-            ntot = int(f["global"].attrs["coordinates"])
-        rows.append((nb, "ref (CB 12)", 18, cref, 0.0, ntot))
+        rows.append((nb, "ref (NM all %d)" % nfull, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
         for m in modes:
             for meth, body, basis, nflex in (("NM", "nm%d.cb.h5" % m, None, m),
+                                             ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m),
                                              ("CB", "cb%d.cb.h5" % m, None, m + 6),
                                              ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m)):
+                if meth not in methods:
+                    continue
+                nfl = [nflex] * nb
+                if basis:       # the GMc columns each link has from the first m global modes
+                    with h5py.File(os.path.join(out, basis), "r") as f:
+                        nfl = [int(np.sum(f["gmc/link%d/global_mode" % k][()] <= m)) for k in range(nb)]
+                shown_f = str(nflex) if not basis else "%d..%d" % (min(nfl), max(nfl))
+                # the paper's n_tot: 7 n_b + sum f_i coordinates, 5 n_b + 1 constraint equations
+                ntot = 12 * nb + sum(nfl) + 1
                 name = "%s%d_%d" % (meth, nb, m)
-                scene(os.path.join(out, name + ".yaml"), nb, a.t_end, body, basis, m)
+                scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, m)
                 if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
-                    rows.append((nb, "%s m=%d" % (meth, m), nflex, math.nan, math.nan, 7 * nb + nb * nflex))
+                    rows.append((nb, "%s m=%d" % (meth, m), shown_f, math.nan, math.nan, ntot, []))
                     continue
                 pos, cpu = result(os.path.join(out, name + ".run.h5"), nb)
-                eps = max(math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref))
-                rows.append((nb, "%s m=%d" % (meth, m), nflex, cpu, eps, 7 * nb + nb * nflex))
-    print("| n_b | basis | flexible coordinates per link | coordinates | CPU (s) | eps_RMS of the link ends (m) |")
-    print("|---|---|---|---|---|---|")
-    for nb, meth, nf, cpu, eps, nt in rows:
+                each = [math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref)]
+                rows.append((nb, "%s m=%d" % (meth, m), shown_f, cpu, max(each), ntot, each))
+    print("| n_b | basis | flexible coordinates per link | n_tot | CPU (s) | eps_RMS, largest over the link ends (m) "
+          "| eps_RMS of P1 .. Pn_b (m) |")
+    print("|---|---|---|---|---|---|---|")
+    for nb, meth, nf, cpu, eps, nt, each in rows:
         shown = "-" if meth.startswith("ref") else ("run failed" if math.isnan(eps) else "%.2e" % eps)
-        print("| %d | %s | %d | %d | %s | %s |" % (nb, meth, nf, nt, "-" if math.isnan(cpu) else "%.2f" % cpu, shown))
+        print("| %d | %s | %s | %d | %s | %s | %s |" % (nb, meth, nf, nt, "-" if math.isnan(cpu) else "%.2f" % cpu, shown,
+                                                    " / ".join("%.1e" % e for e in each)))
 
 
 if __name__ == "__main__":

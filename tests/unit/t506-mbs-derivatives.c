@@ -132,7 +132,8 @@ int main(void) {
   int64_t n = 0;
   m->maxn = 7;
   for (int ib = 0; ib < m->nb; ib++)
-    m->b[ib].off = n, n += m->b[ib].n, m->maxn = m->b[ib].n > m->maxn ? m->b[ib].n : m->maxn;
+    m->b[ib].off = n, m->b[ib].qoff = n + 7, m->b[ib].gn = m->b[ib].n, n += m->b[ib].n,
+    m->maxn = m->b[ib].n > m->maxn ? m->b[ib].n : m->maxn;
   m->n = n;
   double *x = fmbd_calloc((size_t)n, 8), *xd = fmbd_calloc((size_t)n, 8),
          *xdd = fmbd_calloc((size_t)n, 8);
