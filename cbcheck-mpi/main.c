@@ -12,6 +12,7 @@
 // its own row block of /K and /M. The other processes wait for process 0's orders without
 // spinning (a non-blocking broadcast tested every millisecond): cbcheck's serial work on process
 // 0 keeps its core.
+#include <slepcsys.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <string.h>
@@ -24,8 +25,6 @@
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
 #include "fmbd_slepc.h"
-
-#include <slepcsys.h>
 
 int fmbd_cbcheck_main(int argc, char **argv);  // cbcheck-mpi/cbcheck.c
 
@@ -69,8 +68,8 @@ static int solve(const char *fe_path, int64_t nev, bool free_body, double *lambd
 }
 
 // fmbd_check_exact_engine of process 0: the order to the others, then the solve with them
-static int engine(void *ctx, const char *fe_path, const fmbd_csr *K, const fmbd_csr *M,
-                  int64_t nev, bool free_body, double *lambda) {
+static int engine(void *ctx, const char *fe_path, const fmbd_csr *K, const fmbd_csr *M, int64_t nev,
+                  bool free_body, double *lambda) {
   (void)ctx;
   (void)K;  // each process reads its own rows from the file
   (void)M;
