@@ -426,8 +426,9 @@ static int init_dimensions(fmbd_mbs *m) {
   neq += m->nd + m->nb;
   m->neq = neq;
   size_t nn = (size_t)n;
-  double **arrs[] = {&m->x,  &m->xd,   &m->xdd, &m->a,     &m->xn,     &m->xdn,    &m->xddn,
-                     &m->an, &m->xddp, &m->res, &m->scale, &m->nscale, &m->ascale, &m->floor_};
+  double **arrs[] = {&m->x,     &m->xd,     &m->xdd,    &m->a,      &m->xn,
+                     &m->xdn,   &m->xddn,   &m->an,     &m->xddp,   &m->res,
+                     &m->scale, &m->nscale, &m->ascale, &m->floor_, &m->rscale};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++)
     FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
   size_t mx = (size_t)m->maxn, n6 = mx - 1;
@@ -594,6 +595,11 @@ static void init_scales(fmbd_mbs *m) {
       else
         m->floor_[k] = MODAL_FLOOR * m->Lref * QUNIT(b), m->nscale[k] = 1e-3 * m->Lref * QUNIT(b);
       m->scale[k] = m->floor_[k];
+      // an FE dof is a nodal displacement (rotation) in the frame: the constraints' round-off
+      // (eps Lref) reaches it through the frame's motion, amplified where the dof carries
+      // little mass (a beam's nodal rotations), so its Newton increment stagnates at a few
+      // eps Lref, not at eps nscale = 1e-3 eps Lref (measured: a two-link beam pendulum's FM)
+      m->rscale[k] = b->fe && i >= 7 ? m->Lref : m->nscale[k];
     }
   }
   for (int64_t e = 0; e < neq; e++) {
@@ -786,6 +792,7 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->h_next = m->set.fixed ? m->set.step : m->set.first_step;
   m->h_fact = 0;
   m->h_prop = 0;
+  m->err_prev[0] = m->err_prev[1] = 0;
   m->k_out = 0;
   m->st.coordinates = m->n;
   m->st.equations = m->m;
