@@ -160,6 +160,7 @@ typedef struct mbody {
   mbs_fe *fe;        // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
   double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
   bool spin_warned;  // mbs_spin_check warned
+  bool rate_warned;  // mbs_spin_check warned of h Omega > 1 - rho_inf
   // shared modal coordinates (GMs, fmbd_mbs_share_modal): the bodies of a set use one block of
   // nm coordinates, stored after the frame of the set's first body (its owner)
   int share;           // owner body of the set, or -1 (the body's own coordinates)
