@@ -4,8 +4,7 @@
 // behind --exact differs (cbcheck-mpi/main.c sets it through fmbd_check_set_exact_engine).
 // SPDX-License-Identifier: MIT
 #define CBCHECK_PROG "cbcheck-mpi"
-#define CBCHECK_USAGE_NOTE \
-  "cbcheck-mpi: --exact on MPI processes (SLEPc, MUMPS; man cbcheck-mpi)\n"
+#define CBCHECK_USAGE_NOTE "cbcheck-mpi: --exact on MPI processes (SLEPc, MUMPS; man cbcheck-mpi)\n"
 #define main fmbd_cbcheck_main
 int fmbd_cbcheck_main(int argc, char **argv);
 #include "../cbcheck/main.c"

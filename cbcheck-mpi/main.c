@@ -12,6 +12,7 @@
 // its own row block of /K and /M. The other processes wait for process 0's orders without
 // spinning (a non-blocking broadcast tested every millisecond): cbcheck's serial work on process
 // 0 keeps its core.
+#include <slepcsys.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <string.h>
@@ -24,8 +25,6 @@
 #include "fmbd_h5.h"
 #include "fmbd_log.h"
 #include "fmbd_slepc.h"
-
-#include <slepcsys.h>
 
 int fmbd_cbcheck_main(int argc, char **argv);  // cbcheck-mpi/cbcheck.c
 
@@ -57,20 +56,20 @@ static int solve(const char *fe_path, int64_t nev, bool free_body, double *lambd
   }
   if (rc == FMBD_OK) {
     fmbd_log(FMBD_LOG_INFO,
-             "exact eigenvalues on %d processes: %lld pairs, shift %.6g, largest residual %.2g, "
+             "exact eigenvalues on %d process%s: %lld pairs, shift %.6g, largest residual %.2g, "
              "Sturm count %lld below %.10g; time: read %.3g s, shift pass %.3g s, MUMPS "
              "factorisation %.3g s, Krylov-Schur %.3g s (%lld restarts), Sturm count %.3g s",
-             fmbd_slepc_size(), (long long)nev, info.sigma, info.max_residual,
-             (long long)info.sturm_count, info.sturm_shift, info.t_read, info.t_first,
-             info.t_factor, info.t_solve, (long long)info.its, info.t_sturm);
+             fmbd_slepc_size(), fmbd_slepc_size() > 1 ? "es" : "", (long long)nev, info.sigma,
+             info.max_residual, (long long)info.sturm_count, info.sturm_shift, info.t_read,
+             info.t_first, info.t_factor, info.t_solve, (long long)info.its, info.t_sturm);
   }
   fmbd_h5_close(&f);
   return rc;
 }
 
 // fmbd_check_exact_engine of process 0: the order to the others, then the solve with them
-static int engine(void *ctx, const char *fe_path, const fmbd_csr *K, const fmbd_csr *M,
-                  int64_t nev, bool free_body, double *lambda) {
+static int engine(void *ctx, const char *fe_path, const fmbd_csr *K, const fmbd_csr *M, int64_t nev,
+                  bool free_body, double *lambda) {
   (void)ctx;
   (void)K;  // each process reads its own rows from the file
   (void)M;

@@ -7,7 +7,8 @@
 #    GMs = GMc (for one body they are the same span, GMc merely orthonormalised);
 # 2. TWO flexible bodies (a double pendulum of tet10 rods, full FE bodies): GMs runs with 1, 3,
 #    6, 12 global modes converge to the run of the full FE model (FM), and the run has
-#    7 per body + K coordinates (the K shared once);
+#    7 per body + K coordinates (the K shared once); a chain of four modal (CB) beams converges
+#    to the run with their own modes;
 # 3. bad input: GMs bodies asking for different numbers of modes, more modes than the file has,
 #    an unknown basis_kind: refused naming the scene line, nothing written;
 # 4. fmbd-run -M and gmsolve: a scene whose bodies name `basis: X.gm.h5` with make: gm_scene
@@ -15,7 +16,9 @@
 #    rule, once); make -n orders them, a real make builds the run, a touched reference scene
 #    remakes the basis only;
 # 5. the spatial slider-crank on a coarse mesh: the global frequencies = scipy's solution of the
-#    same constrained problem; GMs = GMc on the mid-span node (one flexible body).
+#    same constrained problem; GMs = GMc on the mid-span node (one flexible body);
+# 6. gmsolve --xdmf read back by meshio (python3-meshio): nodes, cells and one mode's
+#    displacement against /gms/<body>/shapes in the h5.
 import os
 import re
 import shutil
@@ -162,6 +165,37 @@ check(errs[0] > 2 * errs[1] > 4 * errs[2] > 8 * errs[3] and errs[3] < 1e-8,
 check(ncoord == [14 + k for k in (1, 3, 6, 12)],
       f"two FE rods: a GMs run has 7 per body + K coordinates ({ncoord})")
 
+# modal bodies too: a chain of four CB beams (fe2cb, 6 fixed-interface modes each) under
+# gravity, GMs with 4, 12, 20 global modes against the run with the beams' own modes
+fegen.write(os.path.join(TMP, "coupler.fe.h5"),
+            fegen.beam(n_el=8, length=0.4, radius=0.01, interfaces={"end0": [0], "end1": [8]}))
+run("fe2cb", "coupler.fe.h5", "--modes", "6", "-o", "coupler.cb.h5", "-q")
+CH = ["title: chain of four CB beams", "gravity: [0, -9.81, 0]", "solver: {t_end: 0.1, step: 2e-4}", "bodies:"]
+for i in range(4):
+    CH.append("  - {name: b%d, type: flexible, file: coupler.cb.h5, position: [%g, 0, 0]X}" % (i, 0.4 * i))
+CH.append("joints:")
+CH.append("  - {name: j0, type: revolute, body1: ground, body2: b0, point: [0, 0, 0], axis: z, at2: {interface: end0}}")
+for i in range(1, 4):
+    CH.append("  - {name: j%d, type: revolute, body1: b%d, body2: b%d, point: [%g, 0, 0], axis: z, "
+              "at1: {interface: end1}, at2: {interface: end0}}" % (i, i - 1, i, 0.4 * i))
+CH += ["outputs:", "  every: 0.01", "  points:", "    - {name: tip, body: b3, node: 8, quantities: [position]}"]
+CH = "\n".join(CH) + "\n"
+write("chain.yaml", CH.replace("X}", "}"))
+run("gmsolve", "chain.yaml", "--modes", "20", "-o", "chain.gm.h5", "-q")
+run("fmbd-run", "chain.yaml", "-o", "chain.run.h5", "-q")
+own = point("chain.run.h5", "tip")
+errs = []
+for k in (4, 12, 20):
+    write("chain%d.yaml" % k, CH.replace("X}", ", basis: chain.gm.h5, basis_kind: gms, modes: %d}" % k))
+    run("fmbd-run", "chain%d.yaml" % k, "-o", "chain%d.run.h5" % k, "-q")
+    errs.append(np.max(np.abs(point("chain%d.run.h5" % k, "tip") - own)))
+d = np.max(np.abs(own - own[0]))
+# measured 1.9e-6, 4.5e-7, 1.0e-8 m (the tip falls 4.9e-2 m): each step a factor 2 at least, and
+# 20 global modes within 1e-7 m (2e-6 of the motion)
+check(errs[0] > 2 * errs[1] > 4 * errs[2] and errs[2] < 1e-7,
+      "four CB beams: GMs with 4, 12, 20 global modes against their own modes: tip error "
+      + ", ".join("%.1e" % e for e in errs) + " m (motion %.1e m)" % d)
+
 # --- 3. bad input ----------------------------------------------------------------------------
 def refused(name, line, what):
     p = subprocess.run(["fmbd-run", name, "-o", "bad.run.h5"], cwd=TMP, capture_output=True, text=True)
@@ -219,6 +253,12 @@ with h5py.File(os.path.join(TMP, "mk", "ref.gm.h5"), "r") as f:
 os.utime(os.path.join(TMP, "ref.yaml"))
 dry = subprocess.run(["make", "-n", "mk/gms.run.h5"], cwd=TMP, capture_output=True, text=True).stdout
 check("gmsolve ref.yaml" in dry and "mesh2fe" not in dry, "ref.yaml touched: make remakes the basis, not the body")
+# without make: gm_scene, the existing basis file says how it was made (its recorded scene and
+# the options that fix its content)
+write("gmsrec.yaml", open(os.path.join(TMP, "gmsmk.yaml")).read().replace(", gm_scene: ref.yaml, gmsolve: --modes 4", ""))
+rec = run("fmbd-run", "-M", "gmsrec.yaml", "--body-dir", "mk", "-o", "mk/rec.run.h5").stdout
+check("mk/ref.gm.h5: ref.yaml" in rec and "\tgmsolve ref.yaml --body-dir mk --modes 4 --rank-tol 0.001 -o $@" in rec,
+      "fmbd-run -M without gm_scene: gmsolve's rule from the scene and options the basis file records")
 write("badmk.yaml", REF.replace("mesh2fe: --size 0.03 --interface end0 --interface end1",
                                 "gm_scene: ref.yaml"))
 p = subprocess.run(["fmbd-run", "-M", "badmk.yaml"], cwd=TMP, capture_output=True, text=True)
@@ -268,5 +308,55 @@ a, b = point("ssc_gms.run.h5", "mid"), point("ssc_gmc.run.h5", "mid")
 d, e = np.max(np.abs(a - a[0])), np.max(np.abs(a - b))
 # one span in two coordinate sets: the Newton tolerance (1e-8 relative) of the motion, 1e-6
 check(d > 0 and e < 1e-6 * d, f"spatial slider-crank, 2 global modes: GMs mid-span = GMc ({e:.1e} m of {d:.2e} m)")
+# --- 6. gmsolve --xdmf: the global modes on the bodies' meshes, read back by meshio ------------
+# a tet10 rod clamped at end0, turned 90 degrees about z and moved: the frame does not move in the
+# modes (f = 0), so mode k's displacement is A (/expand /gms/rod/shapes[:, k]) at every node,
+# times the display scale /fields/mode_scale[k]
+write("xclamp.yaml", """title: clamped solid rod, turned
+solver: {t_end: 0.01}
+bodies:
+  - name: rod
+    type: flexible
+    file: rodfe.fe.h5
+    position: [0.1, 0.2, 0.3]
+    orientation: {matrix: [0, -1, 0, 1, 0, 0, 0, 0, 1]}
+joints:
+  - {name: clamp, type: fixed, body1: ground, body2: rod, at2: {interface: end0}}
+""")
+run("gmsolve", "xclamp.yaml", "--modes", "3", "--xdmf", "-o", "xclamp.gm.h5", "-q")
+xd = os.path.join(TMP, "xclamp.gm.xdmf")
+check(os.path.exists(xd) and not os.path.exists(xd + ".part"), "gmsolve --xdmf: xclamp.gm.xdmf beside xclamp.gm.h5")
+try:
+    import meshio
+except ImportError:
+    meshio = None
+    check(False, "python3-meshio (scripts/install-deps.sh) is installed")
+import scipy.sparse as sp  # noqa: E402
+with h5py.File(os.path.join(TMP, "rodfe.fe.h5"), "r") as b:
+    x0, tets = b["mesh/nodes"][()], b["mesh/elements/tet10"][()]
+    e = b["expand"]
+    E = sp.csr_matrix((e["data"][()], e["indices"][()], e["indptr"][()]), shape=tuple(e.attrs["shape"]))
+with h5py.File(os.path.join(TMP, "xclamp.gm.h5"), "r") as f:
+    S, sc = f["gms/rod/shapes"][()], f["fields/mode_scale"][()]
+Arot = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
+world = np.array([0.1, 0.2, 0.3]) + x0 @ Arot.T
+if meshio is not None:
+    with meshio.xdmf.TimeSeriesReader(xd) as r:
+        points, blocks = r.read_points_cells()
+        check(r.num_steps == 3, f"meshio: {r.num_steps} frames = 3 global modes")
+        check(len(blocks) == 1 and blocks[0].type == "tetra10"
+              and np.array_equal(blocks[0].data, tets[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]]),
+              f"meshio: cells = /mesh/elements/tet10 in XDMF order ({len(tets)} tet10)")
+        k = 1
+        tk, pdata, _ = r.read_data(k)
+        u = sc[k] * (E @ S[:, k]).reshape(-1, 6)[:, :3] @ Arot.T
+        du = np.abs(pdata["displacement"] - u).max() / np.abs(u).max()
+        # the same products in another order: round-off, 1e-12 relative
+        check(tk == k + 1 and du < 1e-12, f"meshio: mode {k + 1} (time {tk}) displacement = A E shapes x scale "
+              f"(rel {du:.1e}; largest {np.abs(u).max():.3g} m, 10 % of the rod)")
+    with h5py.File(os.path.join(TMP, "xclamp.gm.h5"), "r") as f:
+        pos = f["fields/frames/%d/position" % k][()]
+    dpos = np.abs(pos - (world + u)).max()
+    check(dpos < 1e-12, f"frame {k}: positions = the reference world positions + the displacement ({dpos:.1e} m)")
 finish()
 print("all passed")
