@@ -8,12 +8,16 @@
 #
 # Bases of every link, m = number of modes:
 #   NM   fe2cb --method nm --modes m           (free-free normal modes, rigid ones removed)
+#   NM-held  fe2cb --method nm --hold --modes m of a link whose only interface is end0: the
+#        link's modes held at its joint end0 (cantilever modes; the frame at the joint node)
 #   CB   fe2cb --modes m                       (m fixed-interface + the 12 constraint modes:
 #                                               m + 6 flexible modes)
 #   GMc  gmsolve --keep-drivers on the reference scene (the global modes of the chain with the
 #        driven joint held), the body's rows of the first m global modes
 #   GMc-free  the same with the driven joint free in the global modes (gmsolve's default)
-#   GMs  written by gmsolve, not read by fmbd-run yet (not run)
+#   GMc-nbm   GMc of the first n_b m global modes (up to m columns per link, as the paper's GMc)
+#   GMs  the GMs basis of the same file (driven joint held): m coordinates shared by all links
+#        (basis_kind: gms; fmbd-run reads it since wip/gmshared)
 # Reference: each link as the modal body of all its 6 NE free-free flexible modes (fe2cb --method
 # nm): a complete basis, which spans every FE dof, i.e. the full model in modal coordinates with
 # the consistent rigid-flexible coupling (THEORY section 9). The full model as .fe.h5 beam bodies
@@ -23,7 +27,8 @@
 # over the links; CPU: the run's /stats cpu_time_s.
 #
 #   /usr/bin/python3 examples/nlink/nlink.py [--links 2,4] [--modes 1,2,4,6] [--t-end 0.5]
-#       [--ne 10] [--step H] [--methods NM,CB,GMc,GMc-free] [--out build/nlink]
+#       [--ne 10] [--step H] [--methods NM,NM-held,CB,GMc,GMc-free,GMc-nbm,GMs] [--ref complete|fm]
+#       [--plot PREFIX] [--out build/nlink]
 #       (programs from build/bin)
 import argparse
 import math
@@ -48,7 +53,8 @@ def sh(out, *args, may_fail=False):
     return p
 
 
-def scene(path, nb, t_end, step, body_file, basis=None, keep=None):
+def scene(path, nb, t_end, step, body_file, basis=None, keep=None, kind="gmc", end1="interface: end1"):
+    """end1: the place of a link's far end (a link file without that interface: its end node)."""
     lines = ["title: %d-link pendulum of beams" % nb, "gravity: [0, 0, -9.81]",
              ("solver: {t_end: %g, step: %g}" % (t_end, step) if step else
               "solver: {t_end: %g, max_step: 1e-3}" % t_end), "bodies:"]
@@ -62,6 +68,8 @@ def scene(path, nb, t_end, step, body_file, basis=None, keep=None):
         extra = ""
         if basis:
             extra = ", basis: %s, modes: %d" % (basis, keep)
+            if kind == "gms":
+                extra += ", basis_kind: gms"
         lines.append("  - {name: link%d, type: flexible, file: %s, position: [0, 0, %g], "
                      "orientation: {axis: y, angle: 1.5707963267948966}, velocity: [%.17g, 0, 0], "
                      "angular_velocity: [0, %.17g, 0]%s}" % (k, body_file, -k * L, -w * k * L, w, extra))
@@ -70,13 +78,13 @@ def scene(path, nb, t_end, step, body_file, basis=None, keep=None):
                  "at2: {interface: end0}}")
     for k in range(1, nb):
         lines.append("  - {name: j%d, type: revolute, body1: link%d, body2: link%d, point: [0, 0, %g], axis: y, "
-                     "at1: {interface: end1}, at2: {interface: end0}}" % (k, k - 1, k, -k * L))
+                     "at1: {%s}, at2: {interface: end0}}" % (k, k - 1, k, -k * L, end1))
     lines.append("drivers:")
     lines.append("  - {name: theta1, joint: j0, function: {type: sine, amplitude: %.17g, frequency_hz: 1}}"
                  % (-math.pi / 6))
     lines.append("outputs:\n  every: 0.005\n  points:")
     for k in range(nb):
-        lines.append("    - {name: end%d, body: link%d, interface: end1, quantities: [position]}" % (k, k))
+        lines.append("    - {name: end%d, body: link%d, %s, quantities: [position]}" % (k, k, end1))
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
 
@@ -88,13 +96,42 @@ def result(path, nb):
     return pos, cpu
 
 
+def plot(prefix, rows):
+    """PREFIX-cpu.svg: CPU time against n_tot (the paper's Figure 10), PREFIX-error.svg: the
+    largest eps_RMS of the link ends against n_b (Table 5), one line per basis."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    series = {}
+    for nb, meth, nf, cpu, eps, nt, each in rows:
+        if not math.isnan(cpu):
+            series.setdefault(meth, []).append((nb, nt, cpu, eps))
+    for what, xi, yi, xlabel, ylabel in (("cpu", 1, 2, "n_tot", "CPU time of the run (s)"),
+                                         ("error", 0, 3, "n_b", "eps_RMS, largest over the link ends (m)")):
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for meth, pts in series.items():
+            if what == "error" and meth.startswith("ref"):
+                continue
+            ax.semilogy([p[xi] for p in pts], [p[yi] for p in pts], "o-", label=meth)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig("%s-%s.svg" % (prefix, what))
+        plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--links", default="2,4")
     ap.add_argument("--modes", default="1,2,4,6")
     ap.add_argument("--t-end", type=float, default=0.5)
     ap.add_argument("--step", type=float, default=0, help="fixed step (s); 0: variable, max 1e-3 s")
-    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMc-free")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, NM-held, CB, GMc, GMc-free, GMc-nbm, GMs")
+    ap.add_argument("--ref", choices=("complete", "fm"), default="complete",
+                    help="reference: all free-free modes of each link, or the full .fe.h5 links")
+    ap.add_argument("--plot", metavar="PREFIX", help="PREFIX-cpu.svg and PREFIX-error.svg")
     ap.add_argument("--ne", type=int, default=10, help="beam elements per link")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "nlink"))
     a = ap.parse_args()
@@ -107,47 +144,65 @@ def main():
     sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--size", "%.12g" % (L / a.ne), "--circle", "0.01",
        "--E", "210e9", "--nu", "0.3",
        "--rho", "7850", "--interface", "end0", "--interface", "end1", "-o", "link.fe.h5", "-q")
+    if "NM-held" in methods:
+        sh(out, "mesh2fe", os.path.join(HERE, "link.geo"), "--size", "%.12g" % (L / a.ne), "--circle", "0.01",
+           "--E", "210e9", "--nu", "0.3", "--rho", "7850", "--interface", "end0", "-o", "link0.fe.h5", "-q")
     # reference: every link as the modal body of all its 6 NE free-free flexible modes, a complete
     # basis (every FE dof: the full model in modal coordinates, with the consistent coupling)
     nfull = 6 * a.ne
+    # (--ref fm: the links as full .fe.h5 beam bodies, once fmbd-run runs them)
     sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(nfull), "-o", "ref.cb.h5", "-q")
+    reffile, refname = ("link.fe.h5", "FM") if a.ref == "fm" else ("ref.cb.h5", "NM all %d" % nfull)
     for m in modes:
         sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(m), "-o", "nm%d.cb.h5" % m, "-q")
+        if "NM-held" in methods:
+            sh(out, "fe2cb", "link0.fe.h5", "--method", "nm", "--hold", "--modes", str(m), "-o", "nmh%d.cb.h5" % m, "-q")
         sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", "cb%d.cb.h5" % m, "-q")
     rows = []
     for nb in links:
-        scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, "ref.cb.h5")
+        scene(os.path.join(out, "ref%d.yaml" % nb), nb, a.t_end, a.step, reffile)
         # GMc: the global modes with the driven joint held (--keep-drivers: the boundary condition
         # the prescribed motion imposes); GMc-free: with it left free (gmsolve's default)
-        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "--keep-drivers", "-o", "ref%d.gm.h5" % nb,
-           "-q")
+        kmax = max(modes) * (nb if "GMc-nbm" in methods else 1)
+        sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(kmax), "--keep-drivers", "-o", "ref%d.gm.h5" % nb, "-q")
         if "GMc-free" in methods:
             sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "free%d.gm.h5" % nb, "-q")
         sh(out, "fmbd-run", "ref%d.yaml" % nb, "-o", "ref%d.run.h5" % nb, "-q")
         ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
-        rows.append((nb, "ref (NM all %d)" % nfull, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
+        rows.append((nb, "ref (%s)" % refname, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
         for m in modes:
-            for meth, body, basis, nflex in (("NM", "nm%d.cb.h5" % m, None, m),
-                                             ("GMc-free", "ref.cb.h5", "free%d.gm.h5" % nb, m),
-                                             ("CB", "cb%d.cb.h5" % m, None, m + 6),
-                                             ("GMc", "ref.cb.h5", "ref%d.gm.h5" % nb, m)):
+            # (method, body file, basis file, flexible coordinates per link, global modes kept)
+            for meth, body, basis, nflex, keep in (("NM", "nm%d.cb.h5" % m, None, m, 0),
+                                                   ("NM-held", "nmh%d.cb.h5" % m, None, m, 0),
+                                                   ("GMc-free", reffile, "free%d.gm.h5" % nb, m, m),
+                                                   ("CB", "cb%d.cb.h5" % m, None, m + 6, 0),
+                                                   ("GMc", reffile, "ref%d.gm.h5" % nb, m, m),
+                                                   ("GMc-nbm", reffile, "ref%d.gm.h5" % nb, m, m * nb),
+                                                   ("GMs", reffile, "ref%d.gm.h5" % nb, m, m)):
                 if meth not in methods:
                     continue
-                nfl = [nflex] * nb
-                if basis:       # the GMc columns each link has from the first m global modes
+                nfl, shown_f = [nflex] * nb, str(nflex)
+                if meth == "GMs":       # keep coordinates shared by all links
+                    nfl, shown_f = [keep] + [0] * (nb - 1), "%d shared" % keep
+                elif basis:             # the GMc columns each link has from the first keep global modes
                     with h5py.File(os.path.join(out, basis), "r") as f:
-                        nfl = [int(np.sum(f["gmc/link%d/global_mode" % k][()] <= m)) for k in range(nb)]
-                shown_f = str(nflex) if not basis else "%d..%d" % (min(nfl), max(nfl))
+                        nfl = [int(np.sum(f["gmc/link%d/global_mode" % k][()] <= keep)) for k in range(nb)]
+                    shown_f = "%d..%d" % (min(nfl), max(nfl))
                 # the paper's n_tot: 7 n_b + sum f_i coordinates, 5 n_b + 1 constraint equations
                 ntot = 12 * nb + sum(nfl) + 1
                 name = "%s%d_%d" % (meth, nb, m)
-                scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, m)
+                label = "%s m=%d" % (meth, m) + (" (%d global modes)" % keep if meth == "GMc-nbm" else "")
+                scene(os.path.join(out, name + ".yaml"), nb, a.t_end, a.step, body, basis, keep,
+                      "gms" if meth == "GMs" else "gmc",
+                      "nearest: [%g, 0, 0]" % L if meth == "NM-held" else "interface: end1")
                 if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
-                    rows.append((nb, "%s m=%d" % (meth, m), shown_f, math.nan, math.nan, ntot, []))
+                    rows.append((nb, label, shown_f, math.nan, math.nan, ntot, []))
                     continue
                 pos, cpu = result(os.path.join(out, name + ".run.h5"), nb)
                 each = [math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref)]
-                rows.append((nb, "%s m=%d" % (meth, m), shown_f, cpu, max(each), ntot, each))
+                rows.append((nb, label, shown_f, cpu, max(each), ntot, each))
+    if a.plot:
+        plot(a.plot, rows)
     print("| n_b | basis | flexible coordinates per link | n_tot | CPU (s) | eps_RMS, largest over the link ends (m) "
           "| eps_RMS of P1 .. Pn_b (m) |")
     print("|---|---|---|---|---|---|---|")

@@ -19,6 +19,7 @@
 #   NM   fe2cb --method nm --modes m         free-free normal modes
 #   CB   fe2cb --modes m                     m fixed-interface + 12 constraint modes (m + 6)
 #   GMc  gmsolve on the linearisation scene (links as in the reference), basis: GMc, modes m
+#   GMs  the same file's GMs basis: m coordinates shared by the four links (basis_kind: gms)
 #   reference (--ref complete, the default): NM with all 6 NE flexible modes, a complete basis
 #        (the FM in modal coordinates), checked against CB with all 6 NE - 6 fixed-interface modes;
 #        --ref fm: the links as full .fe.h5 beam bodies
@@ -26,7 +27,8 @@
 # (fmbd-run --reference; docs/THEORY.md section 7).
 #
 #   /usr/bin/python3 examples/sarrus/sarrus.py [--ne 10] [--modes 2,4,7,9] [--t-end 0.15]
-#       [--step 1e-4] [--ref fm|cb] [--table8] [--out build/sarrus]
+#       [--step 1e-4] [--ref fm|complete] [--methods NM,CB,GMc,GMs] [--z0 Z] [--table8]
+#       [--write-scene YAML] [--out build/sarrus]
 import argparse
 import math
 import os
@@ -84,11 +86,12 @@ def poses(ze):
     return e, limbs
 
 
-def scene(path, ze, t_end, step, files, basis=None, keep=None):
+def scene(path, ze, t_end, step, files, basis=None, keep=None, kind="gmc", make=None, header=""):
     """files: the body file of each link (dict; None: a rigid link); basis: a .gm.h5 (GMc, first
-    keep modes)."""
+    keep modes; kind gms: the GMs basis, one set of keep coordinates shared by the links); make: the
+    make chain of the links' file (on the first link: fmbd-run -M); header: comment lines."""
     e, limbs = poses(ze)
-    lines = ["title: Sarrus six-link mechanism, platform at z = %g" % ze,
+    lines = header.splitlines() + ["title: Sarrus six-link mechanism, platform at z = %g" % ze,
              "gravity: [0, 0, -9.81]",
              "solver: {t_end: %g, step: %g, rho_inf: 0.9}" % (t_end, step), "bodies:"]
 
@@ -98,13 +101,17 @@ def scene(path, ze, t_end, step, files, basis=None, keep=None):
         for name, p0, p1 in (("prox%d" % (k + 1), a, b), ("dist%d" % (k + 1), b, c)):
             r = frame(p1 - p0, axis)
             extra = ", basis: %s, modes: %d" % (basis, keep) if basis else ""
+            if basis and kind == "gms":
+                extra += ", basis_kind: gms"
             if files[name] is None:     # a rigid link (the rigid twin of the mechanism)
-                kind = "geometry: {shape: cylinder, length: %g, radius: %g, density: %g, axis: x, center: [%g, 0, 0]}" \
+                what = "geometry: {shape: cylinder, length: %g, radius: %g, density: %g, axis: x, center: [%g, 0, 0]}" \
                     % (L, RADIUS, RHO, L / 2)
             else:
-                kind = "type: flexible, file: %s" % files[name]
+                what = "type: flexible, file: %s" % files[name]
             lines.append("  - {name: %s, %s, position: %s, orientation: {matrix: [%s]}%s}"
-                         % (name, kind, vec(p0), ", ".join("%.15g" % x for x in r.ravel()), extra))
+                         % (name, what, vec(p0), ", ".join("%.15g" % x for x in r.ravel()), extra))
+            if make and name == LINKS[0]:
+                lines[-1] = lines[-1][:-1] + ",\n     make: {%s}}" % ", ".join("%s: %s" % kv for kv in make.items())
     lines.append("  - {name: platform, geometry: {shape: box, size: [%g, %g, %g], density: %g}, position: %s}"
                  % (PLATE + (RHO_PLATE, vec(e))))
     lines.append("joints:")
@@ -148,10 +155,26 @@ def main():
     ap.add_argument("--t-end", type=float, default=0.15)
     ap.add_argument("--step", type=float, default=1e-4)
     ap.add_argument("--ref", choices=("fm", "complete"), default="complete")
-    ap.add_argument("--methods", default="NM,CB,GMc")
+    ap.add_argument("--methods", default="NM,CB,GMc", help="of NM, CB, GMc, GMs")
     ap.add_argument("--table8", action="store_true", help="print the first 20 global modes")
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "sarrus"))
+    ap.add_argument("--z0", type=float, default=0.0,
+                    help="the platform centre's initial height (m); -0.031: start at the linearisation configuration")
+    ap.add_argument("--write-scene", metavar="YAML", help="write the scene (NM all modes, make chain) and exit")
     a = ap.parse_args()
+    if a.write_scene:
+        mesh = "--size %.12g --circle %g --E 210e9 --nu 0.3 --rho %g --interface end0 --interface end1" % (
+            L / a.ne, RADIUS, RHO)
+        head = ("# examples/sarrus/sarrus.yaml: the Sarrus six-link mechanism falling from p0 = (0.282, 0.282, 0)\n"
+                "# (README.md), each link the modal body of all its %d free-free modes (the full model in\n"
+                "# modal coordinates). Written by: sarrus.py --write-scene sarrus.yaml. Run:\n"
+                "#   fmbd-run -M sarrus.yaml --body-dir out > out/sarrus.mk\n"
+                "#   make -f out/sarrus.mk out/link.cb.h5\n"
+                "#   fmbd-run sarrus.yaml --body-dir out -o out/sarrus.run.h5\n" % (6 * a.ne))
+        scene(a.write_scene, 0.0, a.t_end, a.step, files_of("link.cb.h5"), header=head,
+              make={"geometry": "link.geo", "mesh2fe": mesh, "fe": "link.fe.h5",
+                    "fe2cb": "--method nm --modes %d" % (6 * a.ne)})
+        return
     out = os.path.abspath(a.out)
     os.makedirs(out, exist_ok=True)
     os.environ["PATH"] = os.path.join(ROOT, "build", "bin") + os.pathsep + os.environ["PATH"]
@@ -175,7 +198,7 @@ def main():
     # the global modes at the linearisation point, the links as in the reference
     scene(os.path.join(out, "lin.yaml"), -0.031, a.t_end, a.step, reffiles)
     kmax = max(max(modes), 20 if a.table8 else 0)
-    p = sh(out, "gmsolve", "lin.yaml", "--modes", str(kmax), "-o", "lin.gm.h5", "-v")
+    p = sh(out, "gmsolve", "lin.yaml", "--modes", str(kmax), "--plot", "sarrus", "-o", "lin.gm.h5", "-v")
     for line in p.stderr.splitlines():
         if "mobility" in line or "redundan" in line or line.startswith("gmsolve: lin"):
             print(line)
@@ -188,13 +211,13 @@ def main():
             print("|---|---|---|---|---|")
             for i in range(min(20, len(fr))):
                 print("| %d | %.2f | %.3e | %.3e | %.3e |" % ((i + 1, fr[i]) + tuple(pm[i])))
-    scene(os.path.join(out, "ref.yaml"), 0.0, a.t_end, a.step, reffiles)
+    scene(os.path.join(out, "ref.yaml"), a.z0, a.t_end, a.step, reffiles)
     sh(out, "fmbd-run", "ref.yaml", "-o", "ref.run.h5", "-q")
     with h5py.File(os.path.join(out, "ref.run.h5"), "r") as f:
         cref = float(f["stats"].attrs["cpu_time_s"])
         pe = f["outputs/E/position"][()]
     if a.ref == "complete":
-        scene(os.path.join(out, "cball.yaml"), 0.0, a.t_end, a.step, files_of("cball.cb.h5"))
+        scene(os.path.join(out, "cball.yaml"), a.z0, a.t_end, a.step, files_of("cball.cb.h5"))
         sh(out, "fmbd-run", "cball.yaml", "-o", "cball.run.h5", "-q")
         eps, cpu, _, _ = rms(os.path.join(out, "cball.run.h5"), os.path.join(out, "ref.run.h5"))
         print("the other complete basis, CB all %d + 6: eps_RMS of E %.2e m, CPU %.2f s" % (nfull - 6, eps, cpu))
@@ -210,13 +233,15 @@ def main():
             elif meth == "CB":
                 body, basis, nf = "cb%d.cb.h5" % m, None, "%d + 6" % m
                 sh(out, "fe2cb", "link.fe.h5", "--modes", str(m), "-o", body, "-q")
+            elif meth == "GMs":
+                body, basis, nf = reffile, "lin.gm.h5", "%d shared" % m
             else:
                 body, basis = reffile, "lin.gm.h5"
                 with h5py.File(os.path.join(out, "lin.gm.h5"), "r") as f:
                     nk = [int(np.sum(f["gmc/%s/global_mode" % n][()] <= m)) for n in LINKS]
                 nf = "/".join(str(x) for x in nk)
             name = "%s%d" % (meth, m)
-            scene(os.path.join(out, name + ".yaml"), 0.0, a.t_end, a.step, files_of(body), basis, m)
+            scene(os.path.join(out, name + ".yaml"), a.z0, a.t_end, a.step, files_of(body), basis, m, meth.lower())
             if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
                 print("| %s m=%d | %s | - | run failed |" % (meth, m, nf))
                 continue
