@@ -12,13 +12,15 @@
 # BENCH_LOGVIEW=1: instead, where the time of fe2cb-mpi goes on 1 and 2 processes (PETSc's
 # -log_view: MUMPS analysis and factorisations, the solves, the waits for messages) on one
 # rod of BENCH_LOGVIEW_SIZE=0.0033 (about 130 k dofs), each run twice, the lower kept.
+# BENCH_EXACT=1: instead, cbcheck --exact against cbcheck-mpi --exact on 1 and 2 processes on
+# a rod of BENCH_EXACT_SIZE=0.0047 (about 51 k dofs; 6 rigid-body modes and 10 flexible).
 set -u
 ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}
 BUILD=${BUILD:-build}
 PYTHON=${PYTHON:-/usr/bin/python3}
 BENCH_OUT=${BENCH_OUT:-$ROOT/$BUILD/bench}
 export PATH="$ROOT/$BUILD/bin:$PATH"
-if ! command -v mpirun > /dev/null || [ ! -x "$ROOT/$BUILD/bin/fe2cb-mpi" ]; then
+if ! command -v mpirun > /dev/null || [ ! -x "$ROOT/$BUILD/bin/fe2cb-mpi" ] || [ ! -x "$ROOT/$BUILD/bin/cbcheck-mpi" ]; then
   echo "bench/mpi.sh: no mpirun or no $BUILD/bin/fe2cb-mpi (make deps && make mpi): not run"
   exit 0
 fi
@@ -43,6 +45,31 @@ mpi_figures() {  # NAME: fe2cb-mpi -v figures
   sed -n 's/.*peak memory: process 0 \([0-9]*\) MB, largest process \([0-9]*\) MB.*/p0 \1 MB, largest \2 MB/p' "$1.err"
 }
 
+if [ "${BENCH_EXACT:-0}" = 1 ]; then
+  # cbcheck --exact (ARPACK + CHOLMOD) against cbcheck-mpi on 1 and 2 processes (SLEPc + MUMPS)
+  h=${BENCH_EXACT_SIZE:-0.0047}
+  fe=rod-$h.fe.h5
+  [ -f "$fe" ] || mesh2fe "$ROOT/examples/geometry/rod.geo" --size "$h" --interface end0 \
+    --interface end1 -o "$fe" -q || exit 1
+  [ -f ex-$h.cb.h5 ] || fe2cb "$fe" --modes "$N" -o ex-$h.cb.h5 -q || exit 1
+  run ex-s 1 cbcheck ex-$h.cb.h5 --exact --range 10 --csv ex-s.csv -v || exit 1
+  echo "  cbcheck --exact:            $wall s wall, $cpu s cpu, $rss_mb MB; exact: $(grep -o 'exact [0-9.]* s' ex-s.err | sed -n '1s/exact/wall/p;2s/exact/cpu/p' | paste -sd' ')"
+  run ex-p1 1 cbcheck-mpi ex-$h.cb.h5 --exact --range 10 --csv ex-p1.csv -v || exit 1
+  echo "  cbcheck-mpi, 1 process:     $wall s wall, $cpu s cpu, $rss_mb MB; exact: $(grep -o 'exact [0-9.]* s' ex-p1.err | sed -n '1s/exact/wall/p;2s/exact/cpu/p' | paste -sd' ')"
+  run ex-p2 1 "${MPIRUN[@]}" -np 2 cbcheck-mpi ex-$h.cb.h5 --exact --range 10 --csv ex-p2.csv -v || exit 1
+  echo "  cbcheck-mpi, 2 processes:   $wall s wall, $cpu s cpu (both), $rss_mb MB (largest); exact: $(grep -o 'exact [0-9.]* s' ex-p2.err | sed -n '1s/exact/wall/p;2s/exact/cpu/p' | paste -sd' ')"
+  grep -h 'exact eigenvalues on' ex-p1.err ex-p2.err | sed 's/^cbcheck-mpi: /    /'
+  "$PYTHON" - ex-s.csv ex-p1.csv ex-p2.csv <<'PY'
+import csv, sys
+rows = [list(csv.DictReader(open(f))) for f in sys.argv[1:]]
+chi = lambda r: [float(x["eigenvalue"]) / (1 + float(x["exact"])) for x in r]
+s = chi(rows[0])
+e = max(abs(a - b) / b for r in rows[1:] for a, b in zip(chi(r), s))
+print(f"    exact eigenvalues of the three runs agree to {e:.1e} relative")
+PY
+  echo "load average $(cut -d' ' -f1-3 /proc/loadavg) at the end"
+  exit 0
+fi
 if [ "${BENCH_LOGVIEW:-0}" = 1 ]; then
   h=${BENCH_LOGVIEW_SIZE:-0.0033}
   fe=rod-$h.fe.h5

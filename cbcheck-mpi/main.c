@@ -56,12 +56,12 @@ static int solve(const char *fe_path, int64_t nev, bool free_body, double *lambd
   }
   if (rc == FMBD_OK) {
     fmbd_log(FMBD_LOG_INFO,
-             "exact eigenvalues on %d processes: %lld pairs, shift %.6g, largest residual %.2g, "
+             "exact eigenvalues on %d process%s: %lld pairs, shift %.6g, largest residual %.2g, "
              "Sturm count %lld below %.10g; time: read %.3g s, shift pass %.3g s, MUMPS "
              "factorisation %.3g s, Krylov-Schur %.3g s (%lld restarts), Sturm count %.3g s",
-             fmbd_slepc_size(), (long long)nev, info.sigma, info.max_residual,
-             (long long)info.sturm_count, info.sturm_shift, info.t_read, info.t_first,
-             info.t_factor, info.t_solve, (long long)info.its, info.t_sturm);
+             fmbd_slepc_size(), fmbd_slepc_size() > 1 ? "es" : "", (long long)nev, info.sigma,
+             info.max_residual, (long long)info.sturm_count, info.sturm_shift, info.t_read,
+             info.t_first, info.t_factor, info.t_solve, (long long)info.its, info.t_sturm);
   }
   fmbd_h5_close(&f);
   return rc;

@@ -36,7 +36,8 @@ struct fmbd_h5 {
   char sha[65];      ///< SHA-256 of the bytes read (read handles), "" otherwise
   int ninputs, cap;  ///< the `inputs` attribute, written at commit
   char **input_name, **input_sha;
-  double last_flush_s;  ///< wall clock of the last flush (series flush at most every 0.5 s)
+  double last_flush_s;  ///< wall clock of the last flush (fmbd_h5_flush_due)
+  bool metadata_held;   ///< metadata evictions off: the disk changes only at flushes (series)
   bool inputs_checked;  ///< the recorded inputs were compared with the files at hand
 };
 
@@ -1574,7 +1575,34 @@ int fmbd_h5_read_attr_i64(fmbd_h5 *f, const char *obj, const char *name, int64_t
 }
 
 // --- time series -------------------------------------------------------------------------------
-#define SERIES_FLUSH_S 0.5  // flush the file at most this often while appending
+#define SERIES_FLUSH_S 0.5  // a file of series is due for a flush this often while it grows
+
+bool fmbd_h5_flush_due(const fmbd_h5 *f) {
+  return fmbd_wall_s() - f->last_flush_s >= SERIES_FLUSH_S;
+}
+
+// Keep the file's dirty metadata in memory until the next fmbd_h5_flush: HDF5's metadata cache
+// otherwise writes an evicted object header (one series' new extent) at any moment, and a file
+// killed between two flushes shows series of unequal lengths or does not open. With evictions
+// off, what is on disk changes only inside H5Fflush (HDF5 1.10 reference, H5Pset_mdc_config:
+// evictions may be disabled only with the automatic resizing modes off). The cache then holds
+// every metadata entry of the file: a few per series and per chunk-index node, small.
+static int hold_metadata(fmbd_h5 *f) {
+  int rc = FMBD_OK;
+  if (f->metadata_held) return FMBD_OK;
+  H5AC_cache_config_t cfg;
+  memset(&cfg, 0, sizeof cfg);
+  cfg.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+  FMBD_H5(H5Fget_mdc_config(f->fid, &cfg), FMBD_ERR_EXTERNAL, "H5Fget_mdc_config failed");
+  cfg.incr_mode = H5C_incr__off;
+  cfg.flash_incr_mode = H5C_flash_incr__off;
+  cfg.decr_mode = H5C_decr__off;
+  cfg.evictions_enabled = 0;
+  FMBD_H5(H5Fset_mdc_config(f->fid, &cfg), FMBD_ERR_EXTERNAL, "H5Fset_mdc_config failed");
+  f->metadata_held = true;
+done:
+  return rc;
+}
 
 int fmbd_h5_series_create(fmbd_h5 *f, const char *path, int64_t ncols, fmbd_h5_series **out) {
   int rc = FMBD_OK;
@@ -1583,6 +1611,7 @@ int fmbd_h5_series_create(fmbd_h5 *f, const char *path, int64_t ncols, fmbd_h5_s
   *out = NULL;
   FMBD_GCHECK(f->writing, FMBD_ERR_INTERNAL, "series in a read handle");
   FMBD_GCHECK(ncols >= 0, FMBD_ERR_INTERNAL, "negative column count");
+  FMBD_GCALL(hold_metadata(f));
   FMBD_GALLOC(s = fmbd_calloc(1, sizeof *s));
   s->dset = -1;
   FMBD_GALLOC(s->path = fmbd_strdup(path));
@@ -1625,7 +1654,6 @@ int fmbd_h5_series_append(fmbd_h5_series *s, int64_t nrows, const double *rows) 
   FMBD_H5(H5Dwrite(s->dset, H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, rows), FMBD_ERR_IO,
           "cannot write series");
   s->nrows += nrows;
-  if (fmbd_wall_s() - s->f->last_flush_s >= SERIES_FLUSH_S) FMBD_GCALL(fmbd_h5_flush(s->f));
 done:
   close_id(&msp, H5Sclose);
   close_id(&fsp, H5Sclose);

@@ -161,8 +161,13 @@ typedef struct fmbd_h5_series fmbd_h5_series;
 /// @brief Create an extendible f64 dataset of rows of `ncols` values (ncols == 0: a 1-D
 /// series of scalars). @param[out] out caller closes with fmbd_h5_series_close
 int fmbd_h5_series_create(fmbd_h5 *f, const char *path, int64_t ncols, fmbd_h5_series **out);
-/// @brief Append nrows rows (row-major).
+/// @brief Append nrows rows (row-major). Nothing reaches the disk's metadata before the next
+/// fmbd_h5_flush (a file with series holds its metadata in memory between flushes), so a file
+/// killed at any moment shows its series as of the last flush: flush after appending to every
+/// series of a row block, not between them.
 int fmbd_h5_series_append(fmbd_h5_series *s, int64_t nrows, const double *rows);
+/// @brief Whether a growing file is due for a flush (0.5 s of wall time since the last one).
+bool fmbd_h5_flush_due(const fmbd_h5 *f);
 /// @brief Rows written so far.
 int64_t fmbd_h5_series_rows(const fmbd_h5_series *s);
 void fmbd_h5_series_close(fmbd_h5_series **s);

@@ -299,8 +299,8 @@ struct fmbd_mbs {
 // smallest singular value of the kept constraint rows (unit-normalised, coordinates in their
 // scales: L_ref for translations) is below SINGULAR_TOL. Measured on the spatial slider-crank
 // (docs/STABILITY.md, Constraints): 0.03 to 0.09 at regular positions (metre and millimetre
-// scale alike), 3e-5 where Newton fails at its dead point; the value falls as the square root
-// of the distance to the fold (2.8e-2 at 0.01 s before it), so 1e-3 is reached about 1.4e-5 s
+// scale alike), 3e-5 to 1e-4 where Newton fails at its dead point; the value falls as the square
+// root of the distance to the fold (2.8e-2 at 0.01 s before it), so 1e-3 is reached about 1.4e-5 s
 // (2.7e-6 m of travel) before the fold.
 #define SINGULAR_TOL 1e-3
 

@@ -178,6 +178,16 @@ static int flush_series(fmbd_runfile *rf) {
   return FMBD_OK;
 }
 
+// Every series has the same rows now: when due, put them and /stats on disk together, so that
+// a run killed at any moment (SIGKILL included) leaves a .part whose series are of equal length
+// and whose /stats describe them (fmbd_h5_series_append holds the metadata until a flush)
+static int flush_block(fmbd_runfile *rf) {
+  FMBD_CALL(flush_series(rf));
+  if (!fmbd_h5_flush_due(rf->f)) return FMBD_OK;
+  FMBD_CALL(write_stats(rf, false));
+  return fmbd_h5_flush(rf->f);
+}
+
 int fmbd_runfile_put(fmbd_runfile *rf, int id, const double *values) {
   FMBD_CHECK(id >= 0 && id < rf->n, FMBD_ERR_VALUE, "no series %d", id);
   series *c = &rf->ser[id];
@@ -195,7 +205,7 @@ int fmbd_runfile_row(fmbd_runfile *rf, double t) {
     FMBD_CHECK(rf->ser[i].rows == rf->rows, FMBD_ERR_VALUE, "%s: no value in row %lld",
                rf->ser[i].path, (long long)rf->rows - 1);
   }
-  if (rf->ser[0].nbuf == BLOCK_ROWS) FMBD_CALL(flush_series(rf));
+  if (rf->ser[0].nbuf == BLOCK_ROWS) FMBD_CALL(flush_block(rf));
   rf->rows++;
   return fmbd_runfile_put(rf, 0, &t);
 }

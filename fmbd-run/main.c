@@ -58,6 +58,27 @@ typedef struct run {
   double last_progress_s, t0_wall;
 } run;
 
+// A run stopped at a singular position names the joints and drivers whose equations are
+// dependent: the scene line of the first driver named (the motion that drove it there), else of
+// the first joint named; 0 when the message is not about a singular position.
+static int singular_line(const fmbd_scene *s, const char *msg) {
+  if (!strstr(msg, "constraints are singular")) return 0;
+  const char *d = strstr(msg, " driver"), *j = strstr(msg, " joint");
+  char q[300];
+  for (int i = 0; d && i < s->ndrivers; i++) {
+    snprintf(q, sizeof q, "'%s'", s->drivers[i].name);
+    if (strstr(d, q)) return s->drivers[i].loc.line;
+  }
+  const char *best = NULL;
+  int line = 0;
+  for (int i = 0; j && i < s->njoints; i++) {
+    snprintf(q, sizeof q, "'%s'", s->joints[i].name);
+    const char *at = strstr(j, q);
+    if (at && (!best || at < best)) best = at, line = s->joints[i].loc.line;
+  }
+  return line;
+}
+
 static int on_step(fmbd_mbs *mb, bool at_output, void *user) {
   run *r = user;
   if (at_output) FMBD_CALL(fmbd_scene_record(r->rec));
@@ -237,6 +258,8 @@ int main(int argc, char **argv) {
     fmbd_runfile_abandon(&rf, t_stop);
   } else if (rc == FMBD_ERR_CONVERGE || rc == FMBD_ERR_SINGULAR) {
     fmbd_err_context(scene_file, "");  // a failure on the way: keep the prefix computed so far
+    int line = singular_line(s, fmbd_err_get()->msg);
+    if (line > 0) fmbd_err_contextf(scene_file, "%d", line);
     fmbd_runfile_abandon(&rf, t_stop);
   }
   if (rc) goto done;

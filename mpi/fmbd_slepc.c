@@ -776,7 +776,9 @@ int fmbd_slepc_exact(fmbd_h5 *f, int64_t nev, bool free_body, const fmbd_slepc_o
 
   // --- the pairs: nev and one more (the Sturm shift goes between them) ---
   double t1 = MPI_Wtime();
-  int64_t want = nev + 1;
+  // a few more than nev: the Sturm shift goes in the first clear gap above the last wanted one
+  // (a repeated pair may straddle it, as in fmbd_eig)
+  int64_t want = nev + 4 < n - 1 ? nev + 4 : n - 1;
   FMBD_GCALL(eps_setup(K, M, sigma, want, o.tol, &eps, &ksp, &pc));
   info->t_factor = tmax(MPI_Wtime() - t1);
   t1 = MPI_Wtime();
@@ -811,23 +813,25 @@ int fmbd_slepc_exact(fmbd_h5 *f, int64_t nev, bool free_body, const fmbd_slepc_o
   info->next = lam[nev];
   EPSDestroy(&eps);  // the factor: freed before the Sturm factor (as large)
 
-  // --- never missed: the inertia of K - s M, s midway between the last pair and the next ---
+  // --- never missed: the inertia of K - s M, s midway in the first gap (1e-6 relative) above
+  // the last wanted eigenvalue; the count must equal the pairs found below s ---
   {
     t1 = MPI_Wtime();
-    double lo = lam[nev - 1], hi = lam[nev];
-    FMBD_GCHECK(hi - lo > 1e-6 * fabs(hi), FMBD_ERR_CONVERGE,
-                "eigenvalues %lld and %lld are equal to 1e-6 (%.10g): no gap to place the Sturm "
-                "shift in (ask for one more mode)",
-                (long long)nev, (long long)(nev + 1), hi);
-    double s = 0.5 * (lo + hi);
+    int64_t k = nev;
+    while (k < want && !(lam[k] - lam[k - 1] > 1e-6 * fabs(lam[k]))) k++;
+    FMBD_GCHECK(k < want, FMBD_ERR_CONVERGE,
+                "eigenvalues %lld to %lld are equal to 1e-6 (%.10g): no gap to place the Sturm "
+                "shift in",
+                (long long)nev, (long long)want, lam[nev - 1]);
+    double s = 0.5 * (lam[k - 1] + lam[k]);
     int64_t count = -1;
     FMBD_GCALL(sturm_count(K, M, s, &count));
     info->sturm_shift = s;
     info->sturm_count = count;
-    FMBD_GCHECK(count == nev, FMBD_ERR_CONVERGE,
+    FMBD_GCHECK(count == k, FMBD_ERR_CONVERGE,
                 "Sturm count %lld eigenvalues below %.6g Hz, Krylov-Schur found %lld: a mode was "
                 "skipped",
-                (long long)count, sqrt(fabs(s)) / (2 * M_PI), (long long)nev);
+                (long long)count, sqrt(fabs(s)) / (2 * M_PI), (long long)k);
     info->t_sturm = tmax(MPI_Wtime() - t1);
   }
   memcpy(lambda, lam, (size_t)nev * sizeof(double));

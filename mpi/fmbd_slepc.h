@@ -93,9 +93,10 @@ typedef struct fmbd_slepc_exact_info {
 /// @brief The lowest nev eigenvalues of the whole body, K x = lambda M x (cbcheck --exact),
 /// ascending into lambda (nev doubles, on every process), with fmbd_eig_solve's strategy:
 /// free_body (K singular: rigid-body modes) shifts below zero from a first loose pass; each
-/// pair's relative residual <= o->resid_tol; a Sturm count (MUMPS inertia of K - s M, s midway
-/// to the next eigenvalue) proves that none was skipped. Collective: every process passes its
-/// own open handle of the same fmbd-fe file and reads only its row block of /K and /M.
+/// pair's relative residual <= o->resid_tol; a Sturm count (MUMPS inertia of K - s M, s in the
+/// first gap of 1e-6 above the last wanted eigenvalue) proves that none was skipped. Collective:
+/// every process passes its own open handle of the same fmbd-fe file and reads only its row block
+/// of /K and /M.
 /// @return the same code on every process (as fmbd_slepc_cb_reduce)
 int fmbd_slepc_exact(fmbd_h5 *f, int64_t nev, bool free_body, const fmbd_slepc_opts *o,
                      double *lambda, fmbd_slepc_exact_info *info);

@@ -188,10 +188,12 @@ for name in ("ar", "sliver"):
     # the residual bounds the relative eigenvalue error to first order: fe2cb, scipy and
     # CalculiX on the same matrices / mesh differ by less than it (measured: ar 1.9e-6 and
     # 3.8e-5 at residual 1.3e-4; slivers 2.7e-4 and 2.6e-3 at 3.5e-2)
+    # (CalculiX's own solve of the same ill-conditioned K adds its round-off: against it the
+    # bound is the residual or 1e-4, whichever is larger)
     d1, d2 = np.max(abs(kap / w - 1)), np.max(abs(kap / wc - 1))
-    check(d1 < at["max_residual"] and d2 < at["max_residual"] and at["sturm_count"] == 3,
-          "%s: fe2cb vs scipy %.1e, vs CalculiX %.1e, both < its residual %.1e; Sturm %d of 3"
-          % (name, d1, d2, at["max_residual"], at["sturm_count"]))
+    check(d1 < at["max_residual"] and d2 < max(at["max_residual"], 1e-4) and at["sturm_count"] == 3,
+          "%s: fe2cb vs scipy %.1e (< its residual %.1e), vs CalculiX %.1e; Sturm %d of 3"
+          % (name, d1, at["max_residual"], d2, at["sturm_count"]))
     check(("accepted with relative residuals" in err) == (at["max_residual"] > 1e-4),
           "%s: fe2cb warns iff its residual %.1e > 1e-4" % (name, at["max_residual"]))
 # the aspect ratio alone costs conditioning, not accuracy: f1 of the AR-85 mesh is within

@@ -168,12 +168,14 @@ for line in sc.splitlines():
                       line)
     mm.append(line)
 write("deadmm.yaml", "\n".join(mm) + "\n")
+push_line = 1 + sc.splitlines().index(next(ln for ln in sc.splitlines() if "{name: push," in ln))
 t_dead = (np.sqrt(0.3**2 - (np.hypot(0.1, 0.12) - 0.08)**2) - 0.2078460969) / 0.2
 for name in ("dead", "deadmm"):
     r = run("fmbd-run", name + ".yaml", "-o", name + ".run.h5", ok=False)
     msg = r.stderr.strip().splitlines()[-1] if r.stderr.strip() else ""
     part = os.path.join(TMP, name + ".run.h5.part")
     ok = (r.returncode == 1 and "the constraints are singular (a dead point" in msg
+          and ("%s.yaml:%d: " % (name, push_line)) in msg  # the scene line of the driver
           and "joints 'bearing', 'pin', 'cross' and 'guide' and driver 'push' are dependent" in msg
           and os.path.exists(part))
     t_msg = float(re.search(r"t = ([0-9.e-]+) s", msg).group(1)) if ok else -1
