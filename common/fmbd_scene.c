@@ -17,6 +17,7 @@
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
+#include "fmbd_h5.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -1478,32 +1479,70 @@ static bool has_rule(const char *text, const char *target) {
 
 static int make_rules(const fmbd_scene *s, const char *target, int depth, char **text);
 
-// The rules of a global-mode basis named with make: gm_scene: gmsolve makes it from that scene
-// (its own rules, the chains of its full .fe.h5 bodies, follow), appended to b where b has no
-// rule for the same file yet.
-static int basis_rules(const fmbd_scene *s, const fmbd_scene_body *bd, int depth, sbuf *b) {
+// Without make: gm_scene, an existing basis file says how it was made: the scene gmsolve read
+// (the first of its root `inputs`, a path as gmsolve was given it) and the options that fix
+// its content (--modes K, --at T, --keep-drivers, --rank-tol E). *scene NULL: not known (the
+// file is missing or was not made from a scene file).
+static void recorded_basis(const char *file, char **scene, char *opts, size_t len) {
+  fmbd_h5 *f = NULL;
+  int n = 0;
+  char **names = NULL, **sha = NULL;
+  *scene = NULL;
+  opts[0] = '\0';
+  FILE *t = fopen(file, "rb");
+  if (!t) return;
+  fclose(t);
+  if (fmbd_h5_open(file, &f) || fmbd_h5_read_inputs(f, &n, &names, &sha)) {
+    fmbd_err_clear();
+    fmbd_h5_close(&f);
+    return;
+  }
+  int64_t k = 0, kd = 0;
+  double at = 0, tol = 0;
+  if (n > 0 && (strstr(names[0], ".yaml") || strstr(names[0], ".yml")) &&
+      !fmbd_h5_read_attr_i64(f, "/gms", "modes", 1, &k) &&
+      !fmbd_h5_read_attr_f64(f, "/global", "time", 1, &at) &&
+      !fmbd_h5_read_attr_i64(f, "/global", "keep_drivers", 1, &kd) &&
+      !fmbd_h5_read_attr_f64(f, "/gmc", "rank_tolerance", 1, &tol)) {
+    *scene = fmbd_strdup(names[0]);
+    char atx[64] = "";
+    if (at != 0) snprintf(atx, sizeof atx, " --at %.17g", at);
+    snprintf(opts, len, "--modes %lld%s%s --rank-tol %.17g", (long long)k, atx,
+             kd ? " --keep-drivers" : "", tol);
+  }
+  fmbd_err_clear();
+  for (int i = 0; i < n; i++) fmbd_free(names[i]), fmbd_free(sha[i]);
+  fmbd_free(names);
+  fmbd_free(sha);
+  fmbd_h5_close(&f);
+}
+
+// The rules of a global-mode basis: gmsolve makes it from the scene gm (make: gm_scene, or the
+// one the existing file records) with options opts; that scene's own rules (the chains of its
+// full .fe.h5 bodies) follow, appended to b where b has no rule for the same file yet.
+static int basis_rules(const fmbd_scene *s, const fmbd_scene_body *bd, const char *gm,
+                       const char *opts, int depth, sbuf *b) {
   int rc = 0;
   fmbd_scene *ref = NULL;
   char *rt = NULL;
-  const fmbd_scene_chain *ch = &bd->chain;
   FMBD_CHECK(depth < 4, FMBD_ERR_SCENE,
-             "%s: body '%s': gm_scene %s: bases made from scenes "
-             "that use bases, more than 4 deep (a loop?)",
-             s->file, bd->name, ch->gm_scene);
-  rc = fmbd_scene_read_dir(ch->gm_scene, s->body_dir, &ref);
+             "%s: body '%s': gm_scene %s: bases made from scenes that use bases, more than 4 "
+             "deep (a loop?)",
+             s->file, bd->name, gm);
+  rc = fmbd_scene_read_dir(gm, s->body_dir, &ref);
   if (rc) {
     char msg[1100];
     snprintf(msg, sizeof msg, "%s", fmbd_err_get()->msg);
-    FMBD_GFAIL(rc, "%s:%d: body '%s': make: gm_scene: %s", s->file, bd->loc.line, bd->name, msg);
+    FMBD_GFAIL(rc, "%s:%d: body '%s': the scene %s is made from: %s", s->file, bd->loc.line,
+               bd->name, bd->basis, msg);
   }
   FMBD_GCALL(make_rules(ref, bd->basis, depth + 1, &rt));
   // first block: "basis: gm_scene files...\n"; then "\nTARGET: ...\n\trecipe\n" blocks
   char *cut = strstr(rt, "\n\n");
   size_t head = cut ? (size_t)(cut - rt) + 1 : strlen(rt);
-  sb_add(b, "\n%.*s\tgmsolve %s%s%s%s%s -o $@\n", (int)head, rt, ch->gm_scene,
+  sb_add(b, "\n%.*s\tgmsolve %s%s%s%s%s -o $@\n", (int)head, rt, gm,
          s->body_dir ? " --body-dir " : "", s->body_dir ? s->body_dir : "",
-         ch->gmsolve_args && ch->gmsolve_args[0] ? " " : "",
-         ch->gmsolve_args ? ch->gmsolve_args : "");
+         opts && opts[0] ? " " : "", opts ? opts : "");
   for (char *p = cut ? cut + 1 : NULL; p && *p;) {  // p at "\nTARGET: ..."
     char *e = strstr(p + 1, "\n\n");
     size_t l = e ? (size_t)(e - p) + 1 : strlen(p);
@@ -1600,11 +1639,23 @@ static int make_rules(const fmbd_scene *s, const char *target, int depth, char *
              ch->mesh2fe_args ? ch->mesh2fe_args : "");
     }
   }
-  for (int i = 0; i < s->nbodies; i++) {  // a basis with gm_scene: gmsolve's rule
+  for (int i = 0; i < s->nbodies; i++) {  // a basis: gmsolve's rule, when its scene is known
     const fmbd_scene_body *bd = &s->bodies[i];
-    if (bd->kind != FMBD_SCENE_FLEXIBLE || !bd->basis || !bd->chain.gm_scene) continue;
+    if (bd->kind != FMBD_SCENE_FLEXIBLE || !bd->basis) continue;
     if (b.p && has_rule(b.p, bd->basis)) continue;  // the same basis named by another body
-    int rc = basis_rules(s, bd, depth, &b);
+    bool named = false;  // another body of the same basis names its gm_scene
+    for (int k = 0; k < s->nbodies && !named; k++) {
+      const fmbd_scene_body *o = &s->bodies[k];
+      named = k != i && o->basis && o->chain.gm_scene && !strcmp(o->basis, bd->basis);
+    }
+    if (named && !bd->chain.gm_scene) continue;
+    char *gm = NULL, opts[256];
+    if (!bd->chain.gm_scene) recorded_basis(bd->basis, &gm, opts, sizeof opts);
+    if (!bd->chain.gm_scene && !gm) continue;  // not known: a dependency only
+    int rc = bd->chain.gm_scene
+                 ? basis_rules(s, bd, bd->chain.gm_scene, bd->chain.gmsolve_args, depth, &b)
+                 : basis_rules(s, bd, gm, opts, depth, &b);
+    fmbd_free(gm);
     if (rc) {
       fmbd_free(b.p);
       return rc;

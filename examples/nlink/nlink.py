@@ -21,7 +21,8 @@
 # Reference: each link as the modal body of all its 6 NE free-free flexible modes (fe2cb --method
 # nm): a complete basis, which spans every FE dof, i.e. the full model in modal coordinates with
 # the consistent rigid-flexible coupling (THEORY section 9). The full model as .fe.h5 beam bodies
-# (FM) does not run yet: their coupling uses the lumped nodal masses (THEORY section 6, "Limits").
+# (FM, --ref fm) runs too (THEORY section 4b); its frame is the end0 node's, not mean axes, so it
+# differs from the complete modal basis at second order in the deformation (u^2 / L).
 # Initial state: the rigid chain's motion under the driver at t = 0 (see scene()).
 # Error: eps_RMS of each link's end point over the run (docs/THEORY.md section 7), the largest
 # over the links; CPU: the run's /stats cpu_time_s.
@@ -150,7 +151,7 @@ def main():
     # reference: every link as the modal body of all its 6 NE free-free flexible modes, a complete
     # basis (every FE dof: the full model in modal coordinates, with the consistent coupling)
     nfull = 6 * a.ne
-    # (--ref fm: the links as full .fe.h5 beam bodies, once fmbd-run runs them)
+    # (--ref fm: the links as full .fe.h5 beam bodies)
     sh(out, "fe2cb", "link.fe.h5", "--method", "nm", "--modes", str(nfull), "-o", "ref.cb.h5", "-q")
     reffile, refname = ("link.fe.h5", "FM") if a.ref == "fm" else ("ref.cb.h5", "NM all %d" % nfull)
     for m in modes:
