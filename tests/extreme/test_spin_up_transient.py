@@ -32,7 +32,8 @@
 #   dynamic amplification 1/(1 - (2pi/T)^2/lambda_1) - 1 = 1.2 %; (b) the in-plane spin
 #   softening fmbd-run has (test_spin_up: about -0.09 Omega^2, +2.5 % at Omega = 2); (c) the
 #   reduced basis (cbcheck, 1e-4) and the step (omega_1 h = 0.04: ~1e-4), on the same K and M.
-#   Asserted to 6 %: above (a) + (b), below the conventional linear model's +38 % (1 / (1 - Omega^2/lambda_1)) and the sign of an error;
+#   Asserted to 6 %: above (a) + (b), below the conventional linear model's +38 %
+#   (1 / (1 - Omega^2/lambda_1)) and the sign of an error;
 # - the deflection stays bounded after the spin-up (t > T, Omega^2 = 1.11 lambda_1): its peak
 #   over [T, 20 s] below the peak during the spin-up (the conventional linear model grows
 #   exponentially there, at rate sqrt(Omega^2 - lambda_1) = 1.26 /s: x 530 in 5 s);
