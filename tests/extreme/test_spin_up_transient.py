@@ -13,7 +13,7 @@
 # elements, the cantilever's modes (cbcheck --hold end0).
 #
 # ASSERTED:
-# - the run goes through (20 s, fixed step 0.01 s: omega_1 h = 0.04);
+# - the run goes through (25 s, fixed step 0.01 s: omega_1 h = 0.04);
 # - the hub (the driven joint's body2) follows theta(t): its angle from a point output,
 #   atan2(y, x) of a hub point, to 1e-6 rad (the constraint is solved to newton_tol 1e-8 on
 #   O(1) residuals; measured below 1e-9);
@@ -35,11 +35,12 @@
 #   Asserted to 6 %: above (a) + (b), below the conventional linear model's +38 %
 #   (1 / (1 - Omega^2/lambda_1)) and the sign of an error;
 # - the deflection stays bounded after the spin-up (t > T, Omega^2 = 1.11 lambda_1): its peak
-#   over [T, 20 s] below the peak during the spin-up (the conventional linear model grows
-#   exponentially there, at rate sqrt(Omega^2 - lambda_1) = 1.26 /s: x 530 in 5 s);
+#   over [T, 25 s] below the peak during the spin-up (the conventional linear model grows
+#   exponentially there, at rate sqrt(Omega^2 - lambda_1) = 1.26 /s: x 3e5 in 10 s);
 # - out of the plane nothing moves (no load there): |w| < 1e-6 m.
-# MEASURED (printed; docs/STABILITY.md): the peak deflection, the quasi-static value, the
-# residual ring after T and its omega^2 against test_spin_up's steady-speed shift.
+# - the ring left after T (2 mm at the tip) is at the omega^2 of test_spin_up's steady-speed
+#   runs, lambda_1 - 0.09 Omega^2 (3 %; a consistency check between two tests, not independent);
+# MEASURED (printed; docs/STABILITY.md): the peak deflection, the quasi-static value.
 # NOT VALIDATED: Kane et al.'s own curve (the geometric-stiffening model: in-plane lambda_1 +
 # 0.193 Omega^2) is not reproduced by this toolchain's linear modes; the difference at T/2 is
 # computed below, not asserted against the paper's figure (not read here).
@@ -61,7 +62,7 @@ TMP = tmpdir("test_spin_up_transient")
 run = runner(TMP)
 
 L, A, I, E, RHO = 10.0, 4e-4, 2e-7, 7e10, 3000.0
-W, TS, TEND, H = 4.0, 15.0, 20.0, 0.01
+W, TS, TEND, H = 4.0, 15.0, 25.0, 0.01
 NEL = 10
 b = fegen.beam(n_el=NEL, length=L, E=E, nu=0.3, rho=RHO, section=(A, I, I, 2 * I),
                interfaces={"end0": [0], "end1": [NEL]})
@@ -207,12 +208,29 @@ print("peak |v| %.5g m at t = %.4g s; over [T, %g s] %.4g m" % (abs(v[ip]), t[ip
 check(pk_after < pk_during, "bounded after the spin-up: peak %.3g m after T < %.3g m during" % (pk_after, pk_during))
 check(np.max(np.abs(w)) < 1e-6, "out of plane: max |w| = %.2g m" % np.max(np.abs(w)))
 
-# the residual ring after T: its omega^2 (zero-crossings of v - mean) against test_spin_up's
-# steady-speed in-plane shift (about -0.09 Omega^2), for the record
-va = v[after] - v[after].mean()
-tz = t[after][1:][np.diff(np.sign(va)) != 0]
-if len(tz) >= 3:
-    om = np.pi / np.mean(np.diff(tz))
-    print("after T: ring amplitude %.3g m, omega^2 %.4g rad^2/s^2 (lambda_1 - 0.09 Omega^2 = %.4g; "
-          "conventional linear %.4g)" % (np.max(np.abs(va)), om**2, lam1 - 0.09 * W * W, lam1 - W * W))
+# the residual ring after T, at the steady speed W: its omega^2 from the upward zero crossings
+# (linear interpolation between output rows: the ring is nearly linear over 0.05 s at a
+# crossing, 0.18 rad of phase; the mean removed over whole periods), against test_spin_up's
+# steady-speed in-plane shift (-0.086 to -0.094 Omega^2 measured there on another beam). The
+# conventional linear model has no ring here (lambda_1 - Omega^2 < 0). Asserted to 3 %: the
+# spread of test_spin_up's coefficient is 0.008 Omega^2 = 0.9 %, the crossings' timing
+# (0.18 rad steps, a 2 mm ring on a mean of its own size) about 1 %.
+ta, va = t[after], v[after]
+
+
+def up_crossings(tt, yy):
+    i = np.nonzero((yy[:-1] < 0) & (yy[1:] >= 0))[0]
+    return tt[i] - yy[i] * (tt[i + 1] - tt[i]) / (yy[i + 1] - yy[i])
+
+
+tz = up_crossings(ta, va - va.mean())
+sel = (ta >= tz[0]) & (ta < tz[-1]) if len(tz) >= 2 else np.ones(len(ta), bool)
+tz = up_crossings(ta, va - va[sel].mean())  # mean over whole periods
+om2 = (2 * np.pi / np.mean(np.diff(tz))) ** 2 if len(tz) >= 3 else float("nan")
+pred = lam1 - 0.09 * W * W
+print("after T: ring amplitude %.3g m, %d periods, omega^2 %.4g rad^2/s^2 (test_spin_up's lambda_1 - "
+      "0.09 Omega^2 = %.4g; conventional linear %.4g, no ring)"
+      % (np.max(np.abs(va - va[sel].mean())), len(tz) - 1, om2, pred, lam1 - W * W))
+check(abs(om2 / pred - 1) < 0.03, "the ring after T at omega^2 %.4g, test_spin_up's steady-speed %.4g (3 %%)"
+      % (om2, pred))
 finish()
