@@ -10,7 +10,8 @@
 #     rtol 1e-10), its CPU time, and the RMS difference of link 3's tip over the first 2 s
 #     (before the chaos separates any two solutions);
 #  3. the cost per step against the number of bodies: an N-link rigid pendulum (revolute
-#     joints, N = 2..20), fixed 1e-3 s steps over 2 s.
+#     joints, N = 2..20 over 2 s, N = 100 and 1000 over 0.2 s), fixed 1e-3 s steps; the cost
+#     per body per step (issue 12: <= 2 us, linear in N).
 # No multibody program is packaged in Debian 12 (no MBDyn, Chrono, Simbody, MuJoCo): the peer
 # is scipy on the minimal-coordinate equations. Results on stdout and in $BENCH_OUT.
 set -u
@@ -162,9 +163,10 @@ for name in ("quadrigid", "quadrigidf", "quad30", "quad30f"):
 
 # --- cost per step against the number of bodies ------------------------------------------------
 print("\nN-link rigid pendulum (revolute joints about z, gravity -y), fixed 1e-3 s steps, 2 s")
-print(f"{'N':>3s} {'coord':>6s} {'equations':>9s} {'newton/step':>11s} {'us/step':>9s}")
-for N in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20):
-    s = ["title: %d-link pendulum" % N, "gravity: [0, -9.81, 0]", "solver: {t_end: 2, step: 1e-3}", "bodies:"]
+print(f"{'N':>4s} {'coord':>6s} {'equations':>9s} {'newton/step':>11s} {'us/step':>9s} {'us/body/step':>12s}")
+for N in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 100, 1000):
+    s = ["title: %d-link pendulum" % N, "gravity: [0, -9.81, 0]",
+         "solver: {t_end: %g, step: 1e-3}" % (2 if N <= 20 else 0.2), "bodies:"]
     for i in range(N):
         s.append("  - {name: b%d, geometry: {shape: cylinder, length: 0.3, radius: 0.015, density: 7850, axis: x}, position: [%g, 0, 0]}" % (i, 0.2 + 0.4 * i))
     s.append("joints:")
@@ -173,6 +175,6 @@ for N in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20):
     s.append("outputs:\n  every: 0.01\n  points: [{name: tip, body: b%d, point: [0.2, 0, 0]}]" % (N - 1))
     st = run(f"nlink{N}", "\n".join(s) + "\n")
     if st:
-        print(f"{N:3d} {st['coordinates']:6d} {st['equations']:9d} {st['newton_iterations'] / st['steps']:11.2f} "
-              f"{1e6 * st['run_cpu_time_s'] / st['steps']:9.1f}")
+        print(f"{N:4d} {st['coordinates']:6d} {st['equations']:9d} {st['newton_iterations'] / st['steps']:11.2f} "
+              f"{1e6 * st['run_cpu_time_s'] / st['steps']:9.1f} {1e6 * st['run_cpu_time_s'] / st['steps'] / N:12.2f}")
 EOF

@@ -2,9 +2,10 @@
 # bench/reports.sh: the error-against-run-time reports of the papers' three benchmarks at full
 # size (make bench; alone: make reports), and the demo's body whole against made for its scene
 # (file size, load time). Each writes $BENCH_OUT/reports/NAME/report.{md,csv,svg}
-# through examples/report.mk (driver: examples/report.py). Minutes: the quadruple pendulum's
-# reference keeps 1.5 x the 0.1 % tolerance's Nd fixed-interface modes, run over 7 s twice
-# (the window before separation needs a second, finer reference).
+# through examples/report.mk (driver: examples/report.py). The reference of each is the full FE
+# model of the rod in the same scene, on the mesh and over the time report.mk sets (QP_ARGS,
+# SC_ARGS, SSC_ARGS: the FM's cost); about 10 min of CPU in all on an idle core, most of it the
+# three FM runs and the quadruple pendulum's CB body at 0.1 % (hundreds of modes).
 set -u
 ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}
 BUILD=${BUILD:-build}

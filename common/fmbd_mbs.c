@@ -102,7 +102,7 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
   }
   double *arrs[] = {m->x,      m->xd,   m->xdd,  m->a,    m->lam,   m->xn,    m->xdn,    m->xddn,
                     m->an,     m->lamn, m->xddp, m->res,  m->rhs,   m->scale, m->nscale, m->ascale,
-                    m->floor_, m->wk,   m->bres, m->bblk, m->bwork, m->Ax};
+                    m->floor_, m->wk,   m->bres, m->bblk, m->bwork, m->Ax,    m->rscale};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
   if (m->bpos) {
     for (int i = 0; i < m->nb; i++) fmbd_free(m->bpos[i]);
@@ -426,6 +426,9 @@ int fmbd_mbs_add_fe(fmbd_mbs *m, const char *name, const fmbd_mbs_fe_data *d,
              "body '%s': missing or non-finite node positions", nm_);
   FMBD_CHECK((!d->q0 || mbs_finite_n(d->q0, n)) && (!d->qd0 || mbs_finite_n(d->qd0, n)),
              FMBD_ERR_VALUE, "body '%s': non-finite q0 or qd0", nm_);
+  FMBD_CHECK(
+      !d->S1 == !d->Mw0 && (!d->S1 || (mbs_finite_n(d->S1, 3 * n) && mbs_finite_n(d->Mw0, 3 * n))),
+      FMBD_ERR_VALUE, "body '%s': S1 and Mw0 must be given together, finite", nm_);
   mbs_fe *fe = NULL;
   FMBD_CALL(mbs_fe_create(d, &fe));
   double *q0 = fmbd_calloc((size_t)n, sizeof(double)),

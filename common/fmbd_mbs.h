@@ -238,7 +238,12 @@ typedef struct fmbd_mbs_fe_data {
   const fmbd_csr *E;        ///< (3 nnodes) x n: row a nnodes + p = translation a of node p
   const int64_t *dofs;      ///< 2 x n: node and direction (0..5) of each coordinate, or NULL
                             ///< (names in messages)
-  const double *q0, *qd0;   ///< initial coordinates and rates (n each; NULL: zero)
+  /// the rigid-flexible coupling from a mass Mn does not reproduce (beam elements, whose
+  /// consistent mass couples translations and rotations; docs/THEORY.md section 4b), or NULL
+  /// (from Mn): S1[a + 3k] = T_a' M S_k and Mw0[a + 3k] = R_a' M S_k (M_wf at q = 0), 3 x n
+  /// each, both or neither
+  const double *S1, *Mw0;
+  const double *q0, *qd0;  ///< initial coordinates and rates (n each; NULL: zero)
 } fmbd_mbs_fe_data;
 
 /// @brief Create an empty system (no gravity).

@@ -12,6 +12,12 @@
 //   (2 w . sum_l q'_l int rho S_l x S_k)_k = (E' (2 w x Vd))_k,
 // where E' z for a nodal field z (nn x 3) is sum_a E_a' z_a. Cost per evaluation: a few
 // sparse products with E, E' and Mn, O(nnz); the n x n block is M, K, D on their pattern.
+// Beams (fe_data S1, Mw0; docs/THEORY.md section 4b): the coupling that is linear in the
+// accelerations at q = 0 comes from the body's consistent M instead: S1 = T'MS replaces 1'Mn U
+// (c, S1 q', the rigid rows' and the flexible rows' translational coupling, gravity), and
+// dv = R'MS - E'(e_a x Mn x) is added to the antisymmetric part of each H_k (M_wf, the rigid
+// rows' H, the flexible rows' M_wf' wd); the symmetric part of H_k (J(q), the centrifugal
+// terms) and the terms in U'Mn U keep Mn, as a modal body's XS and SS do (section 9).
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -28,7 +34,7 @@ void mbs_fe_free(mbs_fe **pf) {
   fmbd_csr_destroy(&f->E), fmbd_csr_destroy(&f->Et), fmbd_csr_destroy(&f->Mn);
   fmbd_csr_destroy(&f->P);
   fmbd_free(f->Gv);
-  double *arrs[] = {f->x,   f->m1, f->mx, f->S1, f->Mv, f->Kv, f->Dv, f->U,  f->Ud,
+  double *arrs[] = {f->x,   f->m1, f->mx, f->S1, f->dv, f->Mv, f->Kv, f->Dv, f->U, f->Ud,
                     f->Udd, f->W,  f->Vd, f->Y,  f->z,  f->v1, f->h,  f->cu, f->cl};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
   fmbd_free(f->dofs), fmbd_free(f->pu), fmbd_free(f->pl), fmbd_free(f->pff);
@@ -91,14 +97,32 @@ static void fe_fields(mbs_fe *f, const double *q, const double *qd, const double
   for (int64_t i = 0; i < 3 * nn; i++) f->Y[i] = f->mx[i] + f->W[i];
 }
 
+// y = sum_k v_k u_k for a 3 x n array v (v[a + 3k]), n-vector u
+static void sum3(int64_t n, const double *v, const double *u, double *y) {
+  y[0] = y[1] = y[2] = 0;
+  for (int64_t k = 0; k < n; k++) {
+    y[0] += v[3 * k] * u[k], y[1] += v[3 * k + 1] * u[k], y[2] += v[3 * k + 2] * u[k];
+  }
+}
+
 // c, J (symmetrised), S1 q', H (a + 3b) of the state (fields computed)
-static void fe_inertia(const mbody *b, double *c, double *J, double *s1qd, double *H) {
+static void fe_inertia(const mbody *b, const double *q, const double *qd, double *c, double *J,
+                       double *s1qd, double *H) {
   const mbs_fe *f = b->fe;
-  const int64_t nn = f->nn;
+  const int64_t nn = f->nn, n = b->nm;
+  double s1q[3];
+  sum3(n, f->S1, q, s1q);
+  sum3(n, f->S1, qd, s1qd);
   for (int a = 0; a < 3; a++) {
-    c[a] = b->c0[a] + dotn(nn, f->m1, f->U + nn * a);
-    s1qd[a] = dotn(nn, f->m1, f->Ud + nn * a);
+    c[a] = b->c0[a] + s1q[a];
     for (int bb = 0; bb < 3; bb++) H[a + 3 * bb] = dotn(nn, f->Ud + nn * a, f->Y + nn * bb);
+  }
+  if (f->dv) {  // + skew(sum_k q'_k dv_k) / 2: eps_abc H_cb gains sum_k q'_k dv_k,a
+    double u[3];
+    sum3(n, f->dv, qd, u);
+    H[1] += 0.5 * u[2], H[3] -= 0.5 * u[2];  // H_10, H_01
+    H[6] += 0.5 * u[1], H[2] -= 0.5 * u[1];  // H_02, H_20
+    H[5] += 0.5 * u[0], H[7] -= 0.5 * u[0];  // H_21, H_12
   }
   for (int a = 0; a < 3; a++) {
     for (int bb = a; bb < 3; bb++) {
@@ -121,7 +145,7 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
   mbs_frame_kin(b, p, pd, xdd ? xdd + 3 : NULL, w, wd);
   fe_fields(f, q, qd, qdd);
   double *c = b->c, *J = b->J, *I = b->I, H[9], s1qd[3];
-  fe_inertia(b, c, J, s1qd, H);
+  fe_inertia(b, q, qd, c, J, s1qd, H);
   double trJ = J[0] + J[4] + J[8];
   for (int i = 0; i < 9; i++) I[i] = -J[i];
   I[0] += trJ, I[4] += trJ, I[8] += trJ;
@@ -143,7 +167,7 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
     // m R'' - A c~ wd + A S1 q''; c~ A' R'' + I wd + Mwf q''
     double Acw[3], s1qdd[3], as[3], cA[3], Iwd[3], mwq[3] = {0, 0, 0};
     mv3(Ac, wd, Acw);
-    for (int a = 0; a < 3; a++) s1qdd[a] = dotn(nn, f->m1, f->Udd + nn * a);
+    sum3(n, f->S1, qdd, s1qdd);
     mv3(A, s1qdd, as);
     cross3(c, Rddl, cA);
     mv3(I, wd, Iwd);
@@ -151,6 +175,11 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
       double y0 = f->Y[pp], y1 = f->Y[pp + nn], y2 = f->Y[pp + 2 * nn];
       double u0 = f->Udd[pp], u1 = f->Udd[pp + nn], u2 = f->Udd[pp + 2 * nn];
       mwq[0] += y1 * u2 - y2 * u1, mwq[1] += y2 * u0 - y0 * u2, mwq[2] += y0 * u1 - y1 * u0;
+    }
+    if (f->dv) {
+      double dq[3];
+      sum3(n, f->dv, qdd, dq);
+      for (int a = 0; a < 3; a++) mwq[a] += dq[a];
     }
     for (int a = 0; a < 3; a++) {
       rb[a] += b->m * Rdd[a] - Acw[a] + as[a];
@@ -169,11 +198,14 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
       field_cross(nn, wd, 0, f->Y, tmp);
       for (int64_t i = 0; i < 3 * nn; i++) z[i] += tmp[i];
     }
-    for (int a = 0; a < 3; a++) {
-      double s = Rddl[a] - gl[a];
-      for (int64_t pp = 0; pp < nn; pp++) z[pp + nn * a] += f->m1[pp] * s;
-    }
     et_apply(f, z, rf);
+    // + S1' (R''_l - g_l) (+ dv' wd)
+    double s[3];
+    for (int a = 0; a < 3; a++) s[a] = Rddl[a] - gl[a];
+    for (int64_t k = 0; k < n; k++) {
+      rf[k] += dot3(f->S1 + 3 * k, s);
+      if (f->dv && xdd) rf[k] += dot3(f->dv + 3 * k, wd);
+    }
     // + K q + D q' + M q'' in one pass over the pattern
     const fmbd_csr *P = f->P;
     for (int64_t i = 0; i < n; i++) {
@@ -214,7 +246,8 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
     e[a] = 1;
     field_cross(nn, e, 0, f->Y, f->z);
     et_apply(f, f->z, f->v1);
-    for (int64_t k = 0; k < n; k++) cu[3 + a + 6 * k] = cm * f->v1[k];
+    for (int64_t k = 0; k < n; k++)
+      cu[3 + a + 6 * k] = cm * (f->v1[k] + (f->dv ? f->dv[a + 3 * k] : 0.0));
   }
   memcpy(cl, cu, sizeof(double) * (size_t)(6 * n));
   if (cc != 0) {
@@ -246,13 +279,14 @@ void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *
       et_apply(f, f->z, cor + n * a);
     }
     for (int64_t k = 0; k < n; k++) {
-      double ws[3], aws[3];
+      double ws[3], aws[3], dw[3] = {0, 0, 0};
       cross3(w, f->S1 + 3 * k, ws);
       mv3(A, ws, aws);
+      if (f->dv) cross3(f->dv + 3 * k, w, dw);  // H_k w gains (dv_k x w) / 2; H_k' w loses it
       for (int a = 0; a < 3; a++) {
         double hk = hkw[k + n * a], ht = hktw[k + n * a], co = cor[k + n * a];
         cu[a + 6 * k] += cc * 2 * aws[a];
-        cu[3 + a + 6 * k] += cc * 2 * (trk[k] * w[a] - hk);
+        cu[3 + a + 6 * k] += cc * (2 * (trk[k] * w[a] - hk) - dw[a]);
         cl[3 + a + 6 * k] += cc * (hk + ht - 2 * trk[k] * w[a] + 2 * co);
       }
     }
@@ -356,7 +390,7 @@ void mbs_fe_inert(const fmbd_mbs *m, int ib, double *c, double *I, double *S1qd,
   const double *q = m->x + b->off + 7, *qd = m->xd + b->off + 7;
   fe_fields(f, q, qd, NULL);
   double J[9], H[9];
-  fe_inertia(b, c, J, S1qd, H);
+  fe_inertia(b, q, qd, c, J, S1qd, H);
   double tr = J[0] + J[4] + J[8];
   for (int i = 0; i < 9; i++) I[i] = -J[i];
   I[0] += tr, I[4] += tr, I[8] += tr;
@@ -366,6 +400,11 @@ void mbs_fe_inert(const fmbd_mbs *m, int ib, double *c, double *I, double *S1qd,
     double y0 = f->Y[pp], y1 = f->Y[pp + nn], y2 = f->Y[pp + 2 * nn];
     double u0 = f->Ud[pp], u1 = f->Ud[pp + nn], u2 = f->Ud[pp + 2 * nn];
     Mwfqd[0] += y1 * u2 - y2 * u1, Mwfqd[1] += y2 * u0 - y0 * u2, Mwfqd[2] += y0 * u1 - y1 * u0;
+  }
+  if (f->dv) {
+    double dq[3];
+    sum3(n, f->dv, qd, dq);
+    for (int a = 0; a < 3; a++) Mwfqd[a] += dq[a];
   }
   pat_mv(f->P, f->Mv, qd, f->v1);
   *Tq = dotn(n, qd, f->v1);
@@ -498,6 +537,17 @@ int mbs_fe_create(const fmbd_mbs_fe_data *d, mbs_fe **out) {
   et_split(f, n, f->m1, f->h);
   for (int64_t k = 0; k < n; k++) {
     for (int a = 0; a < 3; a++) f->S1[a + 3 * k] = f->h[k + n * a];
+  }
+  if (d->S1) {  // the consistent coupling: S1 as given, dv = Mw0 - E'(e_a x Mn x)
+    memcpy(f->S1, d->S1, sizeof(double) * (size_t)(3 * n));
+    FMBD_GALLOC(f->dv = fmbd_malloc(sizeof(double) * (size_t)(3 * n)));
+    for (int a = 0; a < 3; a++) {
+      double e[3] = {0, 0, 0};
+      e[a] = 1;
+      field_cross(nn, e, 0, f->mx, f->z);
+      et_apply(f, f->z, f->v1);
+      for (int64_t k = 0; k < n; k++) f->dv[a + 3 * k] = d->Mw0[a + 3 * k] - f->v1[k];
+    }
   }
   *out = f;
   f = NULL;

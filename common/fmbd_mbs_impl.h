@@ -123,9 +123,11 @@ typedef struct mbs_fe {
   int64_t nn;             // nodes
   fmbd_csr *E, *Et, *Mn;  // (3 nn) x n, its transpose, nn x nn scalar nodal mass
   double *x, *m1, *mx;    // nn x 3 positions; Mn 1 (nn); Mn x (nn x 3)
-  double *S1;             // 3 x n: S1[a + 3k] = (E_a' Mn 1)_k
-  fmbd_csr *P;            // n x n pattern of M + K + D; values in Mv, Kv, Dv
-  double *Mv, *Kv, *Dv;   // on P's entries
+  double *S1;             // 3 x n: S1[a + 3k] = (E_a' Mn 1)_k, or T_a' M S_k (fe_data S1)
+  double *dv;   // 3 x n or NULL: Mw0 - (E'(e_a x Mn x))_k, the consistent rotational coupling
+                // at q = 0 less Mn's (beams: the antisymmetric part of H_k, docs/THEORY.md 4b)
+  fmbd_csr *P;  // n x n pattern of M + K + D; values in Mv, Kv, Dv
+  double *Mv, *Kv, *Dv;  // on P's entries
   double *Gv;     // 3 nnz: Gv[e + nnz a] = (sum_bc eps_abc E_c' Mn E_b)(entry e): the gyroscopic
                   // tangent 2 w . int rho S_l x S_k of the flexible rows = 2 sum_a w_a G_a
   int64_t *dofs;  // 2 x n (node, direction) or NULL
@@ -158,6 +160,7 @@ typedef struct mbody {
   mbs_fe *fe;        // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
   double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
   bool spin_warned;  // mbs_spin_check warned
+  bool rate_warned;  // mbs_spin_check warned of h Omega > 1 - rho_inf
   // shared modal coordinates (GMs, fmbd_mbs_share_modal): the bodies of a set use one block of
   // nm coordinates, stored after the frame of the set's first body (its owner)
   int share;           // owner body of the set, or -1 (the body's own coordinates)
@@ -243,6 +246,7 @@ struct fmbd_mbs {
   double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
   double *xddp;                         // x'' one step before
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
+  double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;
   int maxn;             // largest dense body block (modal bodies) or joint side (7 + point support)
   int64_t maxb;         // largest body (coordinates)
@@ -252,6 +256,7 @@ struct fmbd_mbs {
   // --- generalized alpha ---
   double am, af, beta, gamma;
   double h_next, h_fact, h_prop, h_prev;
+  double err_prev[2];  // scaled local errors of the last two accepted steps (0: none yet)
   int64_t k_out;
   int64_t worst_i;  // largest scaled residual of the last iterate
   double worst_v;

@@ -330,12 +330,16 @@ static int init_settings(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   FMBD_CHECK(s->rho_inf >= 0 && s->rho_inf <= 1, FMBD_ERR_VALUE, "rho_inf %g outside [0, 1]",
              s->rho_inf);
   if (s->rho_inf > 0.99) {
-    // measured (docs/STABILITY.md): a free spinning flexible rod, 1 s at a fixed 2e-4 s step,
-    // about doubles its energy at rho_inf = 1, gains 3 % at 0.999, less than 1e-7 at 0.99
+    // measured (docs/STABILITY.md, "rho_inf and rotation"): at rho_inf = 1 the parasitic
+    // root -1 of the index-3 scheme is undamped and rotation pushes it outside the unit circle:
+    // the Euler parameters' p . p' alternates and grows by about h Omega / 2 per step, so a
+    // body turning at Omega gains energy at a rate Omega / 2 whatever the step (a rigid rod at
+    // 400 rad/s: +1e-4 at 0.08 s, collapse at 0.13 s); a spinning flexible rod doubled in 1 s
     fmbd_log(FMBD_LOG_WARN,
-             "rho_inf %g > 0.99 leaves the index-3 scheme without damping of the constraint "
-             "forces and the highest modes: energy can grow (it doubled in 1 s on a spinning rod "
-             "at rho_inf = 1; docs/STABILITY.md); 0.9 (the default) to 0.99 is safe",
+             "rho_inf %g > 0.99 leaves the index-3 scheme without damping of its parasitic "
+             "mode: a body turning at Omega rad/s gains energy at a rate of about Omega/2 per "
+             "second whatever the step (docs/STABILITY.md, rho_inf and rotation); 0.9 (the "
+             "default) to 0.99 with steps below (1 - rho_inf)/Omega is safe",
              s->rho_inf);
   }
   FMBD_CHECK(isfinite(s->t_end) && s->t_end > 0, FMBD_ERR_VALUE, "t_end %g must be positive",
@@ -422,8 +426,9 @@ static int init_dimensions(fmbd_mbs *m) {
   neq += m->nd + m->nb;
   m->neq = neq;
   size_t nn = (size_t)n;
-  double **arrs[] = {&m->x,  &m->xd,   &m->xdd, &m->a,     &m->xn,     &m->xdn,    &m->xddn,
-                     &m->an, &m->xddp, &m->res, &m->scale, &m->nscale, &m->ascale, &m->floor_};
+  double **arrs[] = {&m->x,     &m->xd,     &m->xdd,    &m->a,      &m->xn,
+                     &m->xdn,   &m->xddn,   &m->an,     &m->xddp,   &m->res,
+                     &m->scale, &m->nscale, &m->ascale, &m->floor_, &m->rscale};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++)
     FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
   size_t mx = (size_t)m->maxn, n6 = mx - 1;
@@ -590,6 +595,11 @@ static void init_scales(fmbd_mbs *m) {
       else
         m->floor_[k] = MODAL_FLOOR * m->Lref * QUNIT(b), m->nscale[k] = 1e-3 * m->Lref * QUNIT(b);
       m->scale[k] = m->floor_[k];
+      // an FE dof is a nodal displacement (rotation) in the frame: the constraints' round-off
+      // (eps Lref) reaches it through the frame's motion, amplified where the dof carries
+      // little mass (a beam's nodal rotations), so its Newton increment stagnates at a few
+      // eps Lref, not at eps nscale = 1e-3 eps Lref (measured: a two-link beam pendulum's FM)
+      m->rscale[k] = b->fe && i >= 7 ? m->Lref : m->nscale[k];
     }
   }
   for (int64_t e = 0; e < neq; e++) {
@@ -782,6 +792,7 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->h_next = m->set.fixed ? m->set.step : m->set.first_step;
   m->h_fact = 0;
   m->h_prop = 0;
+  m->err_prev[0] = m->err_prev[1] = 0;
   m->k_out = 0;
   m->st.coordinates = m->n;
   m->st.equations = m->m;

@@ -14,6 +14,14 @@
 // the other bodies held where they are; the lowest eigenvalue above round-off of the rigid
 // motions left free. A warning, once per body, when |Omega|^2 > SPIN_RATIO lambda. Modal bodies
 // of at most SPIN_MAX_N coordinates only (not full FE bodies: their dense block would be huge).
+//
+// Also, for every body, the step's rotation against the numerical damping (docs/STABILITY.md,
+// "rho_inf and rotation"): the index-3 scheme has a parasitic mode (root -rho_inf, the
+// Euler parameters' p . p' alternating step by step) that rotation amplifies by about
+// 1 + h Omega / 2 per step; rho_inf damps it only while h Omega stays below about
+// 1 - rho_inf (measured: 0.9 stable at h Omega = 0.08, not at 0.2; 0.99 at 0.01, not at
+// 0.02). A warning, once per body, when h |Omega| > 1 - rho_inf (rho_inf < 1: at 1 the
+// settings' warning has said it).
 #include <math.h>
 #include <string.h>
 
@@ -92,6 +100,22 @@ done:
 }
 
 void mbs_spin_check(fmbd_mbs *m) {
+  const double h = m->st.h_last, rho = m->set.rho_inf;
+  for (int i = 0; i < m->nb && rho < 1; i++) {
+    mbody *b = &m->b[i];
+    if (b->rate_warned) continue;
+    double w[3];
+    fmbd_mbs_body_velocity(m, i, NULL, w);
+    double hw = h * sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    if (!(hw > 1 - rho)) continue;
+    b->rate_warned = true;
+    fmbd_log(FMBD_LOG_WARN,
+             "t = %.6g s: body '%s' turns %.3g rad in a step (h = %.3g s), more than 1 - rho_inf "
+             "= %.3g: the scheme's parasitic mode of its Euler parameters can grow and the "
+             "rotation's energy collapse; use steps (step, max_step) below %.3g s or a smaller "
+             "rho_inf (docs/STABILITY.md, rho_inf and rotation)",
+             m->t, b->name, hw, h, 1 - rho, (1 - rho) / (hw / h));
+  }
   if (!m->spin_ready) {
     m->spin_ready = true;
     bool any = false;

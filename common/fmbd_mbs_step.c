@@ -122,7 +122,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       m->xd[i] += gp * dx;
       m->xdd[i] += bp * dx;
       double tx = m->set.newton_tol * fmin(m->nscale[i], m->ascale[i] / bp);
-      tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), m->nscale[i]));
+      tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), fmax(m->nscale[i], m->rscale[i])));
       double v = fabs(dx) / tx;
       if (!(v <= nrm)) nrm = v, m->worst_dx = i;
     }
@@ -273,6 +273,12 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       // keeps h (and the factorised matrix) unchanged for small proposed increases, and no
       // increase right after a rejection (Hairer, Norsett & Wanner I, sec. II.4)
       double f = err > 0 ? SAFETY * pow(err, -1.0 / 3.0) : 2.0;
+      // an increase also by the largest error of the last three accepted steps: where the
+      // estimate is noisy (the FE dofs' fast modes: 0.2 and 1.8 at one h on successive steps)
+      // the last step alone raises h into a rejection, and each change refactors the matrix
+      double eg = fmax(err, fmax(m->err_prev[0], m->err_prev[1]));
+      if (f > 1 && eg > 0) f = fmin(f, fmax(1.0, SAFETY * pow(eg, -1.0 / 3.0)));
+      m->err_prev[1] = m->err_prev[0], m->err_prev[0] = err;
       f = fmin(2.0, fmax(0.2, f));
       if (f > 1 && (f < 1.25 || m->after_reject)) f = 1;
       if (f < 1 && f > DEAD_LOW) f = 1;

@@ -240,7 +240,7 @@ double fmbd_von_mises(const double s[6]) {
 // M-orthogonal to rigid motion get S1 = 0 exactly. A consistent-mass body with beams (whose
 // consistent mass couples translations and rotations, so that no scalar nodal mass reproduces
 // it) gets its rigid-flexible coupling from the full consistent mass M instead
-// (beam_consistent below, docs/THEORY.md section 9): S1 = T' M S and the rotational
+// (fmbd_rflex_beam_coupling below, docs/THEORY.md section 9): S1 = T' M S and the rotational
 // coupling R' M S through the rigid-body fields T, R; the symmetric part of XS and SS (the
 // deformation terms of J(q)) keep the lumped nodal masses. Lumped-mass bodies use the lumped
 // nodal masses throughout.
@@ -280,7 +280,7 @@ int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out) {
 }
 
 // True when the rigid-flexible coupling comes from the full consistent mass (beam elements).
-static bool beam_consistent(const fmbd_fe_body *b) {
+bool fmbd_rflex_beam_coupling(const fmbd_fe_body *b) {
   return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->nbeam > 0 && b->beam &&
          b->beam_orientation && b->has_section;
 }
@@ -327,6 +327,38 @@ static int consistent_weighted_full(const fmbd_fe_body *b, int64_t nm, const dou
     }
   }
   return FMBD_OK;
+}
+
+int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C) {
+  FMBD_CHECK(fmbd_rflex_beam_coupling(b), FMBD_ERR_VALUE,
+             "the rigid coupling from the consistent mass is for consistent-mass beam bodies");
+  const int64_t nn = b->nnodes, ld = 6 * nn, ndof = b->ndof;
+  double *F = fmbd_calloc((size_t)(2 * 6 * ld) + 1, sizeof(double)), *W = F + 6 * ld;
+  if (!F) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory");
+  for (int64_t p = 0; p < nn; p++) {
+    const double *x = b->xyz + 3 * p;
+    for (int a = 0; a < 3; a++) {
+      F[6 * p + a + ld * a] = 1;  // T_a
+      double e[3] = {0, 0, 0}, ex[3];
+      e[a] = 1;
+      ex[0] = e[1] * x[2] - e[2] * x[1], ex[1] = e[2] * x[0] - e[0] * x[2],
+      ex[2] = e[0] * x[1] - e[1] * x[0];
+      for (int c = 0; c < 3; c++) F[6 * p + c + ld * (3 + a)] = ex[c];  // R_a: e_a x x0
+      F[6 * p + 3 + a + ld * (3 + a)] = 1;                              // and e_a
+    }
+  }
+  int rc = consistent_weighted_full(b, 6, F, W);
+  if (rc == FMBD_OK) {  // C = expand' W
+    const fmbd_csr *X = b->expand;
+    memset(C, 0, sizeof(double) * (size_t)(6 * ndof));
+    for (int64_t r = 0; r < X->nrows; r++) {
+      for (int64_t e = X->indptr[r]; e < X->indptr[r + 1]; e++) {
+        for (int j = 0; j < 6; j++) C[X->indices[e] + ndof * j] += X->data[e] * W[r + ld * j];
+      }
+    }
+  }
+  fmbd_free(F);
+  return rc;
 }
 
 // --- a body from its shapes: the one place of the nodal motion and the invariants ---------
@@ -429,13 +461,16 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
       }
     }
-    if (beam_consistent(b)) {
+    if (fmbd_rflex_beam_coupling(b)) {
       // the rigid-flexible coupling from the consistent mass M the modes come from (docs/THEORY.md
       // section 9): with WM = M U, S1_k,a = T_a' WM_k (T_a: unit translation a at every node,
       // no rotation) and v_k,a = R_a' WM_k (R_a: rotation about axis a through the frame
       // origin, e_a x x0 at the translations, e_a at the rotations). v_k is M_wf[:,k] at q = 0,
       // eps_abc XS_bc,k: it replaces the antisymmetric part of XS_k; the symmetric part stays
-      // the lumped one (it only enters J(q) - J0, at first order in q).
+      // the lumped one (it only enters J(q) - J0, at first order in q). (The same numbers as
+      // fmbd_rflex_rigid_coupling's C' shapes, which the full FE bodies use; summed in this
+      // order they keep the reduced bodies' round-off, to which the QZ reference of
+      // tests/py/test_gmsolve.py is sensitive.)
       FMBD_GALLOC(WM = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
       FMBD_GCALL(consistent_weighted_full(b, nm, U, WM));
       for (int64_t k = 0; k < nm; k++) {

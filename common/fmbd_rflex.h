@@ -175,6 +175,20 @@ bool fmbd_rflex_consistent_invariants(const fmbd_fe_body *b);
 /// lumped nodal masses on the diagonal. Shared by the reduced bodies and the full FE bodies.
 /// @param[out] out caller destroys with fmbd_csr_destroy
 int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out);
+/// @brief True when the rigid-flexible coupling (S1 and the rotational coupling R'MS) comes
+/// from the full consistent mass (a consistent-mass body with beam elements), not from Mn.
+bool fmbd_rflex_beam_coupling(const fmbd_fe_body *b);
+/// @brief The consistent mass applied to the six rigid-body fields, on the active dofs:
+/// C[i + ndof j] = (expand' M F_j)_i, with M the unconstrained consistent mass of the mesh
+/// (element by element: the scalar tet mass on the translations, the 12 x 12 beam mass) and
+/// F_j the rigid fields of the nodes: T_a (j = a: unit translation along a, no rotation) and
+/// R_a (j = 3 + a: rotation about axis a through the frame origin, e_a x x0 at the
+/// translations, e_a at the rotations). For every field S = expand s of the active dofs,
+/// T_a' M S = C(:, a)' s (S1) and R_a' M S = C(:, 3 + a)' s (M_wf at q = 0; docs/THEORY.md
+/// sections 4b and 9). Only for fmbd_rflex_beam_coupling(b) bodies.
+/// @param[out] C ndof x 6, column-major
+/// @return FMBD_OK, FMBD_ERR_VALUE (not such a body), FMBD_ERR_NOMEM, element errors
+int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C);
 
 /// @brief Release r and its arrays; NULL and *r == NULL are fine; sets *r = NULL.
 void fmbd_rflex_destroy(fmbd_rflex **r);

@@ -412,6 +412,7 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
   fmbd_fe_body *fe = NULL;
   fmbd_csr *Mf = NULL, *Kf = NULL, *D = NULL, *E = NULL, *Mn = NULL;
   int64_t *kept = NULL, *rows = NULL, *kdofs = NULL;
+  double *C = NULL, *S1c = NULL, *Mw0 = NULL;
   fmbd_rflex *r = NULL;
   if (b->modes > 0) {
     SFAIL(s, b->loc, FMBD_ERR_SCENE,
@@ -463,13 +464,16 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
   }
   FMBD_GCALL(fmbd_csr_submatrix(fe->expand, 3 * nn, rows, n, kept, &E));
   FMBD_GCALL(fmbd_rflex_nodal_mass(fe, &Mn));
-  if (fe->nbeam > 0) {
-    fmbd_log(FMBD_LOG_WARN,
-             "%s:%d: body '%s': %s has beam elements: as a full FE body its rigid-flexible "
-             "coupling uses the lumped nodal masses, not the consistent mass its M holds; exact "
-             "when the frame node is held, else the run may fail to converge (docs/THEORY.md "
-             "section 4b; a .cb.h5 or .rflex.h5 body of it has the consistent coupling)",
-             s->file, b->file_loc.line, b->name, b->file);
+  if (fmbd_rflex_beam_coupling(fe)) {  // S1, M_wf(0) from the consistent M (THEORY 4b)
+    FMBD_GALLOC(C = fmbd_malloc(sizeof(double) * (size_t)(6 * ndof + 6 * n)));
+    FMBD_GCALL(fmbd_rflex_rigid_coupling(fe, C));
+    S1c = C + 6 * ndof, Mw0 = S1c + 3 * n;
+    for (int64_t k = 0; k < n; k++) {
+      for (int a = 0; a < 3; a++) {
+        S1c[a + 3 * k] = C[kept[k] + ndof * a];
+        Mw0[a + 3 * k] = C[kept[k] + ndof * (3 + a)];
+      }
+    }
   }
   if (b->damping_ratio > 0) {
     double w1 = 0;
@@ -488,7 +492,9 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
                         .node_xyz = fe->xyz,
                         .Mn = Mn,
                         .E = E,
-                        .dofs = kdofs};
+                        .dofs = kdofs,
+                        .S1 = S1c,
+                        .Mw0 = Mw0};
   for (int a = 0; a < 3; a++) d.first_moment[a] = fe->mass * fe->center_of_mass[a];
   {  // J = tr(Ic)/2 I - Ic + m c c' (as the reduced bodies)
     const double *Ic = fe->inertia, *c = fe->center_of_mass;
@@ -532,7 +538,7 @@ done:
   fmbd_fe_body_destroy(&fe);
   fmbd_csr_destroy(&Mf), fmbd_csr_destroy(&Kf), fmbd_csr_destroy(&D), fmbd_csr_destroy(&E),
       fmbd_csr_destroy(&Mn);
-  fmbd_free(kept), fmbd_free(rows), fmbd_free(kdofs);
+  fmbd_free(kept), fmbd_free(rows), fmbd_free(kdofs), fmbd_free(C);
   return rc;
 }
 

@@ -21,7 +21,8 @@ typedef struct xbody {
 } xbody;
 
 struct fmbd_xdmf {
-  fmbd_runfile *rf;  // NULL after its commit: only `run` is used then
+  fmbd_runfile *rf;  // NULL after its commit: only `run` is used then; NULL for create_h5
+  fmbd_h5 *h;        // the file the fields go to (the run file's, or create_h5's)
   char *name, *run;  // the XDMF file, the run file's base name (XML-escaped)
   int nb;
   xbody *b;
@@ -62,12 +63,19 @@ int fmbd_xdmf_create(fmbd_runfile *rf, const char *xdmf_name, fmbd_xdmf **out) {
   *out = NULL;
   FMBD_CHECK(strcmp(fmbd_runfile_name(rf), "-"), FMBD_ERR_USAGE,
              "XDMF fields need a named run file, not standard output (give -o RUN.h5)");
+  FMBD_CALL(fmbd_xdmf_create_h5(fmbd_runfile_h5(rf), fmbd_runfile_name(rf), xdmf_name, out));
+  (*out)->rf = rf;
+  return FMBD_OK;
+}
+
+int fmbd_xdmf_create_h5(fmbd_h5 *h, const char *h5_name, const char *xdmf_name, fmbd_xdmf **out) {
+  *out = NULL;
   fmbd_xdmf *x = fmbd_calloc(1, sizeof *x);
   FMBD_CHECK(x, FMBD_ERR_NOMEM, "out of memory");
-  x->rf = rf;
+  x->h = h;
   x->name = fmbd_strdup(xdmf_name);
-  // the run file by its base name (the XDMF file lies beside it), & < > " ' escaped for XML
-  const char *run = fmbd_runfile_name(rf), *slash = strrchr(run, '/');
+  // the h5 file by its base name (the XDMF file lies beside it), & < > " ' escaped for XML
+  const char *run = h5_name, *slash = strrchr(run, '/');
   run = slash ? slash + 1 : run;
   x->run = fmbd_malloc(6 * strlen(run) + 1);
   if (x->run) {
@@ -148,8 +156,8 @@ static int add_common(fmbd_xdmf *x, const char *name, const char *file, int64_t 
   FMBD_GCHECK(nc, FMBD_ERR_NOMEM, "out of memory");
   x->cells = nc;
   for (int64_t i = 0; i < ne * k; i++) x->cells[x->ncells * k + i] = el[i] + b->first;
-  // the run file: the body's record and its series
-  fmbd_h5 *h = fmbd_runfile_h5(x->rf);
+  // the file: the body's record, and in a run file its series
+  fmbd_h5 *h = x->h;
   char path[600];
   snprintf(path, sizeof path, "/fields/body/%s", name);
   FMBD_GCALL(fmbd_h5_make_group(h, path));
@@ -157,10 +165,12 @@ static int add_common(fmbd_xdmf *x, const char *name, const char *file, int64_t 
   int64_t iv[4] = {b->first, nn, x->ncells, ne};
   const char *in[4] = {"first_node", "nodes", "first_cell", "cells"};
   for (int i = 0; i < 4; i++) FMBD_GCALL(fmbd_h5_write_attr_i64(h, path, in[i], 1, &iv[i]));
-  snprintf(path, sizeof path, "/fields/body/%s/pose", name);
-  FMBD_GCALL(fmbd_runfile_series(x->rf, path, 12, "m, 1", 0, &b->pose_id));
-  snprintf(path, sizeof path, "/fields/body/%s/q", name);
-  FMBD_GCALL(fmbd_runfile_series(x->rf, path, (int)(nq ? nq : 1), "1", 0, &b->q_id));
+  if (x->rf) {
+    snprintf(path, sizeof path, "/fields/body/%s/pose", name);
+    FMBD_GCALL(fmbd_runfile_series(x->rf, path, 12, "m, 1", 0, &b->pose_id));
+    snprintf(path, sizeof path, "/fields/body/%s/q", name);
+    FMBD_GCALL(fmbd_runfile_series(x->rf, path, (int)(nq ? nq : 1), "1", 0, &b->q_id));
+  }
   x->ncells += ne;
   x->nnodes += nn;
   x->cell_nodes = k;
@@ -219,7 +229,7 @@ int fmbd_xdmf_add_body_fn(fmbd_xdmf *x, const char *name, const char *file, int6
 
 // The concatenated reference nodes and cells, written before the first frame.
 static int write_mesh(fmbd_xdmf *x) {
-  fmbd_h5 *h = fmbd_runfile_h5(x->rf);
+  fmbd_h5 *h = x->h;
   double *xyz = fmbd_malloc(sizeof(double) * (size_t)(3 * x->nnodes + 1));
   FMBD_CHECK(xyz, FMBD_ERR_NOMEM, "out of memory");
   for (int i = 0; i < x->nb; i++)
@@ -274,6 +284,7 @@ int fmbd_xdmf_frame(fmbd_xdmf *x, double t, const double *const *R, const double
       }
       x->vm[b->first + p] = fmbd_von_mises(s);
     }
+    if (!x->rf) continue;
     double pose[12];
     memcpy(pose, Rb, 3 * sizeof(double));
     memcpy(pose + 3, Ab, 9 * sizeof(double));
@@ -281,7 +292,7 @@ int fmbd_xdmf_frame(fmbd_xdmf *x, double t, const double *const *R, const double
     double zero = 0;
     FMBD_CALL(fmbd_runfile_put(x->rf, b->q_id, b->nm ? qb : &zero));
   }
-  fmbd_h5 *h = fmbd_runfile_h5(x->rf);
+  fmbd_h5 *h = x->h;
   char path[128];
   int64_t d[2] = {x->nnodes, 3};
   snprintf(path, sizeof path, "/fields/frames/%" PRId64 "/position", x->nframes);

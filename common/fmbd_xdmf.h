@@ -37,6 +37,11 @@ typedef struct fmbd_xdmf fmbd_xdmf;
 /// @brief Start the fields of the run file rf (a named file, not standard output) and the
 /// XDMF file `xdmf_name` (written at fmbd_xdmf_commit).
 int fmbd_xdmf_create(fmbd_runfile *rf, const char *xdmf_name, fmbd_xdmf **out);
+/// @brief The same fields in any open HDF5 file h written under the name h5_name (its base name
+/// is what the XDMF file refers to): /fields/nodes, /fields/cells, /fields/body/NAME (without the
+/// pose and q series of a run file) and /fields/frames/K (gmsolve --xdmf: one frame per global
+/// mode). h must stay open until the last frame.
+int fmbd_xdmf_create_h5(fmbd_h5 *h, const char *h5_name, const char *xdmf_name, fmbd_xdmf **out);
 /// @brief Add a flexible body before the first frame: its name, the body file's name (for the
 /// file attribute), the reduced body r (the first nm of its modes are used: the body's modal
 /// coordinates; r->stress is needed) and the open body file (its /mesh/elements: tet4 or tet10;

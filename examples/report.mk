@@ -5,10 +5,27 @@
 # (the full FE model once fmbd-run takes a .fe.h5 body, else an all-modes CB body, labelled as
 # such), CB and RFlex at the tolerances 10 %, 1 %, 0.1 %, NM with as many modes as the RFlex
 # body. Each writes $(BUILD)/reports/NAME/report.{md,csv,svg} (and report.log: every command).
+#
+# The reference is the full FE model (the rod's .fe.h5 in the same scene). Its cost (about
+# n^1.7 a step in the rod's dofs n: bench/README.md, fmbd-run: full FE bodies) sets each
+# benchmark's mesh and length below (QP_ARGS, SC_ARGS, SSC_ARGS; the README of each example says
+# why, and compares the mesh's frequencies with the scene's own mesh); RP_ARGS adds to them.
 BUILD  ?= build
 PYTHON ?= /usr/bin/python3
 RP_OUT ?= $(BUILD)/reports
 RP_ARGS ?=
+# quadruple pendulum: tet10 of 15 mm (3045 dofs; the scene's 7.5 mm mesh: 14667), 3 s (the
+# trajectories separate near 2.8 s: beyond, every model is decimetres off and the FM's cost buys
+# nothing)
+QP_ARGS ?= --size 0.015 --t-end 3
+# planar slider-crank: tet10 of 12 mm (6741 dofs; the scene's 6 mm: 34860), the whole 0.5 s;
+# the held RFlex body also with Nm 20 and 40 (what lowers its error: the tolerance cannot)
+SC_ARGS ?= --size 0.012 --ranges 20,40
+# spatial slider-crank: tet10 of 7 mm (7938 dofs; the scene's 4 mm: 37857), 0.2 s (two periods
+# of the slider; the window before two step sizes part ends within the first); also CB bodies
+# with 0 and 2 fixed-interface modes (constraint modes: the rod's axial stretch) and NM with 9
+# and 10 modes (the free rod's first axial mode is its 10th)
+SSC_ARGS ?= --size 0.007 --t-end 0.2 --cb-nd 0,2 --nm-modes 9,10
 export PATH := $(abspath $(BUILD)/bin):$(PATH)
 export OPENBLAS_NUM_THREADS ?= 1
 
@@ -21,16 +38,16 @@ reports: report-slidercrank report-spatial-slidercrank report-quadpend
 # the models' (the scene's own variable steps separate the trajectories sooner).
 report-quadpend:
 	$(PYTHON) examples/report.py examples/quadpend/quadpend.yaml --body rod --output A \
-	  --out $(RP_OUT)/quadpend --step 1e-3 --window --paper-nd 35,58,446 $(RP_ARGS)
+	  --out $(RP_OUT)/quadpend --step 1e-3 --window --paper-nd 35,58,446 $(QP_ARGS) $(RP_ARGS)
 
 # the planar slider-crank (first paper, 5.2): node A at the rod's largest stress; Nd 8, 25, 105
 report-slidercrank:
 	$(PYTHON) examples/report.py examples/slidercrank/slidercrank.yaml --body rod --output A \
-	  --out $(RP_OUT)/slidercrank --paper-nd 8,25,105 $(RP_ARGS)
+	  --out $(RP_OUT)/slidercrank --paper-nd 8,25,105 $(SC_ARGS) $(RP_ARGS)
 
 # the spatial slider-crank (second paper, 4.1): the rod's mid-span node. Its crank swings to
 # within 0.086 rad of the dead point, where a body with axial compliance can carry it over to
 # the other branch (README.md): the window before two step sizes part is reported too.
 report-spatial-slidercrank:
 	$(PYTHON) examples/report.py examples/spatial-slidercrank/spatial-slidercrank.yaml \
-	  --body rod --output mid --out $(RP_OUT)/spatial-slidercrank --window $(RP_ARGS)
+	  --body rod --output mid --out $(RP_OUT)/spatial-slidercrank --window $(SSC_ARGS) $(RP_ARGS)

@@ -3,7 +3,9 @@
 # SPDX-License-Identifier: MIT
 #
 #   examples/report.py SCENE --body rod --output A --out DIR [--tols 0.1,0.01,0.001]
-#       [--paper-nd 35,58,446] [--size H] [--t-end T] [--window] [--title TEXT]
+#       [--paper-nd 35,58,446] [--size H] [--fe2cb-modes N] [--t-end T] [--step H] [--window]
+#       [--no-fm] [--cb-nd LIST] [--nm-modes LIST] [--ranges LIST] [--only fm|bodies]
+#       [--jobs N] [--title TEXT]
 #
 # From the scene's own make chain (fmbd-run -M: mesh2fe, fe2cb, cbcheck and the --hold options
 # the scene's joints ask for), it builds and runs the benchmark's family of models of the
@@ -35,17 +37,24 @@
 # that instant and its error over it (fmbd-run --reference --window) reported beside the whole
 # run's.
 #
+# More models on request (--cb-nd, --nm-modes, --ranges): CB bodies with given numbers of
+# fixed-interface modes, NM bodies with given numbers of modes, RFlex bodies at the tightest
+# tolerance with given Nm (cbcheck --range): the levers the tolerance does not move.
+#
 # Writes DIR/report.md, DIR/report.csv and DIR/report.svg (error against run time, one point
 # per model, labelled with its modes). Made files are reused when present (named after what
 # they hold), so a second call only redoes the runs.
 import argparse
 import csv
+import hashlib
 import os
 import re
 import shlex
 import subprocess
 import sys
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import h5py
 import numpy as np
@@ -61,13 +70,15 @@ def die(msg):
     sys.exit(1)
 
 
+LOG_LOCK = threading.Lock()
+
+
 def sh(cmd, log, check=True):
-    """Run a command (list); its output appended to the log; the CompletedProcess."""
-    with open(log, "a") as f:
-        f.write("$ " + " ".join(shlex.quote(c) for c in cmd) + "\n")
+    """Run a command (list); it and its output appended to the log together (runs may go side
+    by side: --jobs); the CompletedProcess."""
     p = subprocess.run(cmd, capture_output=True, text=True)
-    with open(log, "a") as f:
-        f.write(p.stdout + p.stderr)
+    with LOG_LOCK, open(log, "a") as f:
+        f.write("$ " + " ".join(shlex.quote(c) for c in cmd) + "\n" + p.stdout + p.stderr)
     if check and p.returncode:
         die(f"{' '.join(cmd[:2])} failed (exit {p.returncode}):\n{p.stderr.strip()}")
     return p
@@ -218,6 +229,28 @@ def separation(r1, r2, out):
     return (float(t[k][bad[0]]) if bad.size else None), float(size)
 
 
+def fm_stamp(out, fe, scene, trun, write=False):
+    """The stamp of an FM run: the hash of its scene, its end time and the body file's size and
+    modification time (ref.stamp beside ref.run.h5); written when `write`."""
+    st = os.stat(fe)
+    h = hashlib.sha256((open(scene).read() + repr(trun) + f"{st.st_size} {st.st_mtime_ns}").encode()).hexdigest()
+    if write:
+        open(os.path.join(out, "ref.stamp"), "w").write(h)
+    return h
+
+
+def fm_reused(out, fe, scene, trun, ref, log):
+    """Whether ref is the FM run of this scene, body and end time (its stamp matches)."""
+    sfile = os.path.join(out, "ref.stamp")
+    if os.path.exists(ref) and os.path.exists(sfile) and open(sfile).read() == fm_stamp(out, fe, scene, trun):
+        with open(log, "a") as f:
+            f.write(f"# {ref}: the FM run of the same scene, body and end time, reused ({sfile})\n")
+        return True
+    if os.path.exists(sfile):
+        os.remove(sfile)
+    return False
+
+
 def main():
     ap = argparse.ArgumentParser(prog=PROG, description="the error-against-run-time report of one benchmark")
     ap.add_argument("scene")
@@ -232,6 +265,14 @@ def main():
     ap.add_argument("--step", help="a fixed step for every run instead of the scene's step control")
     ap.add_argument("--window", action="store_true", help="chaotic motion: error before separation")
     ap.add_argument("--no-fm", action="store_true", help="do not try the .fe.h5 body as reference")
+    ap.add_argument("--cb-nd", default="", help="more CB bodies: these numbers of fixed-interface modes")
+    ap.add_argument("--nm-modes", default="", help="more NM bodies: these numbers of free-body modes")
+    ap.add_argument("--ranges", default="", help="more RFlex bodies at the tightest tolerance: "
+                    "these cbcheck --range values (Nm) instead of the scene's")
+    ap.add_argument("--only", choices=("fm", "bodies"), help="only run the FM reference (fm) or only "
+                    "make the reduced bodies (bodies), and stop: the two can run side by side, and a "
+                    "later call reuses both")
+    ap.add_argument("--jobs", type=int, default=1, help="fmbd-run runs side by side (default 1)")
     ap.add_argument("--title", default="")
     a = ap.parse_args()
     w0, c0 = time.time(), time.process_time()
@@ -239,7 +280,7 @@ def main():
     paper = [x for x in a.paper_nd.split(",")] if a.paper_nd else [""] * len(tols)
     out = os.path.abspath(a.out)
     os.makedirs(out, exist_ok=True)
-    log = os.path.join(out, "report.log")
+    log = os.path.join(out, f"report-{a.only}.log" if a.only else "report.log")
     open(log, "w").close()
     scene = os.path.abspath(a.scene)
     text = open(scene).read()
@@ -257,6 +298,16 @@ def main():
     fe = os.path.join(out, f"{a.body}.fe.h5")
     if not os.path.exists(fe):
         sh(["mesh2fe", geo] + m2f_opts + ["-o", fe, "-q"], log)
+    ref = os.path.join(out, "ref.run.h5")
+    if a.only == "fm":
+        fmscene = os.path.join(out, "fm.yaml")
+        with open(fmscene, "w") as f:
+            f.write(body_scene(text, a.body, fe))
+        if not fm_reused(out, fe, fmscene, trun, ref, log):
+            sh(["fmbd-run", fmscene, "-o", ref, "-q"] + trun, log)
+            fm_stamp(out, fe, fmscene, trun, write=True)
+        print(f"{PROG}: {ref}: the FM reference", file=sys.stderr)
+        return
     f2c = drop_opt(chain["fe2cb"][1:], "-o")
     if a.fe2cb_modes:
         f2c = drop_opt(f2c, "--modes") + ["--modes", a.fe2cb_modes]
@@ -317,15 +368,53 @@ def main():
         sh(["fe2cb", fe, "--method", "nm", "--modes", str(rflex_modes), "-o", nmf, "-q"], log)
     models.append(dict(name="NM", family="NM", tol=None, nd=None, paper="", modes=nmodes(nmf),
                        file=nmf, label=f"NM ({nmodes(nmf)} modes)"))
+    # --- more models on request: the levers that the tolerance does not move ---------------------
+    for k in [int(x) for x in a.nm_modes.split(",") if x]:
+        f = os.path.join(out, f"{a.body}-nm{k}.cb.h5")
+        if not os.path.exists(f):
+            sh(["fe2cb", fe, "--method", "nm", "--modes", str(k), "-o", f, "-q"], log)
+        models.append(dict(name=f"NM {k}", family="NM", tol=None, nd=None, paper="", modes=nmodes(f),
+                           file=f, label=f"NM ({nmodes(f)} modes)"))
+    for nd in [int(x) for x in a.cb_nd.split(",") if x]:
+        f = os.path.join(out, f"{a.body}-nd{nd}.cb.h5")
+        if not os.path.exists(f):
+            sh(["fe2cb", fe] + drop_opt(f2c, "--modes") + ["--modes", str(nd), "-o", f, "-q"], log)
+        models.append(dict(name=f"CB Nd {nd}", family="CB", tol=None, nd=nd, paper="", modes=nmodes(f),
+                           file=f, label=f"CB Nd {nd} ({nmodes(f)} modes)"))
+    for nm in [int(x) for x in a.ranges.split(",") if x]:
+        tag = "%g" % tols[-1]
+        rf = os.path.join(out, f"{a.body}-tol{tag}-range{nm}.rflex.h5")
+        txt = os.path.join(out, f"{a.body}-tol{tag}-range{nm}.cbcheck.txt")
+        if not os.path.exists(rf) or not os.path.exists(txt):
+            p = sh(["cbcheck", cb, "--fe", fe, "--tol", tag] + drop_opt(cbc, "--range") +
+                   ["--range", str(nm), "-o", rf], log)
+            open(txt, "w").write(p.stdout + p.stderr)
+        m = re.search(r"Nd = (\d+) meets", open(txt).read())
+        if not m:
+            die(f"cbcheck --tol {tag} --range {nm}: no 'Nd = N meets' in its summary ({txt})")
+        nd, k = int(m.group(1)), nmodes(rf)
+        models.append(dict(name=f"RFlex {tag} Nm {nm}", family="RFlex", tol=tols[-1], nd=nd, paper="",
+                           modes=k, file=rf, label=f"RFlex {tag} Nm {nm} ({k} modes, Nd {nd})"))
+
+    if a.only == "bodies":
+        print(f"{PROG}: {out}: {len(models)} reduced bodies made", file=sys.stderr)
+        return
 
     # --- the reference ------------------------------------------------------------------------
     # the FM when fmbd-run takes the .fe.h5 body; otherwise a CB body with every mode of a cb
     # file that has more fixed-interface modes than any model (1.5 x the largest selected Nd,
     # at least the scene's fe2cb --modes), so that no model is richer than its reference
-    ref = os.path.join(out, "ref.run.h5")
     ref_label, fm_why = None, None
     if not a.no_fm:
-        p = sh(["fmbd-run", variant("fm", fe), "-o", ref, "-q"] + trun, log, check=False)
+        # the FM run is the report's costly part: reused when the same scene, body file and end
+        # time made it (its stamp, ref.stamp, beside it)
+        fmscene = variant("fm", fe)
+        if fm_reused(out, fe, fmscene, trun, ref, log):
+            p = subprocess.CompletedProcess([], 0)
+        else:
+            p = sh(["fmbd-run", fmscene, "-o", ref, "-q"] + trun, log, check=False)
+            if p.returncode == 0:
+                fm_stamp(out, fe, fmscene, trun, write=True)
         if p.returncode == 0:
             ref_label, ref_modes, ref_scene = "FM (full FE model)", "all FE dofs", os.path.join(out, "fm.yaml")
         else:
@@ -341,13 +430,17 @@ def main():
         ref_scene = os.path.join(out, "cball.yaml")
     ref_cpu, ref_tot, ref_steps = stats(ref)
 
-    for mo in models:
+    def run_model(mo):
         slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
         run = os.path.join(out, slug + ".run.h5")
         sh(["fmbd-run", variant(slug, mo["file"]), "-o", run, "-q", "--reference", ref] + trun, log)
         mo["cpu"], mo["cpu_total"], mo["steps"] = stats(run)
         mo["err"] = errors(run, a.output)
         mo["speedup"] = ref_cpu / mo["cpu"] if mo["cpu"] > 0 else float("nan")
+
+    # side by side with --jobs: each run's CPU time is its own (the table's), whatever runs beside
+    with ThreadPoolExecutor(max_workers=a.jobs) as ex:
+        list(ex.map(run_model, models))
 
     # --- chaotic motion: the window before the trajectories separate ---------------------------
     # found from the cheapest CB body (the loosest tolerance's) run at the run's steps and at
@@ -367,12 +460,15 @@ def main():
         window = dict(t=tsep, size=size, finer=tighter_what(open(os.path.join(out, slug + ".yaml")).read()),
                       model=sep["name"])
         if tsep is not None:
-            for mo in models:
+            def run_window(mo):
                 slug = re.sub(r"[^A-Za-z0-9.]+", "_", mo["name"])
                 run = os.path.join(out, slug + "-window.run.h5")
                 sh(["fmbd-run", os.path.join(out, slug + ".yaml"), "-o", run, "-q", "--t-end", "%.6g" % tsep,
                     "--reference", ref, "--window", "0:%.6g" % tsep], log)
                 mo["werr"] = errors(run, a.output)
+
+            with ThreadPoolExecutor(max_workers=a.jobs) as ex:
+                list(ex.map(run_window, models))
 
     write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_steps, models,
                  window, nm_range, locals().get("fm_why"))
@@ -420,7 +516,7 @@ def write_report(a, out, title, ref_label, ref_modes, ref_cpu, ref_tot, ref_step
     for q in qs:
         hdr += [f"RMS {q} ({UNIT[q]})", f"max {q}"]
     if window and window["t"] is not None:
-        hdr += [f"window RMS position (m)", "window max position"]
+        hdr += ["window RMS position (m)", "window max position"]
     L.append("| " + " | ".join(hdr) + " |")
     L.append("|" + "---|" * len(hdr))
     for mo in models:

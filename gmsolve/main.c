@@ -23,11 +23,12 @@
 #include "fmbd_scene.h"
 #include "fmbd_scene_build.h"
 #include "fmbd_svg.h"
+#include "fmbd_xdmf.h"
 
 static const char *usage_text =
     "Usage: gmsolve SCENE.yaml [-o SCENE.gm.h5] [--modes K | --fmax HZ] [--at T]\n"
     "               [--keep-drivers] [--rank-tol E] [--matrices] [--dense-max N]\n"
-    "               [--plot PREFIX] [--body-dir DIR] [-M]\n"
+    "               [--plot PREFIX] [--xdmf] [--body-dir DIR] [-M]\n"
     "Global modes of a mechanism linearised at a rigid-reference configuration (Cammarata\n"
     "2021): the constrained eigenproblem K x = w^2 M x, Cq x = 0 solved on a sparse null-\n"
     "space basis of the constraint Jacobian (checked so that no mode is skipped), the f\n"
@@ -56,6 +57,11 @@ static const char *usage_text =
     "  --plot PREFIX    PREFIX-mode1.svg ... PREFIX-mode6.svg: the first flexible modes drawn\n"
     "                   on the mechanism (flexible bodies' nodes, rigid bodies' frame origins)\n"
     "                   in the plane of its two largest extents\n"
+    "  --xdmf           also OUT.xdmf beside OUT.h5 (.h5 replaced): each flexible global\n"
+    "                   mode as a frame (time = mode number) on the flexible bodies' solid\n"
+    "                   meshes for ParaView: displacement (world, the rigid-reference motion\n"
+    "                   of the frames included; unit modal mass) and von Mises stress; the\n"
+    "                   fields are written into OUT.h5 (/fields)\n"
     "  --body-dir DIR   resolve the scene's body files against DIR instead of the scene's\n"
     "                   folder (as fmbd-run --body-dir)\n"
     "  -M               print make rules of the files the scene needs (as fmbd-run -M) for\n"
@@ -73,7 +79,7 @@ typedef struct args {
   long modes;
   bool modes_given;
   double fmax_hz, at, rank_tol;
-  bool at_given, keep_drivers, matrices, make_rules;
+  bool at_given, keep_drivers, matrices, make_rules, xdmf;
   long dense_max;
   int quiet, verbose;
 } args;
@@ -89,7 +95,8 @@ enum {
   OPT_PLOT,
   OPT_KEEP_DRIVERS,
   OPT_MATRICES,
-  OPT_RULES
+  OPT_RULES,
+  OPT_XDMF
 };
 static const fmbd_cli_option options[] = {{"--output", 'o', true, OPT_OUTPUT},
                                           {"--modes", 0, true, OPT_MODES},
@@ -101,6 +108,7 @@ static const fmbd_cli_option options[] = {{"--output", 'o', true, OPT_OUTPUT},
                                           {"--plot", 0, true, OPT_PLOT},
                                           {"--keep-drivers", 0, false, OPT_KEEP_DRIVERS},
                                           {"--matrices", 0, false, OPT_MATRICES},
+                                          {"--xdmf", 0, false, OPT_XDMF},
                                           {NULL, 'M', false, OPT_RULES},
                                           {0}};
 
@@ -155,6 +163,9 @@ static int parse_args(int argc, char **argv, args *a) {
       case OPT_RULES:
         a->make_rules = true;
         break;
+      case OPT_XDMF:
+        a->xdmf = true;
+        break;
     }
   }
   a->quiet = p.quiet;
@@ -164,6 +175,163 @@ static int parse_args(int argc, char **argv, args *a) {
     return fmbd_cli_usage_error("--modes and --fmax are exclusive");
   }
   return 0;
+}
+
+// --- --xdmf: the flexible global modes on the bodies' meshes -----------------------------------
+// A body's field of a mode dx (all n coordinates): the elastic translations of its nodes from its
+// elastic coordinates (a full FE body's dofs, or a modal body's modal coordinates through the
+// file's shapes) through /expand, plus the rigid-reference motion of its frame, in the world:
+//   w_p = dR + dA x0_p + A u_p,   dA = dA/dp dp (central difference, h = 1e-6: 1e-12 relative)
+// and the stress of the elastic part (fmbd_fe_nodal_stress, body frame), both times the mode's
+// display scale (the largest node displacement of the mode 10 % of the mechanism's extent, as
+// --plot; /fields/mode_scale), so that the frames' positions show the shape.
+typedef struct gm_field {
+  const fmbd_fe_body *fe;  // the body's description (elements, /expand)
+  const int64_t *col;      // full FE body: dof -> elastic coordinate (-1 frame node); or NULL
+  const fmbd_rflex *r;     // modal body: its shapes (ndof x nm)
+  int64_t off;             // the body's first coordinate
+  double R[3], p[4], A[9];
+  double *ua, *uall, *x0;  // ndof, 6 nnodes, 3 nnodes (body frame)
+  double scale;            // the mode's display scale
+} gm_field;
+
+static int gm_field_fn(void *user, const double *dx, double *u, double *sigma) {
+  gm_field *d = user;
+  const fmbd_fe_body *fe = d->fe;
+  const double *q = dx + d->off + 7;
+  for (int64_t i = 0; i < fe->ndof; i++) {
+    double v = 0.0;
+    if (d->col) {
+      v = d->col[i] >= 0 ? q[d->col[i]] : 0.0;
+    } else {
+      for (int64_t k = 0; k < d->r->nm; k++) v += d->r->shapes[i + d->r->ndof * k] * q[k];
+    }
+    d->ua[i] = v;
+  }
+  fmbd_csr_matvec(fe->expand, d->ua, d->uall);
+  const double h = 1e-6;
+  double pp[4], pm[4], Ap[9], Am[9], dA[9];
+  for (int c = 0; c < 4; c++) pp[c] = d->p[c] + h * dx[d->off + 3 + c];
+  for (int c = 0; c < 4; c++) pm[c] = d->p[c] - h * dx[d->off + 3 + c];
+  fmbd_mbs_rotation_quat(pp, Ap);
+  fmbd_mbs_rotation_quat(pm, Am);
+  for (int i = 0; i < 9; i++) dA[i] = (Ap[i] - Am[i]) / (2 * h);
+  for (int64_t p = 0; p < fe->nnodes; p++) {
+    const double *x0 = d->x0 + 3 * p, *ue = d->uall + 6 * p;
+    for (int a = 0; a < 3; a++) {
+      u[a + 3 * p] = dx[d->off + a];
+      for (int c = 0; c < 3; c++) u[a + 3 * p] += dA[3 * a + c] * x0[c] + d->A[3 * a + c] * ue[c];
+      u[a + 3 * p] *= d->scale;
+    }
+  }
+  if (!sigma) return FMBD_OK;
+  FMBD_CALL(fmbd_fe_nodal_stress(fe, 1, d->ua, sigma));
+  for (int64_t i = 0; i < 6 * fe->nnodes; i++) sigma[i] *= d->scale;
+  return FMBD_OK;
+}
+
+// The fields of every flexible body with solid elements into out, one frame per mode; the XDMF
+// file is written by the caller (fmbd_xdmf_commit) once out is committed.
+static int xdmf_modes(fmbd_xdmf *xd, fmbd_h5 *out, const fmbd_scene *s, const fmbd_scene_model *md,
+                      const int64_t *bodyoff, const double *x, int64_t n, const double *Xf,
+                      int64_t nk) {
+  int rc = FMBD_OK;
+  int nb = 0;
+  gm_field *d = NULL;
+  fmbd_fe_body **own = NULL;
+  const double **R = NULL, **A = NULL, **q = NULL;
+  fmbd_h5 *f = NULL;
+  double *ubuf = NULL, *scale = NULL, lo[3] = {INFINITY, INFINITY, INFINITY},
+         hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  int64_t nmax = 0;
+  FMBD_GALLOC(d = fmbd_calloc((size_t)s->nbodies + 1, sizeof *d));
+  FMBD_GALLOC(own = fmbd_calloc((size_t)s->nbodies + 1, sizeof *own));
+  FMBD_GALLOC(R = fmbd_calloc((size_t)s->nbodies + 1, sizeof *R));
+  FMBD_GALLOC(A = fmbd_calloc((size_t)s->nbodies + 1, sizeof *A));
+  FMBD_GALLOC(q = fmbd_calloc((size_t)s->nbodies + 1, sizeof *q));
+  static const double zero[3] = {0, 0, 0}, eye[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  for (int i = 0; i < s->nbodies; i++) {
+    if (s->bodies[i].kind != FMBD_SCENE_FLEXIBLE) continue;
+    const char *file = s->bodies[i].file;
+    FMBD_GCALL(fmbd_h5_open(file, &f));
+    if (!fmbd_h5_exists(f, "/mesh/elements/tet4") && !fmbd_h5_exists(f, "/mesh/elements/tet10")) {
+      fmbd_log(FMBD_LOG_WARN, "--xdmf: body '%s' (%s) has no solid elements: not in the fields",
+               s->bodies[i].name, file);
+      fmbd_h5_close(&f);
+      continue;
+    }
+    gm_field *g = &d[nb];
+    if (md->fe && md->fe[i]) {
+      g->fe = md->fe[i];
+      g->col = md->fe_col[i];
+    } else {  // a modal body: its file's description (elements, material, /expand)
+      FMBD_GCALL(fmbd_fe_read(f, &own[nb]));
+      g->fe = own[nb];
+      g->r = md->flex[i];
+      FMBD_GCHECK(g->fe->ndof == g->r->ndof && g->fe->expand, FMBD_ERR_FORMAT,
+                  "--xdmf: body '%s': %s describes %lld dofs, its modes %lld", s->bodies[i].name,
+                  file, (long long)g->fe->ndof, (long long)g->r->ndof);
+    }
+    g->off = bodyoff[md->body_id[i]];
+    memcpy(g->R, x + g->off, sizeof g->R);
+    memcpy(g->p, x + g->off + 3, sizeof g->p);
+    fmbd_mbs_rotation_quat(g->p, g->A);
+    int64_t nn = g->fe->nnodes;
+    FMBD_GALLOC(g->ua = fmbd_calloc((size_t)g->fe->ndof + 1, sizeof(double)));
+    FMBD_GALLOC(g->uall = fmbd_calloc((size_t)(6 * nn) + 1, sizeof(double)));
+    FMBD_GALLOC(g->x0 = fmbd_calloc((size_t)(3 * nn) + 1, sizeof(double)));
+    double *w = NULL;  // world reference positions: the grid's nodes
+    FMBD_GALLOC(w = fmbd_calloc((size_t)(3 * nn) + 1, sizeof(double)));
+    for (int64_t p = 0; p < nn; p++) {
+      memcpy(g->x0 + 3 * p, g->fe->xyz + 3 * p, 3 * sizeof(double));
+      for (int a = 0; a < 3; a++) {
+        w[3 * p + a] = g->R[a];
+        for (int c = 0; c < 3; c++) w[3 * p + a] += g->A[3 * a + c] * g->x0[3 * p + c];
+        lo[a] = fmin(lo[a], w[3 * p + a]), hi[a] = fmax(hi[a], w[3 * p + a]);
+      }
+    }
+    if (nn > nmax) nmax = nn;
+    rc = fmbd_xdmf_add_body_fn(xd, s->bodies[i].name, file, nn, w, f, n, gm_field_fn, g);
+    fmbd_free(w);
+    FMBD_GCALL(rc);
+    R[nb] = zero, A[nb] = eye;
+    nb++;
+    fmbd_h5_close(&f);
+  }
+  FMBD_GCHECK(nb > 0, FMBD_ERR_VALUE, "--xdmf: the scene has no flexible body with solid elements");
+  double size = fmax(fmax(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]);
+  FMBD_GALLOC(ubuf = fmbd_calloc((size_t)(3 * nmax) + 1, sizeof(double)));
+  FMBD_GALLOC(scale = fmbd_calloc((size_t)nk + 1, sizeof(double)));
+  for (int64_t k = 0; k < nk; k++) {
+    double big = 0.0;  // the mode's largest node displacement at unit modal mass
+    for (int b = 0; b < nb; b++) {
+      d[b].scale = 1.0;
+      FMBD_GCALL(gm_field_fn(&d[b], Xf + n * k, ubuf, NULL));
+      for (int64_t p = 0; p < d[b].fe->nnodes; p++)
+        big = fmax(big, hypot(hypot(ubuf[3 * p], ubuf[3 * p + 1]), ubuf[3 * p + 2]));
+    }
+    scale[k] = big > 0 ? 0.1 * (size > 0 ? size : 1.0) / big : 1.0;
+    for (int b = 0; b < nb; b++) q[b] = Xf + n * k, d[b].scale = scale[k];
+    FMBD_GCALL(fmbd_xdmf_frame(xd, (double)(k + 1), R, A, q));
+  }
+  int64_t dk[1] = {nk};
+  FMBD_GCALL(fmbd_h5_write_f64(out, "/fields/mode_scale", 1, dk, scale));
+done:
+  fmbd_free(ubuf);
+  fmbd_free(scale);
+  fmbd_h5_close(&f);
+  for (int b = 0; d && b < s->nbodies; b++) {
+    fmbd_free(d[b].ua);
+    fmbd_free(d[b].uall);
+    fmbd_free(d[b].x0);
+    fmbd_fe_body_destroy(&own[b]);
+  }
+  fmbd_free(d);
+  fmbd_free(own);
+  fmbd_free(R);
+  fmbd_free(A);
+  fmbd_free(q);
+  return rc;
 }
 
 // --- --plot: the first modes drawn on the mechanism -------------------------------------------
@@ -304,7 +472,8 @@ int main(int argc, char **argv) {
   fmbd_mbs_linear L = {0};
   fmbd_csr *Cq = NULL;
   fmbd_gm_result res = {0};
-  char *oname = NULL, *rules = NULL;
+  char *oname = NULL, *rules = NULL, *xname = NULL;
+  fmbd_xdmf *xw = NULL;
   bool *rigid = NULL;
   double *x = NULL, *xd = NULL, *rt = NULL, *P = NULL, *fhz = NULL;
   int64_t *rows = NULL, *coord = NULL, *bodyoff = NULL;
@@ -330,6 +499,12 @@ int main(int argc, char **argv) {
     goto done;
   }
   FMBD_GCALL(fmbd_cli_output_name(a.input, a.output, strip, ".gm.h5", &oname));
+  if (a.xdmf) {
+    static const char *const h5[] = {".h5", NULL};
+    FMBD_GCHECK(strcmp(oname, "-"), FMBD_ERR_USAGE,
+                "--xdmf needs a named output beside it, not standard output: give -o OUT.gm.h5");
+    FMBD_GCALL(fmbd_cli_derive_name(oname, h5, ".xdmf", &xname));
+  }
 
   // --- the mechanism ---
   double t0 = fmbd_wall_s();
@@ -520,7 +695,12 @@ int main(int argc, char **argv) {
     fmbd_log(FMBD_LOG_INFO, "body '%s': GMc basis of %lld columns (%lld dependent removed)",
              s->bodies[i].name, (long long)nc, (long long)(nk - nc));
   }
+  if (a.xdmf) {
+    FMBD_GCALL(fmbd_xdmf_create_h5(out, oname, xname, &xw));
+    FMBD_GCALL(xdmf_modes(xw, out, s, md, bodyoff, x, n, Xf, nk));
+  }
   FMBD_GCALL(fmbd_h5_commit(&out, fmbd_cli_wall_s(), fmbd_cli_cpu_s()));
+  if (xw) FMBD_GCALL(fmbd_xdmf_commit(&xw));
   if (a.plot) FMBD_GCALL(plot_modes(a.plot, s, md, bodyoff, x, n, Xf, nk, fhz + f));
   double t_write = fmbd_wall_s() - t1;
   double max_resid = 0.0;
@@ -548,6 +728,8 @@ done:
   fmbd_gm_result_free(&res);
   fmbd_scene_model_destroy(&md);
   fmbd_scene_destroy(&s);
+  fmbd_xdmf_close(&xw);
+  fmbd_free(xname);
   fmbd_free(oname);
   fmbd_free(rules);
   fmbd_free(rigid);

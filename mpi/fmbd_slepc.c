@@ -49,10 +49,35 @@ int fmbd_slepc_size(void) {
   return s;
 }
 
-// error codes are negative: the "worst" is the smallest
+// error codes are negative: the "worst" is the smallest. Process 0 reports: when it did not
+// fail itself, the first process that failed sends it its message
 int fmbd_slepc_agree(int rc) {
   int all = rc;
-  MPI_Allreduce(&rc, &all, 1, MPI_INT, MPI_MIN, PETSC_COMM_WORLD);
+  (void)MPI_Allreduce(&rc, &all, 1, MPI_INT, MPI_MIN, PETSC_COMM_WORLD);
+  if (all == FMBD_OK) return all;
+  const int rank = fmbd_slepc_rank();
+  int me = rc != FMBD_OK ? rank : fmbd_slepc_size(), first = me;
+  (void)MPI_Allreduce(&me, &first, 1, MPI_INT, MPI_MIN, PETSC_COMM_WORLD);
+  if (first > 0) {
+    struct {
+      int code;
+      char msg[1024], file[512], where[512];
+    } m;
+    memset(&m, 0, sizeof m);
+    if (rank == first) {
+      const fmbd_err *e = fmbd_err_get();
+      m.code = e->code;
+      snprintf(m.msg, sizeof m.msg, "%s", e->msg);
+      snprintf(m.file, sizeof m.file, "%s", e->file);
+      snprintf(m.where, sizeof m.where, "%s", e->where);
+      (void)MPI_Send(&m, (int)sizeof m, MPI_BYTE, 0, 7, PETSC_COMM_WORLD);
+    } else if (rank == 0) {
+      (void)MPI_Recv(&m, (int)sizeof m, MPI_BYTE, first, 7, PETSC_COMM_WORLD, MPI_STATUS_IGNORE);
+      fmbd_err_context(m.file, m.where);
+      (void)fmbd_err_set(m.code ? m.code : all, __FILE__, __LINE__, __func__, "process %d: %s",
+                         first, m.msg);
+    }
+  }
   return all;
 }
 
@@ -354,6 +379,43 @@ done:
   return rc;
 }
 
+// this process's blocks of the reduction from rows g0 .. g1-1 of the file's K and M (see
+// fmbd_slepc_cb_reduce): interior rows rstart .. rstart+nloc-1 against the interior (Ksl, Msl)
+// and the boundary (Kcl, Mcl) columns, its boundary rows against the boundary (Kbl, Mbl). Local:
+// no collective call
+static int read_blocks(fmbd_h5 *f, const fmbd_cb *cb, int64_t g0, int64_t g1, int64_t nloc,
+                       int64_t rstart, fmbd_csr **Ksl, fmbd_csr **Msl, fmbd_csr **Kcl,
+                       fmbd_csr **Mcl, fmbd_csr **Kbl, fmbd_csr **Mbl) {
+  int rc = FMBD_OK;
+  fmbd_csr *Kr = NULL, *Mr = NULL;
+  int64_t *lrows = NULL;
+  const int64_t n = cb->ndof, ns = cb->ns, nb = cb->nb;
+  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/K", g0, g1, NULL, &Kr));
+  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/M", g0, g1, NULL, &Mr));
+  FMBD_GCHECK(Kr->ncols == n && Mr->ncols == n, FMBD_ERR_FORMAT,
+              "/K or /M has %lld or %lld columns, /dofs %lld rows", (long long)Kr->ncols,
+              (long long)Mr->ncols, (long long)n);
+  FMBD_GCALL(check_rows(Kr, Mr, g0));
+  int64_t b0 = 0, b1 = 0;  // the boundary dofs in g0 .. g1-1: boundary[b0 .. b1-1]
+  while (b0 < nb && cb->boundary[b0] < g0) b0++;
+  for (b1 = b0; b1 < nb && cb->boundary[b1] < g1;) b1++;
+  int64_t nl = nloc > b1 - b0 ? nloc : b1 - b0;
+  FMBD_GALLOC(lrows = fmbd_malloc((size_t)(nl ? nl : 1) * sizeof(int64_t)));
+  for (int64_t i = 0; i < nloc; i++) lrows[i] = cb->interior[rstart + i] - g0;
+  FMBD_GCALL(fmbd_csr_submatrix(Kr, nloc, lrows, ns, cb->interior, Ksl));
+  FMBD_GCALL(fmbd_csr_submatrix(Mr, nloc, lrows, ns, cb->interior, Msl));
+  FMBD_GCALL(fmbd_csr_submatrix(Kr, nloc, lrows, nb, cb->boundary, Kcl));
+  FMBD_GCALL(fmbd_csr_submatrix(Mr, nloc, lrows, nb, cb->boundary, Mcl));
+  for (int64_t k = b0; k < b1; k++) lrows[k - b0] = cb->boundary[k] - g0;
+  FMBD_GCALL(fmbd_csr_submatrix(Kr, b1 - b0, lrows, nb, cb->boundary, Kbl));
+  FMBD_GCALL(fmbd_csr_submatrix(Mr, b1 - b0, lrows, nb, cb->boundary, Mbl));
+done:
+  fmbd_csr_destroy(&Kr);  // the rows are not needed any more (peak memory)
+  fmbd_csr_destroy(&Mr);
+  fmbd_free(lrows);
+  return rc;
+}
+
 int fmbd_slepc_cb_reduce(fmbd_h5 *f, int64_t n, int64_t nb, const int64_t *boundary,
                          const fmbd_slepc_opts *oin, fmbd_cb **out, fmbd_slepc_timing *t) {
   int rc = FMBD_OK;
@@ -366,11 +428,9 @@ int fmbd_slepc_cb_reduce(fmbd_h5 *f, int64_t n, int64_t nb, const int64_t *bound
   memset(t, 0, sizeof *t);
   const int rank = fmbd_slepc_rank(), np = fmbd_slepc_size();
   fmbd_cb *cb = NULL;
-  fmbd_csr *Kr = NULL, *Mr = NULL;  // this process's rows of the whole K and M
   fmbd_csr *Ksl = NULL, *Msl = NULL, *Kcl = NULL, *Mcl = NULL, *Kbl = NULL, *Mbl = NULL;
   fmbd_csr *Kc = NULL, *Mc = NULL, *Kb = NULL, *Mb = NULL;
   char *mark = NULL;
-  int64_t *lrows = NULL;
   idx_val *order = NULL;
   double *lam = NULL;
   Mat Ks = NULL, Ms = NULL;
@@ -426,27 +486,10 @@ int fmbd_slepc_cb_reduce(fmbd_h5 *f, int64_t n, int64_t nb, const int64_t *bound
   }
   int64_t g0 = rank == 0 ? 0 : (rstart < ns ? cb->interior[rstart] : n);
   int64_t g1 = rank == np - 1 ? n : (rstart + nloc < ns ? cb->interior[rstart + nloc] : n);
-  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/K", g0, g1, NULL, &Kr));
-  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/M", g0, g1, NULL, &Mr));
-  FMBD_GCHECK(Kr->ncols == n && Mr->ncols == n, FMBD_ERR_FORMAT,
-              "/K or /M has %lld or %lld columns, /dofs %lld rows", (long long)Kr->ncols,
-              (long long)Mr->ncols, (long long)n);
-  FMBD_GCALL(check_rows(Kr, Mr, g0));
-  int64_t b0 = 0, b1 = 0;  // the boundary dofs in g0 .. g1-1: boundary[b0 .. b1-1]
-  while (b0 < nb && cb->boundary[b0] < g0) b0++;
-  for (b1 = b0; b1 < nb && cb->boundary[b1] < g1;) b1++;
-  int64_t nl = (int64_t)nloc > b1 - b0 ? (int64_t)nloc : b1 - b0;
-  FMBD_GALLOC(lrows = fmbd_malloc((size_t)(nl ? nl : 1) * sizeof(int64_t)));
-  for (int64_t i = 0; i < nloc; i++) lrows[i] = cb->interior[rstart + i] - g0;
-  FMBD_GCALL(fmbd_csr_submatrix(Kr, nloc, lrows, ns, cb->interior, &Ksl));
-  FMBD_GCALL(fmbd_csr_submatrix(Mr, nloc, lrows, ns, cb->interior, &Msl));
-  FMBD_GCALL(fmbd_csr_submatrix(Kr, nloc, lrows, nb, cb->boundary, &Kcl));
-  FMBD_GCALL(fmbd_csr_submatrix(Mr, nloc, lrows, nb, cb->boundary, &Mcl));
-  for (int64_t k = b0; k < b1; k++) lrows[k - b0] = cb->boundary[k] - g0;
-  FMBD_GCALL(fmbd_csr_submatrix(Kr, b1 - b0, lrows, nb, cb->boundary, &Kbl));
-  FMBD_GCALL(fmbd_csr_submatrix(Mr, b1 - b0, lrows, nb, cb->boundary, &Mbl));
-  fmbd_csr_destroy(&Kr);  // the block is not needed any more (peak memory)
-  fmbd_csr_destroy(&Mr);
+  // local work: a failure on one process is agreed on before the next collective call
+  rc = fmbd_slepc_agree(
+      read_blocks(f, cb, g0, g1, nloc, rstart, &Ksl, &Msl, &Kcl, &Mcl, &Kbl, &Mbl));
+  if (rc) goto done;
   // process 0 gets the (sparse) coupling and boundary blocks: Kc, Mc (ns x nb), Kb, Mb
   FMBD_GCALL(gather_rows0(Kcl, &Kc));
   FMBD_GCALL(gather_rows0(Mcl, &Mc));
@@ -614,11 +657,8 @@ done:
   VecDestroy(&z);
   VecDestroy(&x0);
   VecScatterDestroy(&sc);
-  fmbd_csr_destroy(&Kr);
-  fmbd_csr_destroy(&Mr);
   fmbd_csr_destroy(&Kbl);
   fmbd_csr_destroy(&Mbl);
-  fmbd_free(lrows);
   fmbd_csr_destroy(&Ksl);
   fmbd_csr_destroy(&Msl);
   fmbd_csr_destroy(&Kcl);
@@ -672,12 +712,18 @@ int fmbd_slepc_exact(fmbd_h5 *f, int64_t nev, bool free_body, const fmbd_slepc_o
     MPI_Scan(&nloc, &end, 1, MPIU_INT, MPI_SUM, PETSC_COMM_WORLD);
     rstart = end - nloc;
   }
-  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/K", rstart, rstart + nloc, NULL, &Kr));
-  FMBD_GCALL(fmbd_h5_read_csr_rows(f, "/M", rstart, rstart + nloc, NULL, &Mr));
-  FMBD_GCHECK(Kr->ncols == n && Mr->ncols == n, FMBD_ERR_FORMAT,
-              "/K has %lld columns and /M %lld, /K %lld rows", (long long)Kr->ncols,
-              (long long)Mr->ncols, (long long)n);
-  FMBD_GCALL(check_rows(Kr, Mr, rstart));
+  // local work: a failure on one process is agreed on before the next collective call
+  rc = fmbd_h5_read_csr_rows(f, "/K", rstart, rstart + nloc, NULL, &Kr);
+  if (!rc) rc = fmbd_h5_read_csr_rows(f, "/M", rstart, rstart + nloc, NULL, &Mr);
+  if (!rc && (Kr->ncols != n || Mr->ncols != n)) {
+    fmbd_err_context(NULL, "/M");
+    rc = FMBD_ERR_FORMAT;
+    (void)fmbd_err_set(rc, __FILE__, __LINE__, __func__, "%lld columns, /K %lld rows",
+                       (long long)Mr->ncols, (long long)n);
+  }
+  if (!rc) rc = check_rows(Kr, Mr, rstart);
+  rc = fmbd_slepc_agree(rc);
+  if (rc) goto done;
   // the upper end of the spectrum, max K_ii / M_ii (fmbd_eig_spectrum_scale), over the processes
   double scale = 0.0;
   for (int64_t i = 0; i < Kr->nrows; i++) {

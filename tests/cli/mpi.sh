@@ -119,5 +119,21 @@ fe2cb-mpi br.fe.h5 --fmax 100 > out.txt 2>&1
 "${MPIRUN[@]}" -np 2 fe2cb-mpi br.fe.h5 --modes 100000 -o big.cb.h5 > out.txt 2>&1
 [ $? -eq 1 ] || bad "--modes beyond the interior: exit $?"
 grep -q 'fe2cb-mpi: error: br.fe.h5: .*100000 modes asked for' out.txt || bad "--modes 100000: $(cat out.txt)"
-ls x.cb.h5* big.cb.h5* > /dev/null 2>&1 && bad "output left after a failure: $(ls x.cb.h5* big.cb.h5* 2>&1)"
+# a defect in rows that only process 1 reads (each reads its own row block): process 0 reports
+# it (one message), every process stops (no hang in a collective call), no output
+"$PYTHON" - <<'PY' || bad "could not write negm.fe.h5"
+import shutil, h5py, numpy as np
+shutil.copy("br.fe.h5", "negm.fe.h5")
+g = h5py.File("negm.fe.h5", "r+")["M"]
+ip, ix = g["indptr"][()], g["indices"][()]
+i = len(ip) - 21  # a row of the last block: process 1's under -np 2
+p = ip[i] + int(np.where(ix[ip[i]:ip[i + 1]] == i)[0][0])
+g["data"][p] = -abs(g["data"][p])
+PY
+timeout 300 "${MPIRUN[@]}" -np 2 fe2cb-mpi negm.fe.h5 --modes 5 -o negm.cb.h5 > out.txt 2>&1
+st=$?
+[ $st -eq 1 ] || bad "negative mass in process 1's rows: exit $st (124: hung)"
+[ "$(grep -c 'fe2cb-mpi: error: negm.fe.h5:/M: process 1: diagonal entry .* (negative mass)' out.txt)" -eq 1 ] \
+  || bad "negative mass in process 1's rows: not one message from process 0: $(cat out.txt)"
+ls x.cb.h5* big.cb.h5* negm.cb.h5* > /dev/null 2>&1 && bad "output left after a failure: $(ls x.cb.h5* big.cb.h5* negm.cb.h5* 2>&1)"
 exit $fail

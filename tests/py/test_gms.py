@@ -15,7 +15,9 @@
 #    rule, once); make -n orders them, a real make builds the run, a touched reference scene
 #    remakes the basis only;
 # 5. the spatial slider-crank on a coarse mesh: the global frequencies = scipy's solution of the
-#    same constrained problem; GMs = GMc on the mid-span node (one flexible body).
+#    same constrained problem; GMs = GMc on the mid-span node (one flexible body);
+# 6. gmsolve --xdmf read back by meshio (python3-meshio): nodes, cells and one mode's
+#    displacement against /gms/<body>/shapes in the h5.
 import os
 import re
 import shutil
@@ -268,5 +270,55 @@ a, b = point("ssc_gms.run.h5", "mid"), point("ssc_gmc.run.h5", "mid")
 d, e = np.max(np.abs(a - a[0])), np.max(np.abs(a - b))
 # one span in two coordinate sets: the Newton tolerance (1e-8 relative) of the motion, 1e-6
 check(d > 0 and e < 1e-6 * d, f"spatial slider-crank, 2 global modes: GMs mid-span = GMc ({e:.1e} m of {d:.2e} m)")
+# --- 6. gmsolve --xdmf: the global modes on the bodies' meshes, read back by meshio ------------
+# a tet10 rod clamped at end0, turned 90 degrees about z and moved: the frame does not move in the
+# modes (f = 0), so mode k's displacement is A (/expand /gms/rod/shapes[:, k]) at every node,
+# times the display scale /fields/mode_scale[k]
+write("xclamp.yaml", """title: clamped solid rod, turned
+solver: {t_end: 0.01}
+bodies:
+  - name: rod
+    type: flexible
+    file: rodfe.fe.h5
+    position: [0.1, 0.2, 0.3]
+    orientation: {matrix: [0, -1, 0, 1, 0, 0, 0, 0, 1]}
+joints:
+  - {name: clamp, type: fixed, body1: ground, body2: rod, at2: {interface: end0}}
+""")
+run("gmsolve", "xclamp.yaml", "--modes", "3", "--xdmf", "-o", "xclamp.gm.h5", "-q")
+xd = os.path.join(TMP, "xclamp.gm.xdmf")
+check(os.path.exists(xd) and not os.path.exists(xd + ".part"), "gmsolve --xdmf: xclamp.gm.xdmf beside xclamp.gm.h5")
+try:
+    import meshio
+except ImportError:
+    meshio = None
+    check(False, "python3-meshio (scripts/install-deps.sh) is installed")
+import scipy.sparse as sp  # noqa: E402
+with h5py.File(os.path.join(TMP, "rodfe.fe.h5"), "r") as b:
+    x0, tets = b["mesh/nodes"][()], b["mesh/elements/tet10"][()]
+    e = b["expand"]
+    E = sp.csr_matrix((e["data"][()], e["indices"][()], e["indptr"][()]), shape=tuple(e.attrs["shape"]))
+with h5py.File(os.path.join(TMP, "xclamp.gm.h5"), "r") as f:
+    S, sc = f["gms/rod/shapes"][()], f["fields/mode_scale"][()]
+Arot = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
+world = np.array([0.1, 0.2, 0.3]) + x0 @ Arot.T
+if meshio is not None:
+    with meshio.xdmf.TimeSeriesReader(xd) as r:
+        points, blocks = r.read_points_cells()
+        check(r.num_steps == 3, f"meshio: {r.num_steps} frames = 3 global modes")
+        check(len(blocks) == 1 and blocks[0].type == "tetra10"
+              and np.array_equal(blocks[0].data, tets[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]]),
+              f"meshio: cells = /mesh/elements/tet10 in XDMF order ({len(tets)} tet10)")
+        k = 1
+        tk, pdata, _ = r.read_data(k)
+        u = sc[k] * (E @ S[:, k]).reshape(-1, 6)[:, :3] @ Arot.T
+        du = np.abs(pdata["displacement"] - u).max() / np.abs(u).max()
+        # the same products in another order: round-off, 1e-12 relative
+        check(tk == k + 1 and du < 1e-12, f"meshio: mode {k + 1} (time {tk}) displacement = A E shapes x scale "
+              f"(rel {du:.1e}; largest {np.abs(u).max():.3g} m, 10 % of the rod)")
+    with h5py.File(os.path.join(TMP, "xclamp.gm.h5"), "r") as f:
+        pos = f["fields/frames/%d/position" % k][()]
+    dpos = np.abs(pos - (world + u)).max()
+    check(dpos < 1e-12, f"frame {k}: positions = the reference world positions + the displacement ({dpos:.1e} m)")
 finish()
 print("all passed")

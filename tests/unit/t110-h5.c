@@ -235,6 +235,29 @@ static void test_csr(void) {
              !memcmp(B->indices, ix, sizeof ix) && !memcmp(B->data, v, sizeof v),
          "csr round trip");
   fmbd_csr_destroy(&B);
+  // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0
+  for (int64_t r0 = 0; r0 <= 4; r0++) {
+    for (int64_t r1 = r0; r1 <= 4; r1++) {
+      int64_t nall = -1;
+      EXPECT(fmbd_h5_read_csr_rows(f, "/mats/A", r0, r1, &nall, &B) == FMBD_OK, "rows %lld..%lld",
+             (long long)r0, (long long)r1);
+      bool same = B && B->nrows == r1 - r0 && B->ncols == 5 && nall == 4;
+      for (int64_t i = 0; same && i <= r1 - r0; i++) same = B->indptr[i] == ip[r0 + i] - ip[r0];
+      for (int64_t p = ip[r0]; same && p < ip[r1]; p++) {
+        same = B->indices[p - ip[r0]] == ix[p] && B->data[p - ip[r0]] == v[p];
+      }
+      EXPECT(same, "rows %lld..%lld equal to A's", (long long)r0, (long long)r1);
+      fmbd_csr_destroy(&B);
+    }
+  }
+  EXPECT(fmbd_h5_read_csr_rows(f, "/mats/A", 2, 5, NULL, &B) == FMBD_ERR_VALUE && !B,
+         "rows beyond the matrix");
+  EXPECT(fmbd_h5_read_csr_rows(f, "/bad", 0, 2, NULL, &B) == FMBD_OK, "rows before the defect");
+  fmbd_csr_destroy(&B);
+  EXPECT(fmbd_h5_read_csr_rows(f, "/bad", 1, 3, NULL, &B) == FMBD_ERR_FORMAT && !B,
+         "rows with the defect");
+  expect_ctx(name, "/bad", "bad rows");
+  EXPECT(fmbd_h5_read_csr_rows(f, "/missing", 0, 1, NULL, &B) == FMBD_ERR_FORMAT, "missing rows");
   EXPECT(fmbd_h5_read_csr(f, "/E", &B) == FMBD_OK && B->nrows == 0 && fmbd_csr_nnz(B) == 0,
          "empty");
   fmbd_csr_destroy(&B);

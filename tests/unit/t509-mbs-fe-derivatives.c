@@ -10,6 +10,9 @@
 //     (fmbd_mbs.h, the position derivatives of the inertia and load terms are not in the
 //     tangent), so it is checked against K, not against finite differences;
 // (3) fmbd_mbs_linearise with the FE body: its M, C, K rows are those blocks, in CSR.
+// All three twice: with the coupling from Mn, and with a given S1 and Mw0 (a beam body's
+// consistent coupling, docs/THEORY.md section 4b; random here), against the modal body with
+// that S1 and the antisymmetric part of its XS_k set from Mw0 (section 9, as fmbd_rflex does).
 // SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdio.h>
@@ -47,8 +50,7 @@ static double maxabs(const double *a, int64_t n) {
 
 enum { NN = 5, NF = 10 };  // nodes; FE coordinates
 
-int main(void) {
-  fmbd_log_init("t509", FMBD_LOG_ERROR);
+static void one(int beam) {
   unsigned seed = 5;
   // --- a random body: nodes, SPD scalar mass Mn, map E (mostly a selection, one column that
   // moves several nodes in several directions as an interface's rotation does), SPD M, K ---
@@ -120,6 +122,25 @@ int main(void) {
       }
     }
   }
+  // a given coupling: S1c, Mw0 random; the modal body's S1 = S1c, XS_k's antisymmetric part
+  // from Mw0 (eps_abc XS_bc,k = Mw0_a,k: H_k,ab = XS_ba,k and Mw_a = eps_abc H_k,cb)
+  double S1c[3 * NF], Mw0[3 * NF];
+  for (int i = 0; i < 3 * NF; i++) S1c[i] = urand(&seed), Mw0[i] = 0.3 * urand(&seed);
+  if (beam) {
+    memcpy(S1, S1c, sizeof S1);
+    for (int k = 0; k < NF; k++) {
+      double *X = XS + 9 * k;
+      for (int a = 0; a < 3; a++) {
+        for (int b = a + 1; b < 3; b++) {
+          double sym = 0.5 * (X[a + 3 * b] + X[b + 3 * a]);
+          int c = 3 - a - b;
+          double eps = (a + 1) % 3 == b ? 1.0 : -1.0;  // eps_abc
+          X[a + 3 * b] = sym + 0.5 * eps * Mw0[c + 3 * k];
+          X[b + 3 * a] = sym - 0.5 * eps * Mw0[c + 3 * k];
+        }
+      }
+    }
+  }
   fmbd_csr *cM = dense_csr(NF, NF, M), *cK = dense_csr(NF, NF, K), *cMn = dense_csr(NN, NN, Mn),
            *cE = dense_csr(3 * NN, NF, E), *cD = NULL;
   // damping D = 0.01 K (the modal body's damping is diagonal modal damping: set 0 there and
@@ -140,7 +161,9 @@ int main(void) {
                          .nnodes = NN,
                          .node_xyz = xyz,
                          .Mn = cMn,
-                         .E = cE};
+                         .E = cE,
+                         .S1 = beam ? S1c : NULL,
+                         .Mw0 = beam ? Mw0 : NULL};
   memcpy(fd.first_moment, c0, sizeof c0);
   memcpy(fd.second_moment, J0, sizeof J0);
   rc = rc ? rc : fmbd_mbs_add_fe(m, "fe", &fd, &s0, &bf);
@@ -171,7 +194,7 @@ int main(void) {
   fmbd_mbs_settings_defaults(&st);
   rc = rc ? rc : fmbd_mbs_init(m, &st);
   EXPECT(rc == 0, "build: %s", fmbd_err_get()->msg);
-  if (rc) TEST_EXIT();
+  if (rc) return;
   // --- a spinning, deformed state, the same on both bodies ---
   const mbody *b0 = &m->b[bf], *b1 = &m->b[bm];
   int64_t n = m->n, nb = b0->n;
@@ -284,5 +307,11 @@ int main(void) {
   fmbd_csr_destroy(&cM), fmbd_csr_destroy(&cK), fmbd_csr_destroy(&cMn), fmbd_csr_destroy(&cE),
       fmbd_csr_destroy(&cD);
   fmbd_mbs_destroy(&m);
+}
+
+int main(void) {
+  fmbd_log_init("t509", FMBD_LOG_ERROR);
+  one(0);
+  one(1);
   TEST_EXIT();
 }
