@@ -242,6 +242,9 @@ static void h5_free(fmbd_h5 *f) {
 // cb file's recorded input; fe2cb when it records the fe file it read). Keyed by device, inode,
 // size, modification and change times, looked at before and after the hash: a file written
 // meanwhile is hashed again. Only inputs (read, never written by this process) go through here.
+// A file rewritten by another process during this one's run in place, with the same size, within
+// one tick of the file system's clock, would keep its first hash: the check never covered that
+// case anyway (the hash and the read of a file are not one atomic step).
 typedef struct sha_memo {
   dev_t dev;
   ino_t ino;

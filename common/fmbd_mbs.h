@@ -168,14 +168,16 @@ enum fmbd_mbs_fn_kind {
   FMBD_MBS_FN_SINE,          ///< offset + amplitude sin(2 pi frequency_hz t + phase)
   FMBD_MBS_FN_TABLE,         ///< piecewise linear through (t[i], v[i]), constant outside
   FMBD_MBS_FN_LINEAR,        ///< v0 + rate (t - t0) for all t (a constant-speed driver)
+  FMBD_MBS_FN_SPINUP,        ///< v0 until t0, speed rising smoothly from 0 to rate over t1 - t0
+                             ///< (Kane, Ryan and Banerjee 1987), then v0 + rate (t - (t0 + t1) / 2)
 };
 /// A scalar function of time. Build it with the fmbd_mbs_fn_* helpers or by hand.
 typedef struct fmbd_mbs_fn {
-  int kind;                                       ///< fmbd_mbs_fn_kind
-  double value;                                   ///< CONSTANT
-  double t0, t1, v0, v1;                          ///< RAMP (t1 > t0); LINEAR uses t0, v0
-  bool smooth;                                    ///< RAMP: C1 cubic blend
-  double rate;                                    ///< LINEAR: slope (unit/s)
+  int kind;               ///< fmbd_mbs_fn_kind
+  double value;           ///< CONSTANT
+  double t0, t1, v0, v1;  ///< RAMP (t1 > t0); LINEAR uses t0, v0; SPINUP t0, t1 (> t0), v0
+  bool smooth;            ///< RAMP: C1 cubic blend
+  double rate;            ///< LINEAR: slope; SPINUP: final speed (unit/s)
   double amplitude, frequency_hz, phase, offset;  ///< SINE
   int64_t n;                                      ///< TABLE: points (>= 1), t strictly increasing
   const double *t, *v;  ///< TABLE: borrowed here; the mbs copies them when added
@@ -190,6 +192,7 @@ fmbd_mbs_fn fmbd_mbs_fn_linear(double t0, double v0, double rate);
 fmbd_mbs_fn fmbd_mbs_fn_ramp(double t0, double v0, double t1, double v1, bool smooth);
 fmbd_mbs_fn fmbd_mbs_fn_sine(double offset, double amplitude, double frequency_hz, double phase);
 fmbd_mbs_fn fmbd_mbs_fn_table(int64_t n, const double *t, const double *v);
+fmbd_mbs_fn fmbd_mbs_fn_spinup(double t0, double v0, double t1, double speed);
 
 // --- bodies ------------------------------------------------------------------------------
 /// Initial state of a body (world frame).

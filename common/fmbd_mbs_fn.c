@@ -71,6 +71,25 @@ double fmbd_mbs_fn_eval(const fmbd_mbs_fn *f, double t, double *dfdt, double *d2
       }
       break;
     }
+    case FMBD_MBS_FN_SPINUP: {
+      // Kane, Ryan and Banerjee (1987), eq. of the spin-up: with tau = t - t0, T = t1 - t0,
+      // W = rate: theta = (W/T) [tau^2/2 + (T/2pi)^2 (cos(2 pi tau/T) - 1)] for 0 <= tau < T,
+      // W (tau - T/2) after; speed (W/T) [tau - (T/2pi) sin(2 pi tau/T)], acceleration
+      // (W/T) (1 - cos(2 pi tau/T)): value, speed and acceleration continuous at 0 and T
+      double T = f->t1 - f->t0, tau = t - f->t0, W = f->rate;
+      if (tau < 0 || !(T > 0)) {
+        v = f->v0;
+      } else if (tau >= T) {
+        v = f->v0 + W * (tau - T / 2);
+        d = W;
+      } else {
+        double c = T / (2 * M_PI), a = tau / c;
+        v = f->v0 + W / T * (tau * tau / 2 + c * c * (cos(a) - 1));
+        d = W / T * (tau - c * sin(a));
+        dd = W / T * (1 - cos(a));
+      }
+      break;
+    }
     default:
       break;
   }
@@ -106,14 +125,25 @@ fmbd_mbs_fn fmbd_mbs_fn_table(int64_t n, const double *t, const double *v) {
   return f;
 }
 
+fmbd_mbs_fn fmbd_mbs_fn_spinup(double t0, double v0, double t1, double speed) {
+  fmbd_mbs_fn f = {0};
+  f.kind = FMBD_MBS_FN_SPINUP, f.t0 = t0, f.v0 = v0, f.t1 = t1, f.rate = speed;
+  return f;
+}
+
 // copy a function (table arrays owned by the copy)
 int mbs_fn_copy(const fmbd_mbs_fn *src, fmbd_mbs_fn *dst, const char *what) {
   *dst = *src;
   dst->t = dst->v = NULL;
-  FMBD_CHECK(src->kind >= FMBD_MBS_FN_CONSTANT && src->kind <= FMBD_MBS_FN_LINEAR, FMBD_ERR_VALUE,
+  FMBD_CHECK(src->kind >= FMBD_MBS_FN_CONSTANT && src->kind <= FMBD_MBS_FN_SPINUP, FMBD_ERR_VALUE,
              "%s: unknown function kind %d", what, src->kind);
   if (src->kind == FMBD_MBS_FN_RAMP) {
     FMBD_CHECK(src->t1 > src->t0, FMBD_ERR_VALUE, "%s: ramp needs t1 > t0", what);
+  }
+  if (src->kind == FMBD_MBS_FN_SPINUP) {
+    FMBD_CHECK(isfinite(src->t0) && isfinite(src->v0) && isfinite(src->rate) && isfinite(src->t1) &&
+                   src->t1 > src->t0,
+               FMBD_ERR_VALUE, "%s: spinup needs finite t0, v0, speed and t1 > t0", what);
   }
   if (src->kind == FMBD_MBS_FN_TABLE) {
     FMBD_CHECK(src->n >= 1 && src->t && src->v, FMBD_ERR_VALUE, "%s: empty table", what);

@@ -241,13 +241,14 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_mbs_fn *f) {
   }
   static const char *const keys[] = {
       "type",  "value",     "t0",     "t1", "v0", "v1",     "smooth", "amplitude", "frequency_hz",
-      "phase", "phase_deg", "offset", "t",  "v",  "points", "rate",   NULL};
+      "phase", "phase_deg", "offset", "t",  "v",  "points", "rate",   "speed",     NULL};
   char buf[160];
   snprintf(buf, sizeof buf, "function of %s", what);
   TRY(check_map(c, n, buf, keys));
   yaml_node_t *ty = get(c, n, "type");
   if (!ty)
-    return fail_at(c, n, "%s: missing key 'type' (constant, linear, ramp, sine or table)", buf);
+    return fail_at(c, n, "%s: missing key 'type' (constant, linear, ramp, spinup, sine or table)",
+                   buf);
   const char *t;
   TRY(as_str(c, ty, "function type", &t));
   // keys each type accepts
@@ -257,6 +258,7 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_mbs_fn *f) {
                                       "offset", NULL};
   static const char *const ktable[] = {"type", "t", "v", "points", NULL};
   static const char *const klinear[] = {"type", "t0", "v0", "rate", NULL};
+  static const char *const kspinup[] = {"type", "t0", "t1", "v0", "speed", NULL};
   yaml_node_t *x;
   if (!strcmp(t, "constant")) {
     f->kind = FMBD_MBS_FN_CONSTANT;
@@ -299,6 +301,16 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_mbs_fn *f) {
     if (!(x = get(c, n, "rate"))) return fail_at(c, n, "linear function: missing key 'rate'");
     TRY(as_double(c, x, "rate", &f->rate));
     if ((x = get(c, n, "t0"))) TRY(as_double(c, x, "t0", &f->t0));
+    if ((x = get(c, n, "v0"))) TRY(as_double(c, x, "v0", &f->v0));
+  } else if (!strcmp(t, "spinup")) {
+    f->kind = FMBD_MBS_FN_SPINUP;
+    TRY(check_map(c, n, "a spinup function", kspinup));
+    if (!(x = get(c, n, "speed"))) return fail_at(c, n, "spinup function: missing key 'speed'");
+    TRY(as_double(c, x, "speed", &f->rate));
+    if ((x = get(c, n, "t0"))) TRY(as_double(c, x, "t0", &f->t0));
+    if (!(x = get(c, n, "t1"))) return fail_at(c, n, "spinup function: missing key 't1'");
+    TRY(as_double(c, x, "t1", &f->t1));
+    if (!(f->t1 > f->t0)) return fail_at(c, x, "spinup function: t1 must be later than t0");
     if ((x = get(c, n, "v0"))) TRY(as_double(c, x, "v0", &f->v0));
   } else if (!strcmp(t, "table")) {
     f->kind = FMBD_MBS_FN_TABLE;
@@ -352,7 +364,8 @@ static int parse_fn(ctx *c, yaml_node_t *n, const char *what, fmbd_mbs_fn *f) {
       }
     }
   } else {
-    return fail_at(c, ty, "unknown function type '%s' (constant, linear, ramp, sine or table)", t);
+    return fail_at(c, ty,
+                   "unknown function type '%s' (constant, linear, ramp, spinup, sine or table)", t);
   }
   return 0;
 }

@@ -464,6 +464,15 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
   }
   FMBD_GCALL(fmbd_csr_submatrix(fe->expand, 3 * nn, rows, n, kept, &E));
   FMBD_GCALL(fmbd_rflex_nodal_mass(fe, &Mn));
+  if (fe->nbeam > 0 && fe->mass_kind == FMBD_FE_MASS_LUMPED) {
+    // not one mass: the frame's coupling and the FE mass differ at first order, and the mass
+    // matrix turns indefinite within milliseconds (a falling link: 1.1 ms; THEORY 4b)
+    SFAIL(s, b->file_loc, FMBD_ERR_SCENE,
+          "body '%s': %s has beam elements with lumped mass, which a full FE body cannot use "
+          "(its rigid-flexible coupling would not come from the mass its M holds, and the mass "
+          "matrix turns indefinite: docs/THEORY.md section 4b); mesh it with --mass consistent",
+          b->name, b->file);
+  }
   if (fmbd_rflex_beam_coupling(fe)) {  // S1, M_wf(0) from the consistent M (THEORY 4b)
     FMBD_GALLOC(C = fmbd_malloc(sizeof(double) * (size_t)(6 * ndof + 6 * n)));
     FMBD_GCALL(fmbd_rflex_rigid_coupling(fe, C));

@@ -14,7 +14,7 @@
 # THE CASE. A beam (L = 5 m, circular section r = 20 mm, E = 70 GPa, rho = 2700: lambda_1 =
 # 51.28 rad^2/s^2, 1.14 Hz, as a pair: the section is symmetric), held at end0 by a revolute
 # joint about z (cbcheck --hold end0), driven at a constant speed Omega from the start (the
-# spin-up's steady state; Kane et al.'s smooth spin-up profile theta(t) is not a scene function),
+# spin-up's steady state; the transient profile: test_spin_up_transient.py),
 # struck by a smooth lateral pulse (follower loads at end1 in y and z, up and down over 0.4 s).
 # The tip's deflection in the rotating frame (y: in plane, z: out of plane) rings at the first
 # modes' frequencies, found as the peak of a zero-padded, Hann-windowed spectrum after the

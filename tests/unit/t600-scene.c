@@ -128,6 +128,22 @@ int main(void) {
     EXPECT(s->solver.fixed && s->solver.step == 1e-3, "fixed step");
     fmbd_scene_destroy(&s);
   }
+  // spinup: the keys land where fmbd_mbs_fn_eval reads them: at t0 + (t1 - t0) the angle is
+  // v0 + speed (t1 - t0) / 2 and the speed is speed (to round-off)
+  s = parse(
+      "solver: {t_end: 1}\nbodies: [{name: p, mass: 1, inertia: [1,1,1]}]\n"
+      "drivers: [{body: p, coordinate: y, function: {type: spinup, speed: 4, t0: 1, t1: 16, "
+      "v0: 0.5}}]\n");
+  if (s) {
+    double d1, d2;
+    double v = fn_eval(&s->drivers[0].fn, 16, &d1, &d2);
+    EXPECT(s->drivers[0].fn.kind == FMBD_MBS_FN_SPINUP && fabs(v - 30.5) < 1e-13 &&
+               fabs(d1 - 4) < 1e-15 && d2 == 0,
+           "spinup %g %g %g", v, d1, d2);
+    EXPECT(fn_eval(&s->drivers[0].fn, 0.5, &d1, &d2) == 0.5 && d1 == 0 && d2 == 0,
+           "spinup before t0");
+    fmbd_scene_destroy(&s);
+  }
   // a rigid-only scene depends on its file alone
   s = parse("solver: {t_end: 1}\nbodies: [{name: p, mass: 1, inertia: [1,1,1]}]\n");
   if (s) {
@@ -176,6 +192,24 @@ int main(void) {
            "%sdrivers:\n  - {body: p, coordinate: x, function: {type: ramp, t0: 1, t1: 1}}\n",
            head);
   bad(buf, "5:64", "t1 must be later than t0");
+  // spinup: the same rule, named at the spinup's t1; a non-finite speed; speed required
+  snprintf(buf, sizeof buf,
+           "%sdrivers:\n  - {body: p, coordinate: x, function: {type: spinup, speed: 4, t1: 0}}\n",
+           head);
+  bad(buf, "5:69", "spinup function: t1 must be later than t0");
+  snprintf(buf, sizeof buf,
+           "%sdrivers:\n  - {body: p, coordinate: x, function: {type: spinup, speed: .nan, t1: "
+           "1}}\n",
+           head);
+  bad(buf, "5:62", "speed: '.nan' is not a finite number");
+  snprintf(buf, sizeof buf,
+           "%sdrivers:\n  - {body: p, coordinate: x, function: {type: spinup, t1: 1}}\n", head);
+  bad(buf, "5:40", "spinup function: missing key 'speed'");
+  snprintf(buf, sizeof buf,
+           "%sdrivers:\n  - {body: p, coordinate: x, function: {type: spinup, t1: 1, speed: 1, "
+           "v1: 2}}\n",
+           head);
+  bad(buf, "5:72", "unknown key 'v1' in a spinup function");
   bad("solver: {t_end: 1}\nbodies: [\n", "3:1", "not valid YAML");
   bad("solver: {t_end: 1}\nbodies:\n  - {name: p, mass: 1, inertia: [1, 1, 1], orientation: "
       "{matrix: [1,0,0, 0,1,0, 0,0,2]}}\n",
