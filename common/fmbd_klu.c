@@ -1,9 +1,11 @@
-// common/fmbd_klu.c: sparse LU through KLU (fmbd_klu.h)
+// common/fmbd_klu.c: sparse LU through KLU or UMFPACK (fmbd_klu.h)
 // SPDX-License-Identifier: MIT
 #include "fmbd_klu.h"
 
 #include <klu.h>
+#include <stdlib.h>
 #include <string.h>
+#include <umfpack.h>
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
@@ -12,14 +14,45 @@
 // pivot order no longer suits the values and a full factorisation pivots afresh
 #define RCOND_MIN 1e-13
 
+// order from which the automatic choice takes UMFPACK (bench/README.md, "fmbd-run: full FE
+// bodies"): set after the measured crossover
+// matrices lies below 3 k unknowns; the multibody chains and modal bodies stay far below it)
+#define UMF_MIN_N 5000
+
 struct fmbd_klu {
   int64_t n;
   SuiteSparse_long *Ap, *Ai;
+  int umf;  // 1: UMFPACK is the engine, 0: KLU
+  // KLU (the engine, or UMFPACK's fallback on a singular factor: analysed on first use)
   klu_l_common kc;
   klu_l_symbolic *sym;
   klu_l_numeric *num;
+  // UMFPACK
+  void *usym, *unum;
+  double uctl[UMFPACK_CONTROL], uinfo[UMFPACK_INFO];
+  double urcond;
+  SuiteSparse_long *uWi;
+  double *uW, *uX;
   int64_t singular_col;
 };
+
+// FMBD_SPARSE_LU = klu | umfpack | auto (unset or empty: auto)
+static int engine_umf(int64_t n) {
+  const char *e = getenv("FMBD_SPARSE_LU");
+  if (e && !strcmp(e, "klu")) return 0;
+  if (e && !strcmp(e, "umfpack")) return 1;
+  return n >= UMF_MIN_N;
+}
+
+static int klu_sym(fmbd_klu *F) {
+  if (F->sym) return FMBD_OK;
+  klu_l_defaults(&F->kc);
+  F->kc.halt_if_singular = 1;
+  F->sym = klu_l_analyze((SuiteSparse_long)F->n, F->Ap, F->Ai, &F->kc);
+  FMBD_CHECK(F->sym, F->kc.status == KLU_OUT_OF_MEMORY ? FMBD_ERR_NOMEM : FMBD_ERR_EXTERNAL,
+             "KLU symbolic analysis failed (status %ld)", (long)F->kc.status);
+  return FMBD_OK;
+}
 
 int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu **out) {
   int rc = FMBD_OK;
@@ -33,11 +66,25 @@ int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu *
   FMBD_GALLOC(F->Ai = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)(nnz ? nnz : 1)));
   for (int64_t i = 0; i <= n; i++) F->Ap[i] = (SuiteSparse_long)Ap[i];
   for (int64_t i = 0; i < nnz; i++) F->Ai[i] = (SuiteSparse_long)Ai[i];
-  klu_l_defaults(&F->kc);
-  F->kc.halt_if_singular = 1;
-  F->sym = klu_l_analyze((SuiteSparse_long)n, F->Ap, F->Ai, &F->kc);
-  FMBD_GCHECK(F->sym, FMBD_ERR_EXTERNAL, "KLU symbolic analysis failed (status %ld)",
-              (long)F->kc.status);
+  F->umf = n > 0 && engine_umf(n);
+  if (!F->umf) {
+    FMBD_GCALL(klu_sym(F));
+  } else {
+    size_t m = (size_t)n;
+    FMBD_GALLOC(F->uWi = fmbd_malloc(sizeof(SuiteSparse_long) * m));
+    FMBD_GALLOC(F->uW = fmbd_malloc(sizeof(double) * 5 * m));
+    FMBD_GALLOC(F->uX = fmbd_malloc(sizeof(double) * m));
+    umfpack_dl_defaults(F->uctl);
+    F->uctl[UMFPACK_PRL] = 0;     // never prints
+    F->uctl[UMFPACK_IRSTEP] = 0;  // no iterative refinement, as with KLU (Ax is not kept)
+    // the pattern only (values NULL): AMD on A + A' for the symmetric-pattern systems here,
+    // COLAMD otherwise (UMFPACK's automatic strategy)
+    long st = umfpack_dl_symbolic((SuiteSparse_long)n, (SuiteSparse_long)n, F->Ap, F->Ai, NULL,
+                                  &F->usym, F->uctl, F->uinfo);
+    FMBD_GCHECK(st == UMFPACK_OK,
+                st == UMFPACK_ERROR_out_of_memory ? FMBD_ERR_NOMEM : FMBD_ERR_EXTERNAL,
+                "UMFPACK symbolic analysis failed (status %ld)", st);
+  }
   *out = F;
   F = NULL;
 done:
@@ -45,30 +92,67 @@ done:
   return rc;
 }
 
+static void umf_free_numeric(fmbd_klu *F) {
+  if (F->unum) umfpack_dl_free_numeric(&F->unum);
+  F->unum = NULL;
+}
+
+// KLU's full factorisation with fresh pivoting (the KLU engine's fallback from a refactor,
+// and UMFPACK's on a singular factor, where it finds the zero pivot's column)
+static int klu_full(fmbd_klu *F, double *ax) {
+  FMBD_CALL(klu_sym(F));
+  F->num = klu_l_factor(F->Ap, F->Ai, ax, F->sym, &F->kc);
+  if (!F->num || F->kc.status != KLU_OK) {
+    int64_t col = (int64_t)F->kc.singular_col;
+    F->singular_col = col >= 0 && col < F->n ? col : -1;
+    if (F->num) klu_l_free_numeric(&F->num, &F->kc);
+    FMBD_CHECK(F->kc.status != KLU_OUT_OF_MEMORY, FMBD_ERR_NOMEM, "out of memory in KLU");
+    FMBD_FAIL(FMBD_ERR_SINGULAR, "KLU: singular matrix (status %ld, column %lld)",
+              (long)F->kc.status, (long long)F->singular_col);
+  }
+  return FMBD_OK;
+}
+
 int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
   double *ax = (double *)Ax;  // KLU's prototypes are not const-qualified; it only reads Ax
   F->singular_col = -1;
+  if (F->umf) {
+    // a fresh numeric factorisation on the fixed symbolic analysis (UMFPACK has no refactor
+    // with the old pivots; its supernodal kernel is BLAS-3 and pivots anew each time)
+    umf_free_numeric(F);
+    if (F->num) klu_l_free_numeric(&F->num, &F->kc);
+    long st = umfpack_dl_numeric(F->Ap, F->Ai, Ax, F->usym, &F->unum, F->uctl, F->uinfo);
+    if (st == UMFPACK_OK) {
+      double r = F->uinfo[UMFPACK_RCOND];
+      F->urcond = r == r ? r : 0;
+      return FMBD_OK;
+    }
+    umf_free_numeric(F);
+    FMBD_CHECK(st != UMFPACK_ERROR_out_of_memory, FMBD_ERR_NOMEM, "out of memory in UMFPACK");
+    FMBD_CHECK(st == UMFPACK_WARNING_singular_matrix, FMBD_ERR_EXTERNAL,
+               "UMFPACK numeric factorisation failed (status %ld)", st);
+    // singular (rare): KLU finds the zero pivot's column; should KLU's partial pivoting find a
+    // nonsingular factor after all, that factor serves the solves until the next factorisation
+    return klu_full(F, ax);
+  }
   if (F->num) {
     int ok = (int)klu_l_refactor(F->Ap, F->Ai, ax, F->sym, F->num, &F->kc);
     if (ok && F->kc.status == KLU_OK) ok = (int)klu_l_rcond(F->sym, F->num, &F->kc);
     if (!ok || F->kc.status != KLU_OK || !(F->kc.rcond > RCOND_MIN))
       klu_l_free_numeric(&F->num, &F->kc);
   }
-  if (!F->num) {
-    F->num = klu_l_factor(F->Ap, F->Ai, ax, F->sym, &F->kc);
-    if (!F->num || F->kc.status != KLU_OK) {
-      int64_t col = (int64_t)F->kc.singular_col;
-      F->singular_col = col >= 0 && col < F->n ? col : -1;
-      if (F->num) klu_l_free_numeric(&F->num, &F->kc);
-      FMBD_CHECK(F->kc.status != KLU_OUT_OF_MEMORY, FMBD_ERR_NOMEM, "out of memory in KLU");
-      FMBD_FAIL(FMBD_ERR_SINGULAR, "KLU: singular matrix (status %ld, column %lld)",
-                (long)F->kc.status, (long long)F->singular_col);
-    }
-  }
+  if (!F->num) FMBD_CALL(klu_full(F, ax));
   return FMBD_OK;
 }
 
 int fmbd_klu_solve(fmbd_klu *F, double *b) {
+  if (F->unum) {
+    long st = umfpack_dl_wsolve(UMFPACK_A, F->Ap, F->Ai, NULL, F->uX, b, F->unum, F->uctl, F->uinfo,
+                                F->uWi, F->uW);
+    FMBD_CHECK(st == UMFPACK_OK, FMBD_ERR_EXTERNAL, "UMFPACK solve failed (status %ld)", st);
+    memcpy(b, F->uX, sizeof(double) * (size_t)F->n);
+    return FMBD_OK;
+  }
   FMBD_CHECK(F->num, FMBD_ERR_VALUE, "KLU solve without a factor");
   int ok = (int)klu_l_solve(F->sym, F->num, (SuiteSparse_long)F->n, 1, b, &F->kc);
   FMBD_CHECK(ok && F->kc.status == KLU_OK, FMBD_ERR_EXTERNAL, "KLU solve failed (status %ld)",
@@ -77,6 +161,7 @@ int fmbd_klu_solve(fmbd_klu *F, double *b) {
 }
 
 double fmbd_klu_rcond(fmbd_klu *F) {
+  if (F->unum) return F->urcond;
   if (!F->num) return 0;
   if (!klu_l_rcond(F->sym, F->num, &F->kc)) return 0;
   return F->kc.rcond;
@@ -86,8 +171,14 @@ int64_t fmbd_klu_singular_col(const fmbd_klu *F) {
   return F->singular_col;
 }
 
+int fmbd_klu_is_umfpack(const fmbd_klu *F) {
+  return F && F->umf;
+}
+
 void fmbd_klu_drop_factor(fmbd_klu *F) {
-  if (F && F->num) klu_l_free_numeric(&F->num, &F->kc);
+  if (!F) return;
+  if (F->num) klu_l_free_numeric(&F->num, &F->kc);
+  umf_free_numeric(F);
 }
 
 void fmbd_klu_destroy(fmbd_klu **Fp) {
@@ -95,7 +186,10 @@ void fmbd_klu_destroy(fmbd_klu **Fp) {
   fmbd_klu *F = *Fp;
   if (F->num) klu_l_free_numeric(&F->num, &F->kc);
   if (F->sym) klu_l_free_symbolic(&F->sym, &F->kc);
+  umf_free_numeric(F);
+  if (F->usym) umfpack_dl_free_symbolic(&F->usym);
   fmbd_free(F->Ap), fmbd_free(F->Ai);
+  fmbd_free(F->uWi), fmbd_free(F->uW), fmbd_free(F->uX);
   fmbd_free(F);
   *Fp = NULL;
 }

@@ -1,4 +1,5 @@
 // common/fmbd_klu.h: sparse LU of a square unsymmetric matrix through KLU (SuiteSparse klu_l_*)
+// or UMFPACK (umfpack_dl_*)
 // SPDX-License-Identifier: MIT
 //
 // The matrix is given in compressed columns (Ap[n + 1], Ai[nnz] with sorted row indices in each
@@ -8,8 +9,17 @@
 // possible: fmbd_klu_factor refactors with the previous pivot order (klu_l_refactor) and
 // falls back to a full factorisation with fresh partial pivoting (klu_l_factor) when the
 // refactor fails or KLU's reciprocal condition estimate drops below rcond_min (default 1e-13).
-// KLU allocates with malloc, outside fmbd_malloc (the allocation countdown of the tests does
-// not reach it); it never prints.
+//
+// Two engines behind this interface. KLU (left-looking, no supernodes) suits the small,
+// circuit-like multibody matrices; for large systems (a full FE body's [M Cq'; Cq 0], order
+// n >= 5000) UMFPACK takes over: symbolic analysis once per pattern (AMD/COLAMD), a fresh
+// numeric factorisation at every fmbd_klu_factor (multifrontal, BLAS-3 supernodes), its rcond
+// estimate Info[UMFPACK_RCOND] (min/max |diag U|, cruder than KLU's). On a singular UMFPACK
+// factor KLU's factorisation is run to find the zero pivot's column. The environment variable
+// FMBD_SPARSE_LU forces the engine: "klu" or "umfpack" (unset, empty or anything else: the
+// automatic choice by n), read at fmbd_klu_analyze.
+// KLU and UMFPACK allocate with malloc, outside fmbd_malloc (the allocation countdown of the tests
+// does not reach it); it never prints.
 #ifndef FMBD_KLU_H
 #define FMBD_KLU_H
 
@@ -41,6 +51,9 @@ double fmbd_klu_rcond(fmbd_klu *F);
 /// @brief The column at which the last failed factorisation met a zero pivot (0-based, in the
 /// caller's numbering), or -1.
 int64_t fmbd_klu_singular_col(const fmbd_klu *F);
+
+/// @brief 1 when the engine is UMFPACK, 0 for KLU.
+int fmbd_klu_is_umfpack(const fmbd_klu *F);
 
 /// @brief Forget the numeric factor (the next fmbd_klu_factor factors afresh).
 void fmbd_klu_drop_factor(fmbd_klu *F);
