@@ -46,7 +46,7 @@ static const char *usage_text =
     "                          the scene's folder (the geometry stays beside the scene)\n"
     "  -M                      print the make rules of the files the scene needs and exit\n"
     "  -q, --quiet             errors only\n"
-    "  -v, --verbose           progress and details (-vv: debug)\n"
+    "  -v, --verbose           progress, details (-vv: debug); in a file: cost every 5 %\n"
     "  -h, --help              this help\n"
     "  -V, --version           the version\n\n"
     "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step)\n"
