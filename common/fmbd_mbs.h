@@ -121,6 +121,8 @@
 //   added (Gram-Schmidt), so that the joint closing a loop loses its dependent equations;
 //   they are removed from the system (fmbd_log WARN naming them; fmbd_mbs_redundant) and must
 //   still hold after the projection, else the assembly is inconsistent (FMBD_ERR_CONVERGE).
+//   With shared modal coordinates (fmbd_mbs_share_modal) an equation dependent on the frame
+//   coordinates alone is removed too (global modes cannot keep it independent: fmbd_mbs_init.c).
 //   Positions are projected onto Phi = 0 by minimum-change Newton steps in the mass metric,
 //   velocities onto Phi_x x' + Phi_t = 0 (mass-weighted least change), and consistent
 //   accelerations and multipliers solved from [M Phi_x'; Phi_x 0] with the right-hand side

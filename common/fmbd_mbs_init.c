@@ -200,18 +200,18 @@ done:
   return rc;
 }
 
-// Singular positions (a dead point): the smallest singular value s of the unit-normalised
-// Jacobian rows of the kept constraints at the current positions (the eigenvalues of C'C,
-// s^2, are resolved down to s ~ 1e-7 by round-off); when s < tol, buf names the joints and
-// drivers whose rows make up the dependent combination (the right singular vector's entries
-// above 0.1 of its largest). Dense O(n nc^2): skipped (false) above 4e6 entries, where a
-// failed step stays described by its residual. Runs only when a step has failed.
-bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len) {
+// The Gram matrix G = C'C of the unit-normalised Jacobian rows of the kept constraints
+// (coordinates in their scales: L_ref for translations) at the current positions, and its
+// eigen-decomposition: *w the eigenvalues (ascending, the squared singular values of C), *G
+// the eigenvectors (combinations of the equations *ix). frame_only: only the frame
+// coordinates' columns (7 per body; the elastic ones zeroed), each row normalised again: the
+// equations' dependence on the rigid motion alone. Dense O(n nc^2): false (nothing
+// allocated) above 4e6 entries or when no equation is kept; the caller frees *G, *w, *ix.
+static bool kept_gram(fmbd_mbs *m, bool frame_only, double **Gp, double **wp, int64_t **ixp,
+                      int64_t *ncp) {
   int64_t n = m->n, ne = 0, nc = 0;
-  bool sing = false;
   double *C = NULL, *G = NULL, *w = NULL;
   int64_t *ix = NULL;
-  *smin = -1;
   for (int64_t e = 0; e < m->neq; e++) {
     if (m->eq[e].kind != EQ_NORM && m->eq[e].kept) ne++;
   }
@@ -220,11 +220,58 @@ bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, 
   G = fmbd_calloc((size_t)(ne * ne), sizeof(double));
   w = fmbd_calloc((size_t)ne, sizeof(double));
   ix = fmbd_malloc(sizeof(int64_t) * (size_t)ne);
-  if (!C || !G || !w || !ix) goto done;
+  if (!C || !G || !w || !ix) goto fail;
   mbs_eval_constraints(m, m->x, m->t, true);
   constraint_columns(m, true, m->nscale, C, ix, &nc);
+  if (frame_only) {
+    for (int64_t k = 0; k < nc; k++) {
+      double *col = C + n * k, nrm = 0;
+      for (int64_t i = 0; i < n; i++) {
+        bool frame = false;
+        for (int ib = 0; ib < m->nb && !frame; ib++)
+          frame = i >= m->b[ib].off && i < m->b[ib].off + 7;
+        if (!frame) col[i] = 0;
+        nrm += col[i] * col[i];
+      }
+      nrm = sqrt(nrm);
+      for (int64_t i = 0; i < n && nrm > 0; i++) col[i] /= nrm;
+    }
+  }
   fmbd_dense_gemm('T', 'N', nc, nc, n, 1.0, C, n, C, n, 0.0, G, nc);
-  if (fmbd_dense_syev(nc, G, w) != FMBD_OK) goto done;
+  if (fmbd_dense_syev(nc, G, w) != FMBD_OK) goto fail;
+  fmbd_free(C);
+  *Gp = G, *wp = w, *ixp = ix, *ncp = nc;
+  return true;
+fail:
+  fmbd_free(C), fmbd_free(G), fmbd_free(w), fmbd_free(ix);
+  return false;
+}
+
+// The number of combinations of the kept equations that are dependent on the frame
+// coordinates alone (singular values of the frame-only rows below tol; see kept_gram): an
+// over-constrained mechanism (the Sarrus linkage) has such a combination at every position,
+// kept because the bodies' elastic columns make it independent; a dead point adds one.
+static int64_t frame_dependent(fmbd_mbs *m, double tol) {
+  double *G = NULL, *w = NULL;
+  int64_t *ix = NULL, nc = 0, cnt = 0;
+  if (!kept_gram(m, true, &G, &w, &ix, &nc)) return 0;
+  for (int64_t k = 0; k < nc; k++) cnt += w[k] < tol * tol;
+  fmbd_free(G), fmbd_free(w), fmbd_free(ix);
+  return cnt;
+}
+
+// Singular positions (a dead point): the smallest singular value s of the unit-normalised
+// Jacobian rows of the kept constraints at the current positions (the eigenvalues of C'C,
+// s^2, are resolved down to s ~ 1e-7 by round-off); when s < tol, buf names the joints and
+// drivers whose rows make up the dependent combination (the right singular vector's entries
+// above 0.1 of its largest). Dense O(n nc^2): skipped (false) above 4e6 entries, where a
+// failed step stays described by its residual. Runs only when a step has failed.
+bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len) {
+  bool sing = false;
+  double *G = NULL, *w = NULL;
+  int64_t *ix = NULL, nc = 0;
+  *smin = -1;
+  if (!kept_gram(m, false, &G, &w, &ix, &nc)) return false;
   *smin = sqrt(fmax(w[0], 0));
   if (*smin >= tol) goto done;
   sing = true;
@@ -265,8 +312,54 @@ bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, 
     }
   }
 done:
-  fmbd_free(C), fmbd_free(G), fmbd_free(w), fmbd_free(ix);
+  fmbd_free(G), fmbd_free(w), fmbd_free(ix);
   return sing;
+}
+
+// Shared modal coordinates (GMs, fmbd_mbs_share_modal) and a rigidly redundant equation. An
+// over-constrained mechanism with flexible bodies (the Sarrus linkage) keeps its rigidly
+// redundant equations when the elastic columns make them independent at t = 0 (ndep
+// combinations of the kept equations dependent on the frame coordinates alone). Each body's
+// own elastic coordinates (FE dofs, NM, CB, GMc) keep them independent along the motion. Global
+// modes shared by the bodies do not: they satisfy the linearised constraints, Cq x = 0, at the
+// configuration they were computed at, so where the motion passes it the kept rows turn
+// singular, and near it the redundant equation is held by large modal amplitudes. Measured on
+// the Sarrus fall from p0 (examples/sarrus/README.md): kept, Newton fails at the linearisation
+// height (4 global modes) or passes it with E 1.6 cm off (8 modes); the smallest singular value
+// of the kept rows at t = 0 is 7e-5 to 1.6e-4 for GMs but also 1.8e-4 for the full model, so no
+// tolerance tells the two apart. With shared coordinates the equations are therefore decided
+// on the frame columns: for each such combination (the eigenvector of the smallest eigenvalue
+// of the frame-only Gram matrix), the last joint equation, in the scene's order, with a weight
+// above 0.1 of the combination's largest is removed, as find_redundant removes the later
+// equations (a driver is never removed: find_redundant's rule; it stays kept).
+static int drop_rigidly_redundant(fmbd_mbs *m, int64_t ndep) {
+  for (; ndep > 0; ndep--) {
+    double *G = NULL, *w = NULL;
+    int64_t *ix = NULL, nc = 0, drop = -1;
+    if (!kept_gram(m, true, &G, &w, &ix, &nc)) return FMBD_OK;
+    double vmax = 0;
+    for (int64_t k = 0; k < nc; k++) vmax = fmax(vmax, fabs(G[k]));
+    for (int64_t k = 0; k < nc; k++) {
+      if (fabs(G[k]) >= 0.1 * vmax) drop = ix[k];
+    }
+    fmbd_free(G), fmbd_free(w), fmbd_free(ix);
+    if (drop < 0 || m->eq[drop].kind != EQ_JOINT) return FMBD_OK;
+    meq *q = &m->eq[drop];
+    char buf[512];
+    mbs_eq_describe(m, q, buf, sizeof buf);
+    int *red = fmbd_realloc(m->red, sizeof(int) * (size_t)(m->nred + 1));
+    FMBD_CHECK(red, FMBD_ERR_NOMEM, "out of memory");
+    m->red = red;
+    FMBD_CHECK(q->text = fmbd_strdup(buf), FMBD_ERR_NOMEM, "out of memory");
+    m->red[m->nred++] = (int)drop;
+    q->kept = false;
+    fmbd_log(FMBD_LOG_WARN,
+             "redundant constraint removed: %s (dependent on the rigid motion; the shared modal "
+             "coordinates (GMs) satisfy the linearised constraints at their linearisation "
+             "configuration and cannot keep it independent)",
+             buf);
+  }
+  return FMBD_OK;
 }
 
 // second time derivative of the kept constraints along x' (without the Phi_x x'' part):
@@ -627,6 +720,17 @@ static int init_redundancy(fmbd_mbs *m) {
     fmbd_progress(NULL);
     fmbd_log(FMBD_LOG_INFO, "constraints: redundancy check of %lld equations in %.3g s",
              (long long)(m->neq), fmbd_wall_s() - t_red);
+    // with shared modal coordinates, the kept combinations dependent on the rigid motion
+    // alone are removed (drop_rigidly_redundant)
+    bool shared = false;
+    for (int ib = 0; ib < m->nb; ib++) shared = shared || m->b[ib].share >= 0;
+    // a rigid dependence is exact at the scene's undeformed assembly: the Sarrus linkage's
+    // frame-only singular values are 0 (below the 1e-7 the eigenvalues of C'C resolve) and
+    // then 0.14; 1e-5 stays 100 times above that round-off, and a dead point (s falling as the
+    // square root of the distance to it, SINGULAR_TOL) reaches it only 1e-4 of the way from
+    // s = 1e-3 to the fold, where the run would stop anyway
+    int64_t ndep = shared ? frame_dependent(m, 1e-5) : 0;
+    if (ndep > 0) FMBD_GCALL(drop_rigidly_redundant(m, ndep));
   }
   int64_t kept = 0;
   for (int64_t e = 0; e < neq; e++) {
