@@ -4,8 +4,8 @@
 # (file size, load time). Each writes $BENCH_OUT/reports/NAME/report.{md,csv,svg}
 # through examples/report.mk (driver: examples/report.py). The reference of each is the full FE
 # model of the rod in the same scene, on the mesh and over the time report.mk sets (QP_ARGS,
-# SC_ARGS, SSC_ARGS: the FM's cost); about 4 min of CPU in all for the runs (the three FMs 57,
-# 27 and 41 s, the quadruple pendulum's 316-mode CB body 30 s twice), plus the bodies' making
+# SC_ARGS, SSC_ARGS: the FM's cost); about 8 min of CPU in all for the runs (the three FMs 57,
+# 272 and 41 s, the quadruple pendulum's 316-mode CB body 30 s twice), plus the bodies' making
 # (cbcheck at 0.1 % on the pendulum's rod: 13 s of CPU).
 set -u
 ROOT=${ROOT:-$(cd "$(dirname "$0")/.." && pwd)}

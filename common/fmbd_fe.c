@@ -39,6 +39,10 @@ void fmbd_fe_body_destroy(fmbd_fe_body **pb) {
   fmbd_free(b->node_mass);
   fmbd_free(b->dofs);
   fmbd_free(b->node_dof);
+  if (b->M && b->K && b->M->indices == b->K->indices) {  // pattern shared (fmbd_fe_assemble)
+    b->M->indptr = NULL;
+    b->M->indices = NULL;
+  }
   fmbd_csr_destroy(&b->K);
   fmbd_csr_destroy(&b->M);
   fmbd_csr_destroy(&b->expand);
@@ -499,8 +503,7 @@ static int build_pattern(asm_ctx *c, fmbd_csr **out) {
       }
     }
   }
-  A->indptr[b->ndof] = at;
-  memset(A->data, 0, (size_t)nnz * sizeof *A->data);
+  A->indptr[b->ndof] = at;  // A->data is zero already (fmbd_csr_create callocs it)
   *out = A;
   A = NULL;
 done:
@@ -802,14 +805,16 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_opts *opt, fmbd_fe_body *
   if (diag_mass) {
     FMBD_GCALL(lumped_pattern(b, &b->M));
   } else {
-    // a copy of K's pattern (fmbd_csr_duplicate, with the huge-page hint before the copy)
+    // K's pattern, shared: M->indptr and M->indices are K's arrays (fmbd_fe_body_destroy frees
+    // them once). A copy was a quarter of the assembly's memory and of its first page touches.
     int64_t nnz = fmbd_csr_nnz(b->K);
-    FMBD_GCALL(fmbd_csr_create(b->ndof, b->ndof, nnz, &b->M));
-    hugepage_hint(b->M->indices, (size_t)nnz * sizeof(int64_t));
+    FMBD_GALLOC(b->M = fmbd_calloc(1, sizeof *b->M));
+    b->M->nrows = b->M->ncols = b->ndof;
+    b->M->indptr = b->K->indptr;
+    b->M->indices = b->K->indices;
+    // calloc: large blocks come zeroed from the kernel, no zero-fill pass of our own
+    FMBD_GALLOC(b->M->data = fmbd_calloc((size_t)(nnz ? nnz : 1), sizeof(double)));
     hugepage_hint(b->M->data, (size_t)nnz * sizeof(double));
-    memcpy(b->M->indptr, b->K->indptr, ((size_t)b->ndof + 1) * sizeof(int64_t));
-    memcpy(b->M->indices, b->K->indices, (size_t)nnz * sizeof(int64_t));
-    memset(b->M->data, 0, (size_t)nnz * sizeof(double));
   }
   FMBD_GALLOC(b->node_mass = fmbd_calloc((size_t)nn, sizeof *b->node_mass));
   // --- element loop: matrices, reduction, addition; node masses, rigid-body sums ---

@@ -118,7 +118,10 @@ typedef struct fmbd_fe_body {
   int64_t *dofs;      ///< (ndof, 2): node, direction (0..5), node-major
   int64_t *node_dof;  ///< (nnodes+1,) first row of /dofs of each node (derived on read)
   // matrices (NULL when absent: downstream files hold the description only)
-  fmbd_csr *K, *M;   ///< ndof x ndof, full symmetric storage
+  /// ndof x ndof, full symmetric storage. From fmbd_fe_assemble with a consistent mass, M
+  /// shares K's indptr and indices arrays (one pattern in memory; fmbd_fe_body_destroy frees it
+  /// once): treat the patterns as read-only.
+  fmbd_csr *K, *M;
   fmbd_csr *expand;  ///< 6*nnodes x ndof: u_all = expand * q
   // /interfaces, /clamped
   int ninterfaces;

@@ -46,7 +46,7 @@ static const char *usage_text =
     "                          the scene's folder (the geometry stays beside the scene)\n"
     "  -M                      print the make rules of the files the scene needs and exit\n"
     "  -q, --quiet             errors only\n"
-    "  -v, --verbose           progress and details (-vv: debug)\n"
+    "  -v, --verbose           progress, details (-vv: debug); in a file: cost every 5 %\n"
     "  -h, --help              this help\n"
     "  -V, --version           the version\n\n"
     "An interrupted run (SIGINT, SIGTERM, SIGHUP, no Newton convergence at the smallest step)\n"
@@ -55,7 +55,8 @@ static const char *usage_text =
 typedef struct run {
   const fmbd_scene *s;
   fmbd_scene_recorder *rec;
-  double last_progress_s, t0_wall;
+  double last_progress_s, t0_wall, t0_cpu;
+  int log_k;  // progress lines logged (-v without a terminal): one every 5 % of t_end
 } run;
 
 // A run stopped at a singular position names the joints and drivers whose equations are
@@ -91,6 +92,19 @@ static int on_step(fmbd_mbs *mb, bool at_output, void *user) {
                   100 * t / r->s->solver.t_end, st.h_last, (long long)st.steps,
                   el > 0 ? st.steps / el : 0, el > 0 ? t / el : 0);
     r->last_progress_s = now;
+  } else if (!fmbd_progress_enabled() && fmbd_log_level() >= FMBD_LOG_INFO &&
+             fmbd_mbs_time(mb) >= (r->log_k + 1) * 0.05 * r->s->solver.t_end * (1 - 1e-12)) {
+    // -v into a file (no terminal for the progress line): the cost so far, 20 lines a run
+    fmbd_mbs_stats st;
+    fmbd_mbs_get_stats(mb, &st);
+    fmbd_log(FMBD_LOG_INFO,
+             "t = %.6g s: %lld steps (%lld rejected), %lld Newton iterations, %lld "
+             "factorisations, h = %.3g s, CPU %.2f s",
+             fmbd_mbs_time(mb), (long long)st.steps, (long long)st.rejected,
+             (long long)st.newton_iterations, (long long)st.factorizations, st.h_last,
+             fmbd_cpu_s() - r->t0_cpu);
+    while (fmbd_mbs_time(mb) >= (r->log_k + 1) * 0.05 * r->s->solver.t_end * (1 - 1e-12))
+      r->log_k++;
   }
   return fmbd_runfile_signal() ? 2 : 0;  // stop: the caller reports the interruption
 }
@@ -246,6 +260,7 @@ int main(int argc, char **argv) {
   fmbd_runfile_start_clock(rf);
   r.t0_wall = fmbd_wall_s();
   double c0 = fmbd_cpu_s();
+  r.t0_cpu = c0;
   FMBD_GCALL(fmbd_scene_record(r.rec));  // the initial (consistent) state
   rc = fmbd_mbs_run(m->mbs, on_step, &r);
   fmbd_progress(NULL);
