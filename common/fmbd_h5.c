@@ -269,13 +269,15 @@ static int input_sha256(const char *path, char hex[65]) {
     }
   }
   FMBD_CALL(fmbd_sha256_file(path, hex));
-  if (have && stat(path, &st1) == 0 && st1.st_mtim.tv_sec == st0.st_mtim.tv_sec &&
-      st1.st_mtim.tv_nsec == st0.st_mtim.tv_nsec && st1.st_size == st0.st_size &&
-      st1.st_ctim.tv_sec == st0.st_ctim.tv_sec && st1.st_ctim.tv_nsec == st0.st_ctim.tv_nsec) {
-    sha_memo *e = &g_memo[g_nmemo < 8 ? g_nmemo++ : (int)(st0.st_ino % 8)];
-    e->dev = st0.st_dev, e->ino = st0.st_ino, e->size = st0.st_size;
-    e->mt = st0.st_mtim, e->ct = st0.st_ctim;
-    memcpy(e->hex, hex, 65);
+  if (!have) return FMBD_OK;
+  sha_memo e = {.dev = st0.st_dev,
+                .ino = st0.st_ino,
+                .size = st0.st_size,
+                .mt = st0.st_mtim,
+                .ct = st0.st_ctim};
+  if (stat(path, &st1) == 0 && memo_same(&e, &st1)) {  // not written while it was hashed
+    memcpy(e.hex, hex, 65);
+    g_memo[g_nmemo < 8 ? g_nmemo++ : (int)(st0.st_ino % 8)] = e;
   }
   return FMBD_OK;
 }

@@ -226,12 +226,14 @@ static bool kept_gram(fmbd_mbs *m, bool frame_only, double **Gp, double **wp, in
   if (frame_only) {
     for (int64_t k = 0; k < nc; k++) {
       double *col = C + n * k, nrm = 0;
-      for (int64_t i = 0; i < n; i++) {
-        bool frame = false;
-        for (int ib = 0; ib < m->nb && !frame; ib++)
-          frame = i >= m->b[ib].off && i < m->b[ib].off + 7;
-        if (!frame) col[i] = 0;
-        nrm += col[i] * col[i];
+      // keep each body's 7 frame coordinates: zero what lies between them (elastic columns)
+      int64_t next = 0;  // first coordinate not yet visited
+      for (int ib = 0; ib <= m->nb; ib++) {
+        int64_t off = ib < m->nb ? m->b[ib].off : n;
+        for (int64_t i = next; i < off; i++) col[i] = 0;
+        if (ib == m->nb) break;
+        for (int64_t i = off; i < off + 7; i++) nrm += col[i] * col[i];
+        next = off + 7;
       }
       nrm = sqrt(nrm);
       for (int64_t i = 0; i < n && nrm > 0; i++) col[i] /= nrm;
