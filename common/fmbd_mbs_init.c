@@ -889,8 +889,14 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->t = 0;
   FMBD_CALL(init_redundancy(m));
   FMBD_CALL(init_positions(m));
-  FMBD_CALL(init_velocities(m));
-  FMBD_CALL(init_accelerations(m));
+  if (m->set.positions_only) {
+    // a linearisation needs neither velocities nor accelerations (gmsolve: zero velocities),
+    // nor the position Newton's factor (the largest array of a full FE body's mechanism)
+    fmbd_klu_drop_factor(m->klu);
+  } else {
+    FMBD_CALL(init_velocities(m));
+    FMBD_CALL(init_accelerations(m));
+  }
   // acceleration scales: the largest |x''_i| seen, at least nscale_i / t_end^2
   for (int64_t i = 0; i < m->n; i++) m->ascale[i] = m->nscale[i] / (m->set.t_end * m->set.t_end);
   mbs_update_scales(m);
