@@ -173,8 +173,8 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
 
 int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
   FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "fmbd_mbs_step before fmbd_mbs_init");
-  FMBD_CHECK(!m->set.positions_only, FMBD_ERR_VALUE,
-             "fmbd_mbs_step: the model was initialised for its positions only");
+  FMBD_CHECK(!m->set.linearise_only, FMBD_ERR_VALUE,
+             "fmbd_mbs_step: the model was initialised to be linearised only");
   if (at_output) *at_output = false;
   const double tend = m->set.t_end;
   if (m->t >= tend * (1 - 1e-14)) return 1;
