@@ -89,7 +89,9 @@
 // NEWTON convergence: with theta the contraction rate of successive increments, stop when
 //   theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II, IV.8), or |dx_i| <= 1e-3 tx_i
 //   in the first iteration, or |dx_i| <= tx_i with theta >= 1 (round-off stagnation), where
-//   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, nscale_i)):
+//   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, rscale_i)),
+//   rscale_i = nscale_i for the frame coordinates, L_ref (L_ref sqrt(m) for modal
+//   coordinates) for elastic ones, which the constraints' round-off reaches via the frame:
 //   newton_tol is relative to the size of the coordinate AND of its acceleration (an error
 //   dx in x is an error beta' dx in x''; bounding only dx leaves a spurious force that, at
 //   small steps, spoils momentum and energy conservation). nscale_i = L_ref for positions, 1

@@ -215,6 +215,13 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       return arc;
     }
     if (!conv) {
+      if (fmbd_log_level() >= FMBD_LOG_DEBUG) {
+        char buf[800];
+        worst_residual(m, buf, sizeof buf);
+        fmbd_log(FMBD_LOG_DEBUG,
+                 "t = %.9g h = %.3g: Newton did not converge%s; largest residual: %s", m->t, h,
+                 fresh ? "" : " (old matrix)", buf);
+      }
       restore_state(m);
       if (!fresh && !retried_fresh) {
         retried_fresh = true;  // the old factor was too far off: same h, fresh matrix
