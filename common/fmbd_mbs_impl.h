@@ -269,6 +269,9 @@ struct fmbd_mbs {
   fmbd_klu *klu;   // symbolic analysis once (fmbd_mbs_init), numeric factor kept
   // --- results ---
   fmbd_mbs_stats st;
+  // wall time (s) of the Newton iterations' factorisations, solves and the rest, and the wall
+  // and process CPU clocks at the first step (fmbd_mbs_get_stats: the CPU split)
+  double tm_phase[3], tm_wall0, tm_cpu0;
   int nred;
   int *red;  // equation indices removed
   double qmax_init;

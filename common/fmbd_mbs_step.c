@@ -82,6 +82,8 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
   if (force_fresh) m->need_factor = true;
   bool fresh = false;
   double prev = 0;
+  // clock readings between the phases (wall; fmbd_mbs_get_stats makes them CPU time)
+  double clk = fmbd_wall_s(), clk1;
   for (int it = 0; it < m->set.newton_max; it++) {
     bool matrix = m->need_factor;
     mbs_eval_system(m, t1, m->xdd, matrix, 1, gp / bp, 1 / bp, true);
@@ -102,13 +104,19 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       double v = mbs_eq_scaled(m, q);
       if (!(v <= m->worst_v)) m->worst_v = v, m->worst_i = m->n + e;
     }
+    clk1 = fmbd_wall_s();
+    m->tm_phase[2] += clk1 - clk;
     if (matrix) {
       FMBD_CALL(mbs_factor(m));
       m->need_factor = false;
       m->h_fact = h;
       fresh = true;
+      clk = clk1, clk1 = fmbd_wall_s();
+      m->tm_phase[0] += clk1 - clk;
     }
     FMBD_CALL(mbs_solve(m, m->rhs));
+    clk = fmbd_wall_s();
+    m->tm_phase[1] += clk - clk1;
     m->st.newton_iterations++;
     // increments in units of the per-coordinate tolerance: position accuracy newton_tol *
     // nscale_i and acceleration accuracy newton_tol * ascale_i (an x error dx gives an x''
@@ -151,6 +159,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       m->need_factor = true;
     prev = nrm;
   }
+  m->tm_phase[2] += fmbd_wall_s() - clk;
   *fresh_out = fresh;
   if (!*conv) return FMBD_OK;
   // pseudo-accelerations of the converged state
@@ -181,6 +190,7 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
   FMBD_CHECK(m->set.max_steps <= 0 || m->st.steps < m->set.max_steps, FMBD_ERR_CONVERGE,
              "t = %.6g s: step limit %lld reached", m->t, (long long)m->set.max_steps);
   const double oe = m->set.output_every;
+  if (!(m->tm_wall0 > 0)) m->tm_wall0 = fmbd_wall_s(), m->tm_cpu0 = fmbd_cpu_s();
   save_state(m);
   bool retried_fresh = false;
   for (;;) {
@@ -207,6 +217,13 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       return arc;
     }
     if (!conv) {
+      if (fmbd_log_level() >= FMBD_LOG_DEBUG) {
+        char buf[800];
+        worst_residual(m, buf, sizeof buf);
+        fmbd_log(FMBD_LOG_DEBUG,
+                 "t = %.9g h = %.3g: Newton did not converge%s; largest residual: %s", m->t, h,
+                 fresh ? "" : " (old matrix)", buf);
+      }
       restore_state(m);
       if (!fresh && !retried_fresh) {
         retried_fresh = true;  // the old factor was too far off: same h, fresh matrix
