@@ -33,8 +33,8 @@ static double urand(unsigned *s) {
 // Arot: its initial rotation (row-major)
 static int add_random_flex(fmbd_mbs *m, const char *name, unsigned seed, const double *pos,
                            double *Arot, int *id) {
-  static double X[3 * NP], Ph[3 * NP * NM], S1[3 * NM], XS[9 * NM], SS[9 * NM * NM],
-      Mff[NM * NM], Kff[NM * NM];
+  static double X[3 * NP], Ph[3 * NP * NM], S1[3 * NM], XS[9 * NM], SS[9 * NM * NM], Mff[NM * NM],
+      Kff[NM * NM];
   double mass = 0, c[3] = {0}, J[9] = {0};
   memset(S1, 0, sizeof S1), memset(XS, 0, sizeof XS), memset(SS, 0, sizeof SS);
   memset(Mff, 0, sizeof Mff), memset(Kff, 0, sizeof Kff);
@@ -145,9 +145,12 @@ int main(void) {
   const double cm = 1, cc = 2e-3, ck = 1e-4;
   mbs_eval_system(m, m->t, m->xdd, true, cm, cc, ck, true);
   const int64_t N = m->N, nnz = m->nnz;
-  double *b = fmbd_malloc(sizeof(double) * (size_t)N), *xs = fmbd_malloc(sizeof(double) * (size_t)N);
-  double *xk = fmbd_malloc(sizeof(double) * (size_t)N), *xe = fmbd_malloc(sizeof(double) * (size_t)N);
-  double *Ax = fmbd_malloc(sizeof(double) * (size_t)nnz), *Ac = fmbd_malloc(sizeof(double) * (size_t)nnz);
+  double *b = fmbd_malloc(sizeof(double) * (size_t)N),
+         *xs = fmbd_malloc(sizeof(double) * (size_t)N);
+  double *xk = fmbd_malloc(sizeof(double) * (size_t)N),
+         *xe = fmbd_malloc(sizeof(double) * (size_t)N);
+  double *Ax = fmbd_malloc(sizeof(double) * (size_t)nnz),
+         *Ac = fmbd_malloc(sizeof(double) * (size_t)nnz);
   for (int64_t i = 0; i < N; i++) b[i] = urand(&seed);
   memcpy(Ax, m->Ax, sizeof(double) * (size_t)nnz);
   // Schur path
@@ -179,19 +182,22 @@ int main(void) {
   rc = rc ? rc : fmbd_klu_solve(m->klu, xe);
   EXPECT(rc == 0, "solves: %s", fmbd_err_get()->msg);
   double d = 0, de = 0;
-  for (int64_t i = 0; i < N; i++) d = fmax(d, fabs(xs[i] - xk[i])), de = fmax(de, fabs(xe[i] - xk[i]));
+  for (int64_t i = 0; i < N; i++)
+    d = fmax(d, fabs(xs[i] - xk[i])), de = fmax(de, fabs(xe[i] - xk[i]));
   double sc = maxabs(xk, N);
   // two backward-stable solves of one matrix differ by about cond * eps (relative); KLU's
   // rcond estimates 1/cond (within a modest factor: 100 allowed)
   double tol = 100 * DBL_EPSILON / fmax(rcond, 1e-300);
-  EXPECT(d <= tol * sc, "Schur vs whole-matrix solve: max difference %.3g (scale %.3g, tolerance %.3g)", d,
-         sc, tol * sc);
-  EXPECT(gyr > 0 && de > 10 * tol * sc,
-         "the gyroscopic part (%.3g) changes the solution by %.3g, beyond the tolerance %.3g", gyr, de,
+  EXPECT(d <= tol * sc,
+         "Schur vs whole-matrix solve: max difference %.3g (scale %.3g, tolerance %.3g)", d, sc,
          tol * sc);
-  printf("t511: N %lld, S order %lld; Schur vs KLU %.2e (scale %.2e, tol %.2e); gyroscopic part %.2e "
-         "moves it by %.2e\n",
-         (long long)N, (long long)(N - 2 * NM), d, sc, tol * sc, gyr, de);
+  EXPECT(gyr > 0 && de > 10 * tol * sc,
+         "the gyroscopic part (%.3g) changes the solution by %.3g, beyond the tolerance %.3g", gyr,
+         de, tol * sc);
+  printf(
+      "t511: N %lld, S order %lld; Schur vs KLU %.2e (scale %.2e, tol %.2e); gyroscopic part %.2e "
+      "moves it by %.2e\n",
+      (long long)N, (long long)(N - 2 * NM), d, sc, tol * sc, gyr, de);
   // the solution also continues: the remaining steps through the Schur path (fresh matrix)
   m->need_factor = true;
   for (int k = 0; k < 5 && rc == 0; k++) rc = fmbd_mbs_step(m, NULL);
