@@ -311,7 +311,7 @@ struct fmbd_mbs {
 // the modal blocks are eliminated (fmbd_mbs_schur.c) for bodies with at least SCHUR_NM_MIN
 // modes (bench/README.md, "Schur complement of the modal blocks")
 #ifndef SCHUR_NM_MIN
-#define SCHUR_NM_MIN 20
+#define SCHUR_NM_MIN 10
 #endif
 
 // --- constraints ---------------------------------------------------------------------------

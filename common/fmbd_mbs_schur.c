@@ -24,7 +24,7 @@
 // Cost per factorisation: a Cholesky nm^3/3 when h changed, 2 nm^2 nc for W, nm nc^2 for
 // A_RF W, KLU on S (order N - sum nm); per solve 2 nm^2 + 4 nm nc per body plus S's solve.
 // Against KLU's LU of the whole matrix (about (7 + nm)^3 2/3 per body with dense blocks) this
-// gains from about 20 modes on (bench/README.md, "Schur complement of the modal blocks").
+// gains from about 10 modes on (bench/README.md, "Schur complement of the modal blocks").
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -182,8 +182,10 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
     for (int64_t j = 0; j < N; j++) {
       for (int64_t p = Ap[j]; p < Ap[j + 1]; p++) {
         int64_t i = Ai[p];
-        if (owner[i] == k && owner[j] < 0) sb->pu[(i - sb->qoff) + (int64_t)nm * (-2 - mark[j])] = p;
-        if (owner[j] == k && owner[i] < 0) sb->pv[(-2 - mark[i]) + (int64_t)nc * (j - sb->qoff)] = p;
+        if (owner[i] == k && owner[j] < 0)
+          sb->pu[(i - sb->qoff) + (int64_t)nm * (-2 - mark[j])] = p;
+        if (owner[j] == k && owner[i] < 0)
+          sb->pv[(-2 - mark[i]) + (int64_t)nc * (j - sb->qoff)] = p;
       }
     }
     for (int64_t i = 0; i < N; i++) {
@@ -291,8 +293,8 @@ int mbs_schur_factor(fmbd_mbs *m) {
     }
     cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, nm, nc, 1.0,
                 sb->L, nm, sb->W, nm);
-    cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasTrans, CblasNonUnit, nm, nc, 1.0,
-                sb->L, nm, sb->W, nm);
+    cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasTrans, CblasNonUnit, nm, nc, 1.0, sb->L,
+                nm, sb->W, nm);
     fmbd_dense_gemm('N', 'N', nc, nc, nm, 1.0, sb->V, nc, sb->W, nm, 0.0, sb->VW, nc);
   }
   memset(s->Sx, 0, sizeof(double) * (size_t)s->nnzS);
