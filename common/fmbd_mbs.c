@@ -110,6 +110,7 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
     fmbd_free(m->bpos);
   }
   fmbd_klu_destroy(&m->klu);
+  mbs_schur_free(&m->sc);
   fmbd_free(m->red);
   fmbd_free(m);
   *mp = NULL;
