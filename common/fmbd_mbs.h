@@ -368,13 +368,19 @@ typedef struct fmbd_mbs_settings {
   bool reactions;       ///< the caller will ask for joint reactions (they are computed on
                         ///< query from the multipliers, which are always kept), default false
   int64_t max_steps;    ///< stop with FMBD_ERR_CONVERGE after so many steps (0 = none)
+  bool positions_only;  ///< fmbd_mbs_init stops after the consistent positions: velocities
+                        ///< left as given, accelerations and multipliers zero, one
+                        ///< factorisation of [M Cq'; Cq 0] saved (the velocities'); for callers
+                        ///< that only linearise (gmsolve); fmbd_mbs_step and the joint
+                        ///< reactions refuse such a model. Default false
 } fmbd_mbs_settings;
 /// @brief Fill the documented defaults.
 void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s);
 
 /// @brief Prepare the run: check the settings, remove redundant constraints, make the
-/// initial conditions consistent (positions, velocities, accelerations, multipliers), build
-/// the sparse pattern and its KLU symbolic analysis.
+/// initial conditions consistent (positions, velocities, accelerations, multipliers; only
+/// the positions with s->positions_only), build the sparse pattern and its KLU symbolic
+/// analysis.
 /// @return FMBD_OK; FMBD_ERR_VALUE (settings, no bodies); FMBD_ERR_CONVERGE (positions cannot
 /// be projected: the message names the worst joint equation); FMBD_ERR_SINGULAR (singular
 /// mass matrix or constraint system: names the body); FMBD_ERR_EXTERNAL (KLU); NOMEM

@@ -746,6 +746,9 @@ static int init_redundancy(fmbd_mbs *m) {
   m->N = m->n + kept;
   FMBD_GALLOC(m->lam = fmbd_calloc((size_t)kept + 1, sizeof(double)));
   FMBD_GALLOC(m->lamn = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+  FMBD_GALLOC(m->lamp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+  FMBD_GALLOC(m->lampp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+  FMBD_GALLOC(m->xddpp = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
   FMBD_GALLOC(m->rhs = fmbd_calloc((size_t)m->N, sizeof(double)));
   FMBD_GCALL(mbs_build_pattern(m));
 done:
@@ -892,8 +895,14 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->t = 0;
   FMBD_CALL(init_redundancy(m));
   FMBD_CALL(init_positions(m));
-  FMBD_CALL(init_velocities(m));
-  FMBD_CALL(init_accelerations(m));
+  if (m->set.positions_only) {
+    // a linearisation needs neither velocities nor accelerations (gmsolve: zero velocities),
+    // nor the position Newton's factor (the largest array of a full FE body's mechanism)
+    fmbd_klu_drop_factor(m->klu);
+  } else {
+    FMBD_CALL(init_velocities(m));
+    FMBD_CALL(init_accelerations(m));
+  }
   // acceleration scales: the largest |x''_i| seen, at least nscale_i / t_end^2
   for (int64_t i = 0; i < m->n; i++) m->ascale[i] = m->nscale[i] / (m->set.t_end * m->set.t_end);
   mbs_update_scales(m);
