@@ -457,7 +457,7 @@ typedef struct fmbd_mbs_stats {
   // CPU time (s) of the time steps' Newton iterations, split three ways: the iteration
   // matrix's factorisations, the solves with it, and the rest of the loop (the system
   // evaluation: residual and matrix, with the O(n) residual scaling and updates around it);
-  // measured as wall time scaled by the CPU share of the wall time since the first step
+  // measured as wall time scaled by the CPU share of the wall time of each window of 8 steps
   double factor_cpu_s, solve_cpu_s, eval_cpu_s;
 } fmbd_mbs_stats;
 void fmbd_mbs_get_stats(const fmbd_mbs *m, fmbd_mbs_stats *s);

@@ -213,7 +213,11 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
   FMBD_CHECK(m->set.max_steps <= 0 || m->st.steps < m->set.max_steps, FMBD_ERR_CONVERGE,
              "t = %.6g s: step limit %lld reached", m->t, (long long)m->set.max_steps);
   const double oe = m->set.output_every;
-  if (!(m->tm_wall0 > 0)) m->tm_wall0 = fmbd_wall_s(), m->tm_cpu0 = fmbd_cpu_s();
+  if (m->st.steps % 8 == 0) {  // a window of the Newton phases' CPU time ends (mbs_cpu_share)
+    double w = fmbd_wall_s(), c = fmbd_cpu_s(), f = mbs_cpu_share(m, w, c);
+    for (int k = 0; k < 3; k++) m->tm_cpu[k] += f * m->tm_phase[k], m->tm_phase[k] = 0;
+    m->tm_wall0 = w, m->tm_cpu0 = c;
+  }
   save_state(m);
   bool retried_fresh = false;
   for (;;) {
