@@ -84,8 +84,9 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
   // iteration, and a matrix of an earlier step contracts poorly: on the quadruple pendulum
   // (30-mode rod, fixed 1e-3 s) the first ratio |dx_1| / |dx_0| has median 0.9 with the
   // matrix of an earlier step, 1.5e-4 with the step's own. So it is refreshed at every step
-  // there: 29449 -> 16490 iterations, 23 % less CPU (100 modes: 16 %; bench/README.md)
-  if (m->sc) m->need_factor = true;
+  // there: 29449 -> 16490 iterations, 23 % less CPU (100 modes: 16 %; 300 modes: 18 % more,
+  // hence SCHUR_REFRESH_NM; bench/README.md)
+  if (mbs_schur_refresh(m)) m->need_factor = true;
   bool fresh = false;
   double prev = 0;
   for (int it = 0; it < m->set.newton_max; it++) {
