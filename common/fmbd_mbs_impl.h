@@ -248,6 +248,8 @@ struct fmbd_mbs {
   double *x, *xd, *xdd, *a, *lam;       // lam: physical multipliers (m)
   double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
   double *xddp;                         // x'' one step before
+  double *lamp;                         // lam one step before
+  double *xddpp, *lampp;                // x'', lam two steps before (the predictor)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;
@@ -258,7 +260,7 @@ struct fmbd_mbs {
   double *bwork;        // per-body workspace
   // --- generalized alpha ---
   double am, af, beta, gamma;
-  double h_next, h_fact, h_prop, h_prev;
+  double h_next, h_fact, h_prop, h_prev, h_prev2;
   double err_prev[2];  // scaled local errors of the last two accepted steps (0: none yet)
   int64_t k_out;
   int64_t worst_i;  // largest scaled residual of the last iterate
@@ -274,6 +276,9 @@ struct fmbd_mbs {
   mbs_schur *sc;    // the modal blocks' elimination (fmbd_mbs_schur.c) or NULL
   // --- results ---
   fmbd_mbs_stats st;
+  // wall time (s) of the Newton iterations' factorisations, solves and the rest, and the wall
+  // and process CPU clocks at the first step (fmbd_mbs_get_stats: the CPU split)
+  double tm_phase[3], tm_wall0, tm_cpu0;
   int nred;
   int *red;  // equation indices removed
   double qmax_init;
