@@ -53,6 +53,7 @@ void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s) {
   s->output_every = 0;
   s->reactions = false;
   s->max_steps = 0;
+  s->positions_only = false;
 }
 
 fmbd_mbs_state0 fmbd_mbs_state0_default(void) {
@@ -110,6 +111,7 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
     fmbd_free(m->bpos);
   }
   fmbd_klu_destroy(&m->klu);
+  mbs_schur_free(&m->sc);
   fmbd_free(m->red);
   fmbd_free(m);
   *mp = NULL;

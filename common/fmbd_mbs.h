@@ -89,7 +89,9 @@
 // NEWTON convergence: with theta the contraction rate of successive increments, stop when
 //   theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II, IV.8), or |dx_i| <= 1e-3 tx_i
 //   in the first iteration, or |dx_i| <= tx_i with theta >= 1 (round-off stagnation), where
-//   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, nscale_i)):
+//   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, rscale_i)),
+//   rscale_i = nscale_i for the frame coordinates, L_ref (L_ref sqrt(m) for modal
+//   coordinates) for elastic ones, which the constraints' round-off reaches via the frame:
 //   newton_tol is relative to the size of the coordinate AND of its acceleration (an error
 //   dx in x is an error beta' dx in x''; bounding only dx leaves a spurious force that, at
 //   small steps, spoils momentum and energy conservation). nscale_i = L_ref for positions, 1
@@ -366,13 +368,19 @@ typedef struct fmbd_mbs_settings {
   bool reactions;       ///< the caller will ask for joint reactions (they are computed on
                         ///< query from the multipliers, which are always kept), default false
   int64_t max_steps;    ///< stop with FMBD_ERR_CONVERGE after so many steps (0 = none)
+  bool positions_only;  ///< fmbd_mbs_init stops after the consistent positions: velocities
+                        ///< left as given, accelerations and multipliers zero, one
+                        ///< factorisation of [M Cq'; Cq 0] saved (the velocities'); for callers
+                        ///< that only linearise (gmsolve); fmbd_mbs_step and the joint
+                        ///< reactions refuse such a model. Default false
 } fmbd_mbs_settings;
 /// @brief Fill the documented defaults.
 void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s);
 
 /// @brief Prepare the run: check the settings, remove redundant constraints, make the
-/// initial conditions consistent (positions, velocities, accelerations, multipliers), build
-/// the sparse pattern and its KLU symbolic analysis.
+/// initial conditions consistent (positions, velocities, accelerations, multipliers; only
+/// the positions with s->positions_only), build the sparse pattern and its KLU symbolic
+/// analysis.
 /// @return FMBD_OK; FMBD_ERR_VALUE (settings, no bodies); FMBD_ERR_CONVERGE (positions cannot
 /// be projected: the message names the worst joint equation); FMBD_ERR_SINGULAR (singular
 /// mass matrix or constraint system: names the body); FMBD_ERR_EXTERNAL (KLU); NOMEM
@@ -444,6 +452,11 @@ typedef struct fmbd_mbs_stats {
   int64_t equations;       ///< constraint equations kept (incl. normalisations)
   int64_t redundant;       ///< constraint equations removed as redundant
   double h_last;           ///< last accepted step (s)
+  // CPU time (s) of the time steps' Newton iterations, split three ways: the iteration
+  // matrix's factorisations, the solves with it, and the rest of the loop (the system
+  // evaluation: residual and matrix, with the O(n) residual scaling and updates around it);
+  // measured as wall time scaled by the CPU share of the wall time since the first step
+  double factor_cpu_s, solve_cpu_s, eval_cpu_s;
 } fmbd_mbs_stats;
 void fmbd_mbs_get_stats(const fmbd_mbs *m, fmbd_mbs_stats *s);
 

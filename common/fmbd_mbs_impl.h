@@ -5,6 +5,7 @@
 //   fmbd_mbs_body.c       the equations of motion of one body (residual and iteration block)
 //   fmbd_mbs_constraint.c joint, driver and normalisation equations, their Jacobians
 //   fmbd_mbs_system.c     system evaluation, the sparse iteration matrix, its LU (fmbd_klu)
+//   fmbd_mbs_schur.c      the same matrix solved by eliminating the modal bodies' blocks
 //   fmbd_mbs_init.c       fmbd_mbs_init: redundancy, consistent initial conditions
 //   fmbd_mbs_step.c       generalized-alpha steps, Newton, step-size control
 //   fmbd_mbs_query.c      queries of the state
@@ -223,6 +224,8 @@ typedef struct meq {
   char *text;        // description (redundant ones)
 } meq;
 
+typedef struct mbs_schur mbs_schur;  // fmbd_mbs_schur.c
+
 struct fmbd_mbs {
   int nb, nbcap;
   mbody *b;
@@ -267,11 +270,16 @@ struct fmbd_mbs {
   bool need_factor, after_reject;
   // --- sparse matrix and KLU ---
   int64_t nnz;
-  double *Ax;      // values in the pattern analysed by klu (compressed columns)
-  int64_t **bpos;  // per body n^2 positions
-  fmbd_klu *klu;   // symbolic analysis once (fmbd_mbs_init), numeric factor kept
+  double *Ax;       // values in the pattern analysed by klu (compressed columns)
+  int64_t **bpos;   // per body n^2 positions
+  fmbd_klu *klu;    // symbolic analysis once (fmbd_mbs_init), numeric factor kept
+  double mcoef[3];  // (cm, cc, ck) of the matrix in Ax (mbs_eval_system)
+  mbs_schur *sc;    // the modal blocks' elimination (fmbd_mbs_schur.c) or NULL
   // --- results ---
   fmbd_mbs_stats st;
+  // wall time (s) of the Newton iterations' factorisations, solves and the rest, and the wall
+  // and process CPU clocks at the first step (fmbd_mbs_get_stats: the CPU split)
+  double tm_phase[3], tm_wall0, tm_cpu0;
   int nred;
   int *red;  // equation indices removed
   double qmax_init;
@@ -306,6 +314,11 @@ struct fmbd_mbs {
 // root of the distance to the fold (2.8e-2 at 0.01 s before it), so 1e-3 is reached about 1.4e-5 s
 // (2.7e-6 m of travel) before the fold.
 #define SINGULAR_TOL 1e-3
+// the modal blocks are eliminated (fmbd_mbs_schur.c) for bodies with at least SCHUR_NM_MIN
+// modes (bench/README.md, "Schur complement of the modal blocks")
+#ifndef SCHUR_NM_MIN
+#define SCHUR_NM_MIN 10
+#endif
 
 // --- constraints ---------------------------------------------------------------------------
 // Kinematics of one joint side: position r and up to 4 attached directions g[i], with their
@@ -361,6 +374,17 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
 int mbs_build_pattern(fmbd_mbs *m);
 int mbs_factor(fmbd_mbs *m);
 int mbs_solve(fmbd_mbs *m, double *rhs);
+// fmbd_mbs_schur.c: the iteration matrix with the modal coordinates of the modal bodies
+// eliminated (Schur complement on their constant blocks cm Mff + cc Dff + ck Kff; see there).
+// Chosen at mbs_build_pattern for the bodies with at least SCHUR_NM_MIN modes (environment
+// FMBD_MBS_SCHUR = 0 / off: never, 1 / on: every modal body); mbs_factor and mbs_solve use it
+// when set, and the whole matrix's KLU when its factorisation fails (not positive definite,
+// singular S: the messages name the unknown as before).
+int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai);
+int mbs_schur_factor(fmbd_mbs *m);
+int mbs_schur_solve(fmbd_mbs *m, double *rhs);
+bool mbs_schur_active(const fmbd_mbs *m);
+void mbs_schur_free(mbs_schur **s);
 // fmbd_mbs_fe.c: full FE bodies. mbs_fe_eval: the residual r (7 + n) as mbs_body_eval, and
 // with Ax the block cm M + cc C + ck K added into Ax at the body's positions
 void mbs_fe_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,

@@ -693,8 +693,11 @@ static void init_scales(fmbd_mbs *m) {
       // an FE dof is a nodal displacement (rotation) in the frame: the constraints' round-off
       // (eps Lref) reaches it through the frame's motion, amplified where the dof carries
       // little mass (a beam's nodal rotations), so its Newton increment stagnates at a few
-      // eps Lref, not at eps nscale = 1e-3 eps Lref (measured: a two-link beam pendulum's FM)
-      m->rscale[k] = b->fe && i >= 7 ? m->Lref : m->nscale[k];
+      // eps Lref, not at eps nscale = 1e-3 eps Lref (measured: a two-link beam pendulum's FM).
+      // A modal coordinate likewise, in its unit: eps Lref QUNIT (measured: the 8-link beam
+      // pendulum of held modes, examples/nlink, stalled with increments of link1's first mode
+      // at 1.7e-15 against the floor 1e3 eps nscale = 1.0e-15, residuals at 1e-16)
+      m->rscale[k] = i >= 7 ? m->Lref * QUNIT(b) : m->nscale[k];
     }
   }
   for (int64_t e = 0; e < neq; e++) {
@@ -893,8 +896,14 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->t = 0;
   FMBD_CALL(init_redundancy(m));
   FMBD_CALL(init_positions(m));
-  FMBD_CALL(init_velocities(m));
-  FMBD_CALL(init_accelerations(m));
+  if (m->set.positions_only) {
+    // a linearisation needs neither velocities nor accelerations (gmsolve: zero velocities),
+    // nor the position Newton's factor (the largest array of a full FE body's mechanism)
+    fmbd_klu_drop_factor(m->klu);
+  } else {
+    FMBD_CALL(init_velocities(m));
+    FMBD_CALL(init_accelerations(m));
+  }
   // acceleration scales: the largest |x''_i| seen, at least nscale_i / t_end^2
   for (int64_t i = 0; i < m->n; i++) m->ascale[i] = m->nscale[i] / (m->set.t_end * m->set.t_end);
   mbs_update_scales(m);

@@ -104,6 +104,8 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
   if (force_fresh) m->need_factor = true;
   bool fresh = false;
   double prev = 0;
+  // clock readings between the phases (wall; fmbd_mbs_get_stats makes them CPU time)
+  double clk = fmbd_wall_s(), clk1;
   const bool debug = fmbd_log_level() >= FMBD_LOG_DEBUG;
   for (int it = 0; it < m->set.newton_max; it++) {
     bool matrix = m->need_factor;
@@ -114,13 +116,19 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       const meq *q = &m->eq[e];
       if (q->kept) m->rhs[n + q->row] = -q->phi;
     }
+    clk1 = fmbd_wall_s();
+    m->tm_phase[2] += clk1 - clk;
     if (matrix) {
       FMBD_CALL(mbs_factor(m));
       m->need_factor = false;
       m->h_fact = h;
       fresh = true;
+      clk = clk1, clk1 = fmbd_wall_s();
+      m->tm_phase[0] += clk1 - clk;
     }
     FMBD_CALL(mbs_solve(m, m->rhs));
+    clk = fmbd_wall_s();
+    m->tm_phase[1] += clk - clk1;
     m->st.newton_iterations++;
     // the largest increment in units of the tolerance (itx, the predictor's loop)
     double nrm = 0;
@@ -167,6 +175,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       m->need_factor = true;
     prev = nrm;
   }
+  m->tm_phase[2] += fmbd_wall_s() - clk;
   *fresh_out = fresh;
   if (!*conv) {
     // the largest scaled residual at the last iterate (for the failure message): evaluated
@@ -205,12 +214,15 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
 
 int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
   FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "fmbd_mbs_step before fmbd_mbs_init");
+  FMBD_CHECK(!m->set.positions_only, FMBD_ERR_VALUE,
+             "fmbd_mbs_step: the model was initialised for its positions only");
   if (at_output) *at_output = false;
   const double tend = m->set.t_end;
   if (m->t >= tend * (1 - 1e-14)) return 1;
   FMBD_CHECK(m->set.max_steps <= 0 || m->st.steps < m->set.max_steps, FMBD_ERR_CONVERGE,
              "t = %.6g s: step limit %lld reached", m->t, (long long)m->set.max_steps);
   const double oe = m->set.output_every;
+  if (!(m->tm_wall0 > 0)) m->tm_wall0 = fmbd_wall_s(), m->tm_cpu0 = fmbd_cpu_s();
   save_state(m);
   bool retried_fresh = false;
   for (;;) {
@@ -237,6 +249,13 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       return arc;
     }
     if (!conv) {
+      if (fmbd_log_level() >= FMBD_LOG_DEBUG) {
+        char buf[800];
+        worst_residual(m, buf, sizeof buf);
+        fmbd_log(FMBD_LOG_DEBUG,
+                 "t = %.9g h = %.3g: Newton did not converge%s; largest residual: %s", m->t, h,
+                 fresh ? "" : " (old matrix)", buf);
+      }
       restore_state(m);
       if (!fresh && !retried_fresh) {
         retried_fresh = true;  // the old factor was too far off: same h, fresh matrix

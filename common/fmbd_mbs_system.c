@@ -62,7 +62,10 @@ static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len
 // Ax = [cm M + cc C + ck K, Phi_x'; Phi_x, 0] (dynamics block as mbs_body_eval).
 void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
                      double ck, bool add_lam) {
-  if (matrix) memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
+  if (matrix) {
+    memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
+    m->mcoef[0] = cm, m->mcoef[1] = cc, m->mcoef[2] = ck;
+  }
   for (int ib = 0; ib < m->nb; ib++) {  // shared sets' elastic rows are sums: zeroed first
     const mbody *b = &m->b[ib];
     if (b->share == ib) memset(m->res + b->qoff, 0, sizeof(double) * (size_t)b->nm);
@@ -200,6 +203,7 @@ int mbs_build_pattern(fmbd_mbs *m) {
     }
   }
   FMBD_GCALL(fmbd_klu_analyze(N, Ap, Ai, &m->klu));
+  FMBD_GCALL(mbs_schur_setup(m, Ap, Ai));
 done:
   fmbd_free(sl), fmbd_free(where), fmbd_free(Ap), fmbd_free(Ai);
   return rc;
@@ -208,6 +212,15 @@ done:
 // numeric factorisation of Ax (fmbd_klu: a refactor with the old pivoting when possible); a
 // singular matrix is reported with the coordinate or equation of KLU's zero pivot
 int mbs_factor(fmbd_mbs *m) {
+  if (m->sc) {  // the modal blocks eliminated; on failure the whole matrix's KLU below
+    int rs = mbs_schur_factor(m);
+    if (rs == FMBD_OK) {
+      m->st.factorizations++;
+      return FMBD_OK;
+    }
+    if (rs == FMBD_ERR_NOMEM) return rs;
+    fmbd_err_clear();
+  }
   int rc = fmbd_klu_factor(m->klu, m->Ax);
   if (rc == FMBD_ERR_SINGULAR) {
     char what[400];
@@ -235,5 +248,6 @@ int mbs_factor(fmbd_mbs *m) {
 }
 
 int mbs_solve(fmbd_mbs *m, double *rhs) {
+  if (mbs_schur_active(m)) return mbs_schur_solve(m, rhs);
   return fmbd_klu_solve(m->klu, rhs);
 }

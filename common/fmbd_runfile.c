@@ -109,9 +109,11 @@ static int write_stats(fmbd_runfile *rf, bool complete) {
     FMBD_CALL(fmbd_h5_write_attr_i64(f, "/stats", in[i], 1, &iv[i]));
   double rw = rf->t0_wall > 0 ? fmbd_wall_s() - rf->t0_wall : 0,
          rc = rf->t0_wall > 0 ? fmbd_cpu_s() - rf->t0_cpu : 0;
-  double dv[] = {fmbd_cli_wall_s(), fmbd_cli_cpu_s(), st.t_reached, st.last_step_s, rw, rc};
-  const char *dn[] = {"wall_time_s", "cpu_time_s",      "t_reached",
-                      "last_step_s", "run_wall_time_s", "run_cpu_time_s"};
+  double dv[] = {fmbd_cli_wall_s(), fmbd_cli_cpu_s(), st.t_reached, st.last_step_s, rw, rc,
+                 st.factor_cpu_s,   st.solve_cpu_s,   st.eval_cpu_s};
+  const char *dn[] = {"wall_time_s",       "cpu_time_s",       "t_reached",
+                      "last_step_s",       "run_wall_time_s",  "run_cpu_time_s",
+                      "factor_cpu_time_s", "solve_cpu_time_s", "eval_cpu_time_s"};
   for (size_t i = 0; i < sizeof dv / sizeof dv[0]; i++)
     FMBD_CALL(fmbd_h5_write_attr_f64(f, "/stats", dn[i], 1, &dv[i]));
   return FMBD_OK;

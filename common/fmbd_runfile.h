@@ -52,6 +52,8 @@ typedef struct fmbd_runfile_stats {
   int64_t coordinates, equations, redundant_equations;
   double t_reached;    ///< s, time of the last accepted step
   double last_step_s;  ///< s, the last accepted step size
+  /// s, CPU time of the Newton iterations: factorisations, solves, the rest (fmbd_mbs_stats)
+  double factor_cpu_s, solve_cpu_s, eval_cpu_s;
 } fmbd_runfile_stats;
 /// Fills *st with the solver's counters now (called at every flush and at the end).
 typedef void (*fmbd_runfile_stats_fn)(void *user, fmbd_runfile_stats *st);

@@ -42,7 +42,10 @@ static void get_stats(void *user, fmbd_runfile_stats *st) {
                              .equations = ms.equations,
                              .redundant_equations = ms.redundant,
                              .t_reached = fmbd_mbs_time(r->m->mbs),
-                             .last_step_s = ms.h_last};
+                             .last_step_s = ms.h_last,
+                             .factor_cpu_s = ms.factor_cpu_s,
+                             .solve_cpu_s = ms.solve_cpu_s,
+                             .eval_cpu_s = ms.eval_cpu_s};
 }
 
 // The run file's series, in the order of docs/FORMAT.md.

@@ -291,6 +291,11 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_runfile_commit(&rf));
   FMBD_GCALL(fmbd_scene_recorder_commit(r.rec));
   fmbd_mbs_get_stats(m->mbs, &st);
+  fmbd_log(FMBD_LOG_INFO,
+           "CPU of the Newton iterations: %.3g s in %lld factorisations, %.3g s in %lld solves, "
+           "%.3g s in the system evaluation and updates (of %.3g s for the time integration)",
+           st.factor_cpu_s, (long long)st.factorizations, st.solve_cpu_s,
+           (long long)st.newton_iterations, st.eval_cpu_s, run_cpu);
   fmbd_cli_summary(
       "%s: %lld steps, %lld rejected, %lld Newton iterations, %lld rows to t = %g s (%.3gx real "
       "time on CPU time)",

@@ -25,7 +25,9 @@
 # differs from the complete modal basis at second order in the deformation (u^2 / L).
 # Initial state: the rigid chain's motion under the driver at t = 0 (see scene()).
 # Error: eps_RMS of each link's end point over the run (docs/THEORY.md section 7), the largest
-# over the links; CPU: the run's /stats cpu_time_s.
+# over the links; CPU: the run's /stats cpu_time_s; linear-solve CPU: the Newton increments
+# alone, /stats factor_cpu_time_s + solve_cpu_time_s (the iteration matrix's factorisations and
+# solves; the paper's Figure 12).
 #
 #   /usr/bin/python3 examples/nlink/nlink.py [--links 2,4] [--modes 1,2,4,6] [--t-end 0.5]
 #       [--ne 10] [--step H] [--methods NM,NM-held,CB,GMc,GMc-free,GMc-nbm,GMs] [--ref complete|fm]
@@ -93,21 +95,25 @@ def scene(path, nb, t_end, step, body_file, basis=None, keep=None, kind="gmc", e
 def result(path, nb):
     with h5py.File(path, "r") as f:
         pos = [f["outputs/end%d/position" % k][()] for k in range(nb)]
-        cpu = float(f["stats"].attrs["cpu_time_s"])
-    return pos, cpu
+        st = f["stats"].attrs
+        cpu, lin = float(st["cpu_time_s"]), float(st["factor_cpu_time_s"] + st["solve_cpu_time_s"])
+    return pos, cpu, lin
 
 
 def plot(prefix, rows):
-    """PREFIX-cpu.svg: CPU time against n_tot (the paper's Figure 10), PREFIX-error.svg: the
-    largest eps_RMS of the link ends against n_b (Table 5), one line per basis."""
+    """PREFIX-cpu.svg: CPU time against n_tot (the paper's Figure 10), PREFIX-solve.svg: the
+    linear solves' CPU time against n_tot (Figure 12), PREFIX-error.svg: the largest eps_RMS of
+    the link ends against n_b (Table 5), one line per basis."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     series = {}
-    for nb, meth, nf, cpu, eps, nt, each in rows:
+    for nb, meth, nf, cpu, eps, nt, each, lin in rows:
         if not math.isnan(cpu):
-            series.setdefault(meth, []).append((nb, nt, cpu, eps))
+            series.setdefault(meth, []).append((nb, nt, cpu, eps, lin))
     for what, xi, yi, xlabel, ylabel in (("cpu", 1, 2, "n_tot", "CPU time of the run (s)"),
+                                         ("solve", 1, 4, "n_tot",
+                                          "CPU time of the linear solves (factorisations + solves) (s)"),
                                          ("error", 0, 3, "n_b", "eps_RMS, largest over the link ends (m)")):
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for meth, pts in series.items():
@@ -169,8 +175,8 @@ def main():
         if "GMc-free" in methods:
             sh(out, "gmsolve", "ref%d.yaml" % nb, "--modes", str(max(modes)), "-o", "free%d.gm.h5" % nb, "-q")
         sh(out, "fmbd-run", "ref%d.yaml" % nb, "-o", "ref%d.run.h5" % nb, "-q")
-        ref, cref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
-        rows.append((nb, "ref (%s)" % refname, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, []))
+        ref, cref, lref = result(os.path.join(out, "ref%d.run.h5" % nb), nb)
+        rows.append((nb, "ref (%s)" % refname, str(nfull), cref, 0.0, 12 * nb + nb * nfull + 1, [], lref))
         for m in modes:
             # (method, body file, basis file, flexible coordinates per link, global modes kept)
             for meth, body, basis, nflex, keep in (("NM", "nm%d.cb.h5" % m, None, m, 0),
@@ -197,20 +203,21 @@ def main():
                       "gms" if meth == "GMs" else "gmc",
                       "nearest: [%g, 0, 0]" % L if meth == "NM-held" else "interface: end1")
                 if sh(out, "fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q", may_fail=True).returncode:
-                    rows.append((nb, label, shown_f, math.nan, math.nan, ntot, []))
+                    rows.append((nb, label, shown_f, math.nan, math.nan, ntot, [], math.nan))
                     continue
-                pos, cpu = result(os.path.join(out, name + ".run.h5"), nb)
+                pos, cpu, lin = result(os.path.join(out, name + ".run.h5"), nb)
                 each = [math.sqrt(np.mean(np.sum((p - r) ** 2, axis=1))) for p, r in zip(pos, ref)]
-                rows.append((nb, label, shown_f, cpu, max(each), ntot, each))
+                rows.append((nb, label, shown_f, cpu, max(each), ntot, each, lin))
     if a.plot:
         plot(a.plot, rows)
-    print("| n_b | basis | flexible coordinates per link | n_tot | CPU (s) | eps_RMS, largest over the link ends (m) "
-          "| eps_RMS of P1 .. Pn_b (m) |")
-    print("|---|---|---|---|---|---|---|")
-    for nb, meth, nf, cpu, eps, nt, each in rows:
+    print("| n_b | basis | flexible coordinates per link | n_tot | CPU (s) | linear-solve CPU (s) "
+          "| eps_RMS, largest over the link ends (m) | eps_RMS of P1 .. Pn_b (m) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for nb, meth, nf, cpu, eps, nt, each, lin in rows:
         shown = "-" if meth.startswith("ref") else ("run failed" if math.isnan(eps) else "%.2e" % eps)
-        print("| %d | %s | %s | %d | %s | %s | %s |" % (nb, meth, nf, nt, "-" if math.isnan(cpu) else "%.2f" % cpu, shown,
-                                                    " / ".join("%.1e" % e for e in each)))
+        print("| %d | %s | %s | %d | %s | %s | %s | %s |" % (
+            nb, meth, nf, nt, "-" if math.isnan(cpu) else "%.2f" % cpu, "-" if math.isnan(lin) else "%.3f" % lin,
+            shown, " / ".join("%.1e" % e for e in each)))
 
 
 if __name__ == "__main__":

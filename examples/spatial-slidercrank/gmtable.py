@@ -3,7 +3,9 @@
 # slider-crank: the error of the rod's mid-span node (output `mid`) and of its spherical-joint
 # node (interface end0, output `sph`) against the full FE model (FM), for global modes (GMs and
 # GMc: gmsolve), normal modes (NM: the free rod's, fe2cb --method nm; NM held: the rod's with
-# both end interfaces clamped, --hold) and Craig-Bampton bodies (CB: fe2cb --modes m, every mode
+# both end interfaces clamped, --hold; NM S-U: the paper's NM, the rod's modes with the
+# mechanism's spherical and universal joints to ground, the global modes of that one-body scene,
+# su_scene, used as a GMc basis) and Craig-Bampton bodies (CB: fe2cb --modes m, every mode
 # of the reduced problem), against the number of modes m.
 # SPDX-License-Identifier: MIT
 #
@@ -22,6 +24,7 @@ import sys
 
 import h5py
 import numpy as np
+import scipy.sparse as sp
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCENE = os.path.join(HERE, "spatial-slidercrank.yaml")
@@ -52,6 +55,42 @@ def scene_variant(text, body_line, t_end):
             out.append("    - {name: sph, body: rod, interface: end0, quantities: [position]}")
     s = "\n".join(out) + "\n"
     return re.sub(r"t_end: *[0-9.e+-]+", "t_end: %g" % t_end, s)
+
+
+def su_scene(text, body_line, frame):
+    """The rod alone, held to ground as the mechanism holds it: the spherical joint `pin` at end0
+    (the crank side made ground) and the universal joint `cross` at end1 with the same two axes
+    (the slider side made ground), the rod placed where gmsolve linearises the mechanism: its
+    frame coordinates `frame` (R, Euler parameters p) from the mechanism's /linear/x, written
+    to the last digit (the scene's 10-digit matrix is a rotation to 1e-10 only, and the two
+    ground points must be the rigid rod's length apart to round-off: the rod held at both ends
+    has no rigid motion to absorb a difference). Its global modes (f = 0) are the rod's
+    S-U-held normal modes (NM S-U)."""
+    R, (e0, e1, e2, e3) = frame[:3], frame[3:7]
+    e = np.array([e1, e2, e3])
+    til = np.array([[0, -e3, e2], [e3, 0, -e1], [-e2, e1, 0]])
+    A = (2 * e0 * e0 - 1) * np.eye(3) + 2 * (np.outer(e, e) + e0 * til)
+    lines = text.splitlines()
+    i = next(k for k, x in enumerate(lines) if x.startswith("  - name: rod"))
+    j = next(k for k, x in enumerate(lines) if x.startswith("  - name: slider"))
+    rod = [x for x in scene_variant("\n".join(lines[i:j]), body_line, 1).splitlines()
+           if not re.match(r" +(velocity|angular_velocity|position|orientation|matrix):|      +[-0-9]", x)]
+    rod += ["    position: [%s]" % ", ".join("%.17g" % v for v in R),
+            "    orientation: {matrix: [%s]}" % ", ".join("%.17g" % v for v in A.ravel())]
+    k = next(k for k, x in enumerate(lines) if x.startswith("joints:"))
+    joints, keep = [], False
+    for x in lines[k + 1:]:
+        if not x.startswith(" "):
+            break
+        if x.startswith("  - "):
+            keep = "name: pin" in x or "name: cross" in x
+        if keep:
+            joints.append(x.replace("body1: crank", "body1: ground").replace("body2: slider", "body2: ground")
+                          .replace("# on the slider", "# on ground"))
+    solver = re.search(r"\nsolver:\n(?:  .*\n)+", text).group(0)
+    return ("title: the spatial slider-crank's rod held by the mechanism's spherical and universal joints"
+            " (ground on their other sides)" + solver + "bodies:\n" + "\n".join(rod) + "\njoints:\n"
+            + "\n".join(joints) + "\n")
 
 
 def position(run, name):
@@ -91,9 +130,29 @@ def main():
     fm, fm_cpu, _ = runit("fm", "file: rod.fe.h5")
     gm = os.path.join(out, "rod.gm.h5")
     if not os.path.exists(gm):
-        sh(["gmsolve", os.path.join(out, "fm.yaml"), "--modes", str(max(modes)), "-o", gm, "-q"], out)
+        sh(["gmsolve", os.path.join(out, "fm.yaml"), "--modes", str(max(modes)), "--matrices", "-o", gm, "-q"], out)
     with h5py.File(gm, "r") as f:
         gfreq = f["global/frequency_hz"][()]
+        frame = f["linear/x"][7:14]  # the rod's frame coordinates (the crank's 7 come first)
+        # each global mode's share of its modal mass (x'Mx = 1) in the crank's and the slider's
+        # coordinates (the first and the last 7): what the S-U hold forbids them
+        g, X = f["linear/M"], f["global/shapes"][()]
+        M = sp.csr_matrix((g["data"][()], g["indices"][()], g["indptr"][()]), shape=tuple(g.attrs["shape"]))
+        share = []
+        for x in X.T:
+            y = x.copy()
+            y[7:-7] = 0
+            share.append(float(y @ (M @ y) / (x @ (M @ x))))
+    # NM S-U: the rod held to ground by the mechanism's spherical and universal joints (f = 0)
+    su = os.path.join(out, "rod-su.gm.h5")
+    if not os.path.exists(su):
+        p = os.path.join(out, "su.yaml")
+        open(p, "w").write(su_scene(text, "file: rod.fe.h5", frame))
+        sh(["gmsolve", p, "--modes", str(max(modes)), "-o", su, "-q"], out)
+    with h5py.File(su, "r") as f:
+        sufreq = f["global/frequency_hz"][()]
+        if int(f["global"].attrs["f"]) != 0:
+            sys.exit("gmtable.py: the S-U-held rod has rigid-reference modes")
     ref = {k: position(fm, k) for k in ("mid", "sph")}
     rows = []
 
@@ -113,10 +172,11 @@ def main():
                 sh(["fe2cb", fe] + args + ["--modes", str(m), "-o", cb, "-q"], out)
             files[kind] = cb
         models = [("GMs", "file: rod.fe.h5, basis: rod.gm.h5, basis_kind: gms, modes: %d" % m),
-                  ("GMc", "file: rod.fe.h5, basis: rod.gm.h5, modes: %d" % m)]
+                  ("GMc", "file: rod.fe.h5, basis: rod.gm.h5, modes: %d" % m),
+                  ("NM S-U", "file: rod.fe.h5, basis: rod-su.gm.h5, modes: %d" % m)]
         models += [(k, "file: " + os.path.basename(f)) for k, f in files.items()]
         for kind, body in models:
-            run, cpu, _ = runit("%s-%d" % (kind.replace(" ", "").lower(), m), body)
+            run, cpu, _ = runit("%s-%d" % (kind.replace(" ", "").replace("-", "").lower(), m), body)
             with h5py.File(run, "r") as f:
                 nq = int(f["stats"].attrs["coordinates"]) - 21  # 3 bodies x 7 frame coordinates
             e = err(run)
@@ -130,7 +190,9 @@ def main():
         fm_coords = int(f["stats"].attrs["coordinates"]) - 21
     lines = ["FM: %d elastic coordinates (mesh %g m), %.3g s integration CPU; t = 0 .. %g s, step of the scene."
              % (fm_coords, a.size, fm_cpu, a.t_end),
-             "Global flexible frequencies (Hz): " + ", ".join("%.1f" % x for x in gfreq), "",
+             "Global flexible frequencies (Hz): " + ", ".join("%.1f" % x for x in gfreq),
+             "S-U-held rod's frequencies (NM S-U, Hz): " + ", ".join("%.1f" % x for x in sufreq),
+             "Crank's and slider's share of each global mode's modal mass: " + ", ".join("%.1e" % x for x in share), "",
              "| model | m | elastic coordinates | mid: max error (m) | mid: RMS (m) | sph: max error (m) | sph: RMS (m) | integration CPU s |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:

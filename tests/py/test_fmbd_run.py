@@ -56,6 +56,13 @@ with h5py.File(out, "r") as f:
     check(st["complete"] == 1 and st["steps"] > 0 and "rejected_steps" in st and st["wall_time_s"] >= 0,
           f"/stats complete={st['complete']} steps={st['steps']} newton={st['newton_iterations']}")
     check(f.attrs["format"] in (b"fmbd-run", "fmbd-run"), "format attribute fmbd-run")
+    # the Newton iterations' CPU split: each phase measured (> 0: every iteration solves, the
+    # first one factors) and together within the integration's CPU time (the phases' wall time
+    # scaled by the CPU share of the wall time since the first step cannot exceed it; 1 ms for
+    # the clock readings between the end of the run and the write)
+    ph = [st[k] for k in ("factor_cpu_time_s", "solve_cpu_time_s", "eval_cpu_time_s")]
+    check(min(ph) > 0 and sum(ph) <= st["run_cpu_time_s"] + 1e-3,
+          "/stats factor, solve, eval CPU %s s within run_cpu_time_s %.4g s" % (ph, st["run_cpu_time_s"]))
     E = f["energy/kinetic"][()] + f["energy/potential"][()]
     check(f["reactions/pivot/force"].shape == (len(t), 3), "reaction series")
 theta = np.arctan2(x[:, 0], -x[:, 1])  # from the downward vertical

@@ -16,7 +16,9 @@
 #    rule, once); make -n orders them, a real make builds the run, a touched reference scene
 #    remakes the basis only;
 # 5. the spatial slider-crank on a coarse mesh: the global frequencies = scipy's solution of the
-#    same constrained problem; GMs = GMc on the mid-span node (one flexible body);
+#    same constrained problem; GMs = GMc on the mid-span node (one flexible body); the rod held
+#    to ground by the mechanism's spherical and universal joints (NM S-U, the paper's NM): f = 0,
+#    its frequencies = scipy's, interlacing the mechanism's, and its modes run as a GMc basis;
 # 6. gmsolve --xdmf read back by meshio (python3-meshio): nodes, cells and one mode's
 #    displacement against /gms/<body>/shapes in the h5.
 import os
@@ -276,28 +278,35 @@ ssc = open(gmtable.SCENE).read()
 m2f = re.sub(r"--size +\S+", "--size 0.012", re.search(r"mesh2fe: *(.*)", ssc).group(1)).split()
 run("mesh2fe", os.path.join(ROOT, "examples", "spatial-slidercrank", "rod.geo"), *m2f, "-o", "sscrod.fe.h5", "-q")
 write("ssc_fm.yaml", gmtable.scene_variant(ssc, "file: sscrod.fe.h5", 0.02))
-run("gmsolve", "ssc_fm.yaml", "--modes", "4", "-o", "ssc.gm.h5", "-q")
+run("gmsolve", "ssc_fm.yaml", "--modes", "4", "--matrices", "-o", "ssc.gm.h5", "-q")
 # the dense check on the rod's CB body (fe2cb, 6 fixed-interface modes: 18 coordinates; the FE
 # rod's 3000 make scipy's dense SVD take minutes)
 run("fe2cb", "sscrod.fe.h5", "--modes", "6", "-o", "sscrod.cb.h5", "-q")
 write("ssc_cb.yaml", gmtable.scene_variant(ssc, "file: sscrod.cb.h5", 0.02))
 run("gmsolve", "ssc_cb.yaml", "--modes", "4", "--matrices", "-o", "sscb.gm.h5", "-q")
-with h5py.File(os.path.join(TMP, "sscb.gm.h5"), "r") as f:
+
+
+def dense(gmfile):
+    """gmsolve's eigenvalues against scipy's dense solution of the same constrained problem."""
     import scipy.linalg as sl
     import scipy.sparse as sp
 
-    def csr(g):
-        return sp.csr_matrix((g["data"][()], g["indices"][()], g["indptr"][()]), shape=tuple(g.attrs["shape"]))
-    M, K, C = (csr(f["linear/" + k]).toarray() for k in ("M", "K", "Cq"))
-    got, fz = f["global/eigenvalue"][()], int(f["global"].attrs["f"])
-N = sl.null_space(C)
-wall = sl.eigh(N.T @ K @ N, N.T @ M @ N, eigvals_only=True)
-w = wall[fz:fz + len(got)]
-# both dense symmetric-definite solutions of one problem (gmsolve: coordinate partitioning, scipy:
-# SVD null space): an eigenvalue's backward error is eps times the largest of the reduced pencil,
-# relative to itself eps * wmax / w; 100 times that for the two solutions' different operations
-err = np.max(np.abs(got / w - 1))
-tol = 100 * np.finfo(float).eps * wall[-1] / w[0]
+    with h5py.File(os.path.join(TMP, gmfile), "r") as f:
+        def csr(g):
+            return sp.csr_matrix((g["data"][()], g["indices"][()], g["indptr"][()]), shape=tuple(g.attrs["shape"]))
+        M, K, C = (csr(f["linear/" + k]).toarray() for k in ("M", "K", "Cq"))
+        got, fz = f["global/eigenvalue"][()], int(f["global"].attrs["f"])
+    N = sl.null_space(C)
+    wall = sl.eigh(N.T @ K @ N, N.T @ M @ N, eigvals_only=True)
+    w = wall[fz:fz + len(got)]
+    # both dense symmetric-definite solutions of one problem (gmsolve: coordinate partitioning,
+    # scipy: SVD null space): an eigenvalue's backward error is eps times the largest of the
+    # reduced pencil, relative to itself eps * wmax / w; 100 times that for the two solutions'
+    # different operations
+    return fz, got, np.max(np.abs(got / w - 1)), 100 * np.finfo(float).eps * wall[-1] / w[0]
+
+
+fz, got, err, tol = dense("sscb.gm.h5")
 check(fz == 1 and err < tol, f"spatial slider-crank: f = {fz}, 4 global frequencies "
       f"{np.sqrt(got[0]) / 2 / np.pi:.1f} .. {np.sqrt(got[-1]) / 2 / np.pi:.1f} Hz = scipy on the same M, K, Cq (rel {err:.1e}, bound {tol:.1e})")
 for kind in ("gms", "gmc"):
@@ -308,6 +317,44 @@ a, b = point("ssc_gms.run.h5", "mid"), point("ssc_gmc.run.h5", "mid")
 d, e = np.max(np.abs(a - a[0])), np.max(np.abs(a - b))
 # one span in two coordinate sets: the Newton tolerance (1e-8 relative) of the motion, 1e-6
 check(d > 0 and e < 1e-6 * d, f"spatial slider-crank, 2 global modes: GMs mid-span = GMc ({e:.1e} m of {d:.2e} m)")
+# NM S-U (the paper's NM; gmtable.su_scene): the rod alone, held to ground by the mechanism's
+# spherical and universal joints where gmsolve linearised the mechanism (its /linear/x). f = 0,
+# and its frequencies = scipy on its own /linear matrices (the CB rod, as above)
+for tag, body, gmf in (("cb", "sscrod.cb.h5", "sscb.gm.h5"), ("fe", "sscrod.fe.h5", "ssc.gm.h5")):
+    with h5py.File(os.path.join(TMP, gmf), "r") as f:
+        frame = f["linear/x"][7:14]
+    write("ssu_%s.yaml" % tag, gmtable.su_scene(ssc, "file: " + body, frame))
+    run("gmsolve", "ssu_%s.yaml" % tag, "--modes", "4", "--matrices", "-o", "ssu%s.gm.h5" % tag, "-q")
+fz, got, err, tol = dense("ssucb.gm.h5")
+check(fz == 0 and err < tol, f"S-U-held rod: f = {fz}, 4 frequencies {np.sqrt(got[0]) / 2 / np.pi:.1f} .. "
+      f"{np.sqrt(got[-1]) / 2 / np.pi:.1f} Hz = scipy on the same M, K, Cq (rel {err:.1e}, bound {tol:.1e})")
+# The S-U-held rod's admissible motions are the mechanism's with the crank and slider still: a
+# subspace of codimension 2 (the hold removes the rigid swing, f = 1, and the ends' motion along
+# the rod against the crank's and slider's inertia) with the same mass and stiffness on it. So by
+# Cauchy interlacing (the mechanism's eigenvalues counting its zero) GM_{k-1} <= SU_k <= GM_{k+1}
+# for the flexible frequencies; 1e-9 relative: the eigensolutions' residual checks
+with h5py.File(os.path.join(TMP, "ssc.gm.h5"), "r") as f:
+    gm = f["global/frequency_hz"][()]
+    dim = int(f["global"].attrs["coordinates"]) - int(f["global"].attrs["constraints"])
+with h5py.File(os.path.join(TMP, "ssufe.gm.h5"), "r") as f:
+    su, sfz = f["global/frequency_hz"][()], int(f["global"].attrs["f"])
+    dim -= int(f["global"].attrs["coordinates"]) - int(f["global"].attrs["constraints"])
+ok = sfz == 0 and dim == 2 and all(gm[k - 1] <= su[k] * (1 + 1e-9) for k in range(1, 4)) and \
+    all(su[k] <= gm[k + 1] * (1 + 1e-9) for k in range(0, 3))
+check(ok, "S-U-held FE rod: its frequencies " + ", ".join("%.1f" % x for x in su) + " Hz interlace the mechanism's "
+      + ", ".join("%.1f" % x for x in gm) + " Hz (GM_k-1 <= SU_k <= GM_k+1; codimension %d)" % dim)
+# and NM S-U runs as the rod's basis in the mechanism (GMc basis of that file): 2 modes, 7 + 2
+# coordinates for the rod; its mid-span within 2e-5 m (the paper's two-mode accuracy) of the
+# GMc run's, both two-mode approximations of the FM (examples/spatial-slidercrank/README.md:
+# 7e-6 and 1.5e-5 m from the FM at 6 mm)
+write("ssc_su.yaml", gmtable.scene_variant(ssc, "file: sscrod.fe.h5, basis: ssufe.gm.h5, modes: 2", 0.02))
+run("fmbd-run", "ssc_su.yaml", "-o", "ssc_su.run.h5", "-q")
+with h5py.File(os.path.join(TMP, "ssc_su.run.h5"), "r") as f:
+    nc = int(f["stats"].attrs["coordinates"])
+c = point("ssc_su.run.h5", "mid")
+e = np.max(np.linalg.norm(c - b, axis=1))
+check(nc == 23 and e < 2e-5, f"spatial slider-crank, NM S-U basis with 2 modes: {nc} coordinates, mid-span "
+      f"{e:.1e} m from the 2-mode GMc run")
 # --- 6. gmsolve --xdmf: the global modes on the bodies' meshes, read back by meshio ------------
 # a tet10 rod clamped at end0, turned 90 degrees about z and moved: the frame does not move in the
 # modes (f = 0), so mode k's displacement is A (/expand /gms/rod/shapes[:, k]) at every node,

@@ -9,7 +9,9 @@
 // - Cq equals central finite differences of the returned constraint values phi (h = 1e-6:
 //   truncation ~1e-12, cancellation ~1e-10 of entries of order 1: compared at 1e-7);
 // - the constraints hold at the initial configuration (phi ~ 0) and the model's state is left
-//   unchanged; before fmbd_mbs_init the call is refused.
+//   unchanged; before fmbd_mbs_init the call is refused;
+// - initialised for its positions only (settings.positions_only, gmsolve's), the model has the
+//   same positions and linearisation bit for bit, and refuses to step or give reactions.
 // SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdlib.h>
@@ -17,6 +19,7 @@
 
 #include "check.h"
 #include "fmbd_alloc.h"
+#include "fmbd_err.h"
 #include "fmbd_log.h"
 #include "fmbd_mbs.h"
 
@@ -24,11 +27,13 @@ static double get(const fmbd_csr *A, int64_t i, int64_t j) {
   return fmbd_csr_get(A, i, j);
 }
 
-int main(void) {
-  fmbd_log_init("t508", FMBD_LOG_ERROR);
+static const double g[3] = {0, -9.81, 0};
+static double Mff[4] = {1, 0, 0, 1}, Kff[4] = {4e4, 0, 0, 9e4};
+
+// the model: two rigid links on a revolute and a spherical joint, a free flexible body
+static fmbd_mbs *build(void) {
   fmbd_mbs *m = NULL;
   EXPECT(fmbd_mbs_create(&m) == 0, "create");
-  const double g[3] = {0, -9.81, 0};
   fmbd_mbs_set_gravity(m, g);
   // link a: mass 2 about (0.5, 0, 0) on a revolute joint about z at the origin; link b: mass 1
   // about (1.3, 0, 0) on a spherical joint at (1, 0, 0); frames at the centres of mass
@@ -41,7 +46,7 @@ int main(void) {
   EXPECT(fmbd_mbs_add_rigid(m, "a", 2.0, zero, Ia, &sa, &a) == 0, "rigid a");
   EXPECT(fmbd_mbs_add_rigid(m, "b", 1.0, zero, Ib, &sb, &b) == 0, "rigid b");
   // a free flexible body, two modes
-  double S1[6] = {0}, XS[18] = {0}, SS[36] = {0}, Mff[4] = {1, 0, 0, 1}, Kff[4] = {4e4, 0, 0, 9e4};
+  double S1[6] = {0}, XS[18] = {0}, SS[36] = {0};
   for (int k = 0; k < 2; k++) {
     for (int c = 0; c < 3; c++) SS[c + 3 * c + 9 * k + 18 * k] = 1.0 / 3;  // tr SS_kk = 1
   }
@@ -71,6 +76,12 @@ int main(void) {
   int jid;
   EXPECT(fmbd_mbs_add_joint(m, &j1, &jid) == 0, "revolute");
   EXPECT(fmbd_mbs_add_joint(m, &j2, &jid) == 0, "spherical");
+  return m;
+}
+
+int main(void) {
+  fmbd_log_init("t508", FMBD_LOG_ERROR);
+  fmbd_mbs *m = build();
   fmbd_mbs_linear L;
   EXPECT(fmbd_mbs_linearise(m, 0.0, NULL, NULL, &L) != 0, "linearise before init must fail");
   fmbd_mbs_settings s;
@@ -147,6 +158,33 @@ int main(void) {
   EXPECT(worst <= 1e-7 * cmax, "Cq vs finite differences: %g (max entry %g)", worst, cmax);
   EXPECT(memcmp(x0, fmbd_mbs_state(m), sizeof(double) * (size_t)n) == 0,
          "state changed by evaluations at other states");
+  // --- positions_only (gmsolve's init): the same positions and the same linearisation, bit
+  // for bit (the same Newton steps; velocities, accelerations and multipliers are not read by
+  // fmbd_mbs_linearise); stepping and joint reactions are refused ---
+  fmbd_mbs *m2 = build();
+  s.positions_only = true;
+  EXPECT(fmbd_mbs_init(m2, &s) == 0, "init, positions only");
+  EXPECT(memcmp(x0, fmbd_mbs_state(m2), sizeof(double) * (size_t)n) == 0,
+         "positions only: other initial positions");
+  fmbd_mbs_linear L2;
+  EXPECT(fmbd_mbs_linearise(m2, 0.0, NULL, NULL, &L2) == 0, "linearise, positions only");
+  const fmbd_csr *A1[4] = {L.M, L.C, L.K, L.Cq}, *A2[4] = {L2.M, L2.C, L2.K, L2.Cq};
+  for (int k = 0; k < 4; k++) {
+    int64_t nz = A1[k]->indptr[A1[k]->nrows];
+    EXPECT(A2[k]->nrows == A1[k]->nrows && A2[k]->indptr[A2[k]->nrows] == nz &&
+               memcmp(A1[k]->indices, A2[k]->indices, sizeof(int64_t) * (size_t)nz) == 0 &&
+               memcmp(A1[k]->data, A2[k]->data, sizeof(double) * (size_t)nz) == 0,
+           "positions only: matrix %d (M, C, K, Cq) differs", k);
+  }
+  EXPECT(memcmp(L.Q, L2.Q, sizeof(double) * (size_t)n) == 0, "positions only: Q differs");
+  EXPECT(memcmp(L.phi, L2.phi, sizeof(double) * (size_t)L.nc) == 0, "positions only: phi differs");
+  bool out = false;
+  EXPECT(fmbd_mbs_step(m2, &out) == FMBD_ERR_VALUE, "positions only: a step must be refused");
+  double F[3], T[3];
+  EXPECT(fmbd_mbs_joint_reaction(m2, 0, F, T) == FMBD_ERR_VALUE,
+         "positions only: a joint reaction must be refused");
+  fmbd_mbs_linear_free(&L2);
+  fmbd_mbs_destroy(&m2);
   fmbd_free(xp);
   fmbd_free(x0);
   fmbd_mbs_linear_free(&L);
