@@ -85,7 +85,13 @@
 //   steps while Newton converges (modified Newton); refactored (klu_l_refactor with the old
 //   pivoting, full klu_l_factor if KLU's rcond estimate drops below 1e-13) when the
 //   contraction rate exceeds 0.1, when h differs by more than 25 % from the h of the factor,
-//   and before retrying a step whose Newton failed with an old factor.
+//   and before retrying a step whose Newton failed with an old factor. Modal bodies with at
+//   least 10 modes (not full FE bodies, not shared GM sets) have their modal coordinates
+//   eliminated instead (fmbd_mbs_schur.c): their block's constant part cm Mff + cc Dff + ck Kff
+//   by dense Cholesky once per step size, the rest (frames, other bodies, constraint rows) by
+//   KLU on the Schur complement; the modal block's gyroscopic part is left out of the matrix
+//   (the residual keeps it). Environment FMBD_MBS_SCHUR=0 / 1 forces the whole-matrix KLU /
+//   the elimination of every modal body.
 // NEWTON convergence: with theta the contraction rate of successive increments, stop when
 //   theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II, IV.8), or |dx_i| <= 1e-3 tx_i
 //   in the first iteration, or |dx_i| <= tx_i with theta >= 1 (round-off stagnation), where
@@ -368,19 +374,21 @@ typedef struct fmbd_mbs_settings {
   bool reactions;       ///< the caller will ask for joint reactions (they are computed on
                         ///< query from the multipliers, which are always kept), default false
   int64_t max_steps;    ///< stop with FMBD_ERR_CONVERGE after so many steps (0 = none)
-  bool positions_only;  ///< fmbd_mbs_init stops after the consistent positions: velocities
-                        ///< left as given, accelerations and multipliers zero, one
-                        ///< factorisation of [M Cq'; Cq 0] saved (the velocities'); for callers
-                        ///< that only linearise (gmsolve); fmbd_mbs_step and the joint
-                        ///< reactions refuse such a model. Default false
+  bool linearise_only;  ///< fmbd_mbs_init stops after the redundancy check and the matrix
+                        ///< pattern: the state is the initial coordinates as given (not
+                        ///< projected), no velocities, accelerations or multipliers, and no
+                        ///< factorisation of [M Cq'; Cq 0] (hours and tens of GB for a 270 k-dof
+                        ///< FE body). For callers that linearise at a configuration they make
+                        ///< consistent themselves (gmsolve), then check the removed equations
+                        ///< with fmbd_mbs_check_removed. fmbd_mbs_step and the joint reactions
+                        ///< refuse such a model. Default false
 } fmbd_mbs_settings;
 /// @brief Fill the documented defaults.
 void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s);
 
 /// @brief Prepare the run: check the settings, remove redundant constraints, make the
-/// initial conditions consistent (positions, velocities, accelerations, multipliers; only
-/// the positions with s->positions_only), build the sparse pattern and its KLU symbolic
-/// analysis.
+/// initial conditions consistent (positions, velocities, accelerations, multipliers; none
+/// with s->linearise_only), build the sparse pattern and its KLU symbolic analysis.
 /// @return FMBD_OK; FMBD_ERR_VALUE (settings, no bodies); FMBD_ERR_CONVERGE (positions cannot
 /// be projected: the message names the worst joint equation); FMBD_ERR_SINGULAR (singular
 /// mass matrix or constraint system: names the body); FMBD_ERR_EXTERNAL (KLU); NOMEM
@@ -505,6 +513,14 @@ int fmbd_mbs_linearise(fmbd_mbs *m, double t, const double *x, const double *xd,
                        fmbd_mbs_linear *L);
 /// @brief Release the arrays of L (L itself is the caller's); zeroes it. NULL is fine.
 void fmbd_mbs_linear_free(fmbd_mbs_linear *L);
+/// @brief Check that the equations fmbd_mbs_init removed as redundant hold at (x, t) as they
+/// must at a consistent configuration (scaled residual <= 1e-8, fmbd_mbs_init's test): dependent
+/// to first order but violated means an inconsistent assembly (two ball joints too far apart
+/// on one rod). For a model initialised with linearise_only, at the configuration the caller
+/// made consistent. The model's state is left unchanged.
+/// @param[in] x (n) or NULL (the model's state), borrowed
+/// @return FMBD_OK; FMBD_ERR_CONVERGE (names the equation); FMBD_ERR_VALUE (not initialised)
+int fmbd_mbs_check_removed(fmbd_mbs *m, double t, const double *x);
 /// @brief Number of coordinates n (after fmbd_mbs_init), and the current state x (n, borrowed).
 int64_t fmbd_mbs_ncoordinates(const fmbd_mbs *m);
 const double *fmbd_mbs_state(const fmbd_mbs *m);

@@ -249,7 +249,8 @@ struct fmbd_mbs {
   double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
   double *xddp;                         // x'' one step before
   double *lamp;                         // lam one step before
-  double *xddpp, *lampp;                // x'', lam two steps before (the predictor)
+  double *itx;  // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
+  double *xddpp, *lampp;  // x'', lam two steps before (the predictor)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;

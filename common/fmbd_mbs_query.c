@@ -241,8 +241,8 @@ void fmbd_mbs_momentum(const fmbd_mbs *m, double L[3], double H[3]) {
 
 int fmbd_mbs_joint_reaction(const fmbd_mbs *m, int joint, double F[3], double T[3]) {
   FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "joint reaction before fmbd_mbs_init");
-  FMBD_CHECK(!m->set.positions_only, FMBD_ERR_VALUE,
-             "joint reaction: the model was initialised for its positions only (no multipliers)");
+  FMBD_CHECK(!m->set.linearise_only, FMBD_ERR_VALUE,
+             "joint reaction: the model was initialised to be linearised only (no multipliers)");
   FMBD_CHECK(joint >= 0 && joint < m->nj, FMBD_ERR_VALUE, "unknown joint %d", joint);
   const mjoint *j = &m->j[joint];
   int side = j->body[0] >= 0 ? 0 : 1;
