@@ -53,7 +53,7 @@ void fmbd_mbs_settings_defaults(fmbd_mbs_settings *s) {
   s->output_every = 0;
   s->reactions = false;
   s->max_steps = 0;
-  s->positions_only = false;
+  s->linearise_only = false;
 }
 
 fmbd_mbs_state0 fmbd_mbs_state0_default(void) {
