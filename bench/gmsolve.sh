@@ -21,7 +21,8 @@
 # minutes, bench/README.md), gmsolve --modes 20 --matrices. Peer: scipy eigsh in shift-invert
 # mode on the bordered pencil ([K Cq'; Cq 0], diag(M, 0)) from /linear, which needs no null
 # space (SuperLU factors the bordered matrix); skipped above BENCH_FE_PEER_MAX coordinates
-# (default 400000). Peak RSS of both by /usr/bin/time.
+# (default 400000). Peak RSS of both by /usr/bin/time. build_s is the build stage's wall time,
+# build_cpu_s its CPU and init_cpu_s fmbd_mbs_init's share (gmsolve -v).
 set -u
 family=${BENCH_FAMILY:-chain fe}
 OUT=${BENCH_OUT:-$ROOT/$BUILD/bench}/gmsolve
@@ -85,7 +86,7 @@ fesizes=${BENCH_FE_SIZES:-"8 6"}
 [ "${BENCH_LARGE:-0}" = 1 ] && [ -z "${BENCH_FE_SIZES:-}" ] && fesizes="8 6 4 3"
 m2f=$(sed -nE 's/^ *mesh2fe: *(.*)/\1/p' "$EX/spatial-slidercrank.yaml" | sed -E 's/--size +[^ ]+//')
 echo "spatial slider-crank, rod a full tet10 .fe.h5 body (mesh2fe $m2f --size H), gmsolve --modes 20"
-printf '%6s %8s %4s %9s %10s %9s %9s %9s %9s %9s %10s %8s %9s %9s\n' h_mm coords eqs nnz_Z gm_cpu_s build_s null_s proj_s eig_s rss_MB peer_cpu_s peer_MB peer/gm max_rel_diff
+printf '%6s %8s %4s %9s %10s %9s %11s %10s %9s %9s %9s %9s %10s %8s %9s %9s\n' h_mm coords eqs nnz_Z gm_cpu_s build_s build_cpu_s init_cpu_s null_s proj_s eig_s rss_MB peer_cpu_s peer_MB peer/gm max_rel_diff
 for h in $fesizes; do
   size=$(echo "$h / 1000" | bc -l)
   fe=rod$h.fe.h5
@@ -99,6 +100,8 @@ open('fe$h.yaml', 'w').write(gmtable.scene_variant(open('$EX/spatial-slidercrank
   cpu=$(grep -oE '[0-9.e+-]+ s cpu' gmfe$h.err | tail -1 | cut -d' ' -f1)
   line=$(grep "time: build" gmfe$h.err)
   tbuild=$(sed -E 's/.*linearise ([0-9.e+-]+) s.*/\1/' <<<"$line")
+  cbuild=$(sed -E 's/.*\(cpu ([0-9.e+-]+) s.*/\1/' <<<"$line")
+  cinit=$(sed -E 's/.*fmbd_mbs_init ([0-9.e+-]+) s.*/\1/' <<<"$line")
   tnull=$(sed -E 's/.*null space ([0-9.e+-]+) s.*/\1/' <<<"$line")
   tproj=$(sed -E 's/.*projection ([0-9.e+-]+) s.*/\1/' <<<"$line")
   teig=$(sed -E 's/.*eigensolution ([0-9.e+-]+) s.*/\1/' <<<"$line")
@@ -136,6 +139,6 @@ PY
   read -r n m pc diff < peer$h.txt
   prss=$(($(tail -1 rsspeer$h.txt) / 1024))
   [ "$pc" = - ] && prss=- ratio=- || ratio=$(echo "$pc / $cpu" | bc -l | xargs printf "%.1f")
-  printf '%6s %8s %4s %9s %10s %9s %9s %9s %9s %9s %10s %8s %9s %9s\n' "$h" "$n" "$m" "$nz" "$cpu" "$tbuild" "$tnull" "$tproj" \
+  printf '%6s %8s %4s %9s %10s %9s %11s %10s %9s %9s %9s %9s %10s %8s %9s %9s\n' "$h" "$n" "$m" "$nz" "$cpu" "$tbuild" "$cbuild" "$cinit" "$tnull" "$tproj" \
     "$teig" "$rss" "$pc" "$prss" "$ratio" "$diff"
 done

@@ -405,6 +405,12 @@ int fmbd_gm_solve(const fmbd_csr *M, const fmbd_csr *K, const fmbd_csr *Cq, cons
              sb, sigma);
     FMBD_GCALL(fmbd_chol_analyze(Kr, Mr, FMBD_CHOL_LLT, &Fs));
     FMBD_GCALL(fmbd_chol_factor(Fs, sigma));
+    {  // the largest array of a large FE mechanism's run (bench/README.md, gmsolve)
+      fmbd_chol_stats cs;
+      fmbd_chol_get_stats(Fs, &cs);
+      fmbd_log(FMBD_LOG_DEBUG, "gm: shift-invert factor of order %lld, %.4g entries in L (%s)",
+               (long long)cs.n, cs.nnz_l, cs.ordering);
+    }
     eo.free_body = false;  // the factor handed over is at a shift below every eigenvalue
   }
   rc = fmbd_eig_solve(Kr, Mr, Fs, &eo, &res->eig);

@@ -749,10 +749,33 @@ static int init_redundancy(fmbd_mbs *m) {
   FMBD_GALLOC(m->lamp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
   FMBD_GALLOC(m->lampp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
   FMBD_GALLOC(m->xddpp = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
+  FMBD_GALLOC(m->itx = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
   FMBD_GALLOC(m->rhs = fmbd_calloc((size_t)m->N, sizeof(double)));
   FMBD_GCALL(mbs_build_pattern(m));
 done:
   return rc;
+}
+
+// equations removed as redundant must hold too (dependent to first order but violated means
+// the assembly is inconsistent, e.g. two ball joints too far apart on one rod)
+static int removed_hold(fmbd_mbs *m, const double *x, double t, const char *what) {
+  mbs_eval_constraints(m, x, t, false);
+  for (int64_t e = 0; e < m->neq; e++) {
+    const meq *q = &m->eq[e];
+    if (q->kept || mbs_eq_scaled(m, q) <= 1e-8) continue;
+    char buf[512];
+    mbs_eq_describe(m, q, buf, sizeof buf);
+    FMBD_FAIL(FMBD_ERR_CONVERGE,
+              "%s cannot be made consistent with the constraints: the redundant %s is violated by "
+              "%.3g (scaled)",
+              what, buf, mbs_eq_scaled(m, q));
+  }
+  return FMBD_OK;
+}
+
+int fmbd_mbs_check_removed(fmbd_mbs *m, double t, const double *x) {
+  FMBD_CHECK(m->ready, FMBD_ERR_VALUE, "fmbd_mbs_check_removed before fmbd_mbs_init");
+  return removed_hold(m, x ? x : m->x, t, "the configuration");
 }
 
 // positions: minimum-change (mass metric) Newton onto Phi = 0; the redundant equations must
@@ -790,20 +813,7 @@ static int init_positions(fmbd_mbs *m) {
       fmbd_log(FMBD_LOG_INFO, "initial positions projected onto the constraints (%d iterations)",
                it);
   }
-  // equations removed as redundant must hold too (dependent to first order but violated
-  // means the assembly is inconsistent, e.g. two ball joints too far apart on one rod)
-  mbs_eval_constraints(m, m->x, m->t, false);
-  for (int64_t e = 0; e < neq; e++) {
-    const meq *q = &m->eq[e];
-    if (q->kept || mbs_eq_scaled(m, q) <= 1e-8) continue;
-    char buf[512];
-    mbs_eq_describe(m, q, buf, sizeof buf);
-    FMBD_GFAIL(FMBD_ERR_CONVERGE,
-               "initial positions cannot be made consistent with the constraints: the redundant %s "
-               "is violated "
-               "by %.3g (scaled)",
-               buf, mbs_eq_scaled(m, q));
-  }
+  FMBD_GCALL(removed_hold(m, m->x, m->t, "initial positions"));
   // normalise the Euler parameters exactly
   for (int ib = 0; ib < m->nb; ib++) {
     double *p = m->x + m->b[ib].off + 3;
@@ -894,12 +904,8 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   init_scales(m);
   m->t = 0;
   FMBD_CALL(init_redundancy(m));
-  FMBD_CALL(init_positions(m));
-  if (m->set.positions_only) {
-    // a linearisation needs neither velocities nor accelerations (gmsolve: zero velocities),
-    // nor the position Newton's factor (the largest array of a full FE body's mechanism)
-    fmbd_klu_drop_factor(m->klu);
-  } else {
+  if (!m->set.linearise_only) {  // (gmsolve: its own consistent configuration, zero velocities)
+    FMBD_CALL(init_positions(m));
     FMBD_CALL(init_velocities(m));
     FMBD_CALL(init_accelerations(m));
   }

@@ -2,7 +2,8 @@
 // section 3.3) with rigid links: two 3R limbs (axes along x and along y) between the fixed
 // frame and a platform; 5 bodies, 6 revolute joints (30 equations), one degree of freedom,
 // so one equation is redundant. The platform, falling under gravity, must move along z only
-// and keep its orientation
+// and keep its orientation. fmbd_mbs_check_removed finds the removed equation holding at a
+// consistent state and violated at a moved one; a linearise_only init finds the same redundancy.
 // SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdlib.h>
@@ -101,6 +102,47 @@ int main(void) {
   EXPECT(dev < 1e-8, "platform turned: |A - 1| = %.3g", dev);
   EXPECT(pos < 1e-8, "constraint residual %.3g (all 30 equations, the redundant one included)",
          pos);
+  // the removed equation holds at the consistent state; every coordinate moved by a few
+  // 1e-3 (the links are 0.2-0.3 m: residuals of that order, far above 1e-8) it does not
+  EXPECT(fmbd_mbs_check_removed(m, fmbd_mbs_time(m), NULL) == 0, "check_removed: %s",
+         fmbd_err_get()->msg);
+  {
+    int64_t n = fmbd_mbs_ncoordinates(m);
+    double *xp = malloc(sizeof(double) * (size_t)n), *x0 = malloc(sizeof(double) * (size_t)n);
+    memcpy(x0, fmbd_mbs_state(m), sizeof(double) * (size_t)n);
+    for (int64_t i = 0; i < n; i++) xp[i] = x0[i] + 1e-3 * (double)(i % 7 + 1);
+    EXPECT(fmbd_mbs_check_removed(m, fmbd_mbs_time(m), xp) == FMBD_ERR_CONVERGE &&
+               strstr(fmbd_err_get()->msg, "redundant"),
+           "check_removed at a moved state: %s", fmbd_err_get()->msg);
+    EXPECT(memcmp(x0, fmbd_mbs_state(m), sizeof(double) * (size_t)n) == 0, "state changed");
+    free(xp), free(x0);
+  }
+  // linearise_only (gmsolve's): the same redundant equation found, nothing else done
+  {
+    fmbd_mbs *m2 = NULL;
+    int rc2 = fmbd_mbs_create(&m2);
+    int q1a, q1b, q2a, q2b, qp;
+    rc2 = rc2 ? rc2 : link(m2, "proximal1", A1, K1, &q1a);
+    rc2 = rc2 ? rc2 : link(m2, "distal1", K1, P1, &q1b);
+    rc2 = rc2 ? rc2 : link(m2, "proximal2", A2, K2, &q2a);
+    rc2 = rc2 ? rc2 : link(m2, "distal2", K2, P2, &q2b);
+    rc2 = rc2 ? rc2 : fmbd_mbs_add_rigid(m2, "platform", 2.0, c0, Ip, &sp, &qp);
+    rc2 = rc2 ? rc2 : revolute(m2, "g1", FMBD_MBS_GROUND, q1a, A1, ax);
+    rc2 = rc2 ? rc2 : revolute(m2, "k1", q1a, q1b, K1, ax);
+    rc2 = rc2 ? rc2 : revolute(m2, "p1", q1b, qp, P1, ax);
+    rc2 = rc2 ? rc2 : revolute(m2, "g2", FMBD_MBS_GROUND, q2a, A2, ay);
+    rc2 = rc2 ? rc2 : revolute(m2, "k2", q2a, q2b, K2, ay);
+    rc2 = rc2 ? rc2 : revolute(m2, "p2", q2b, qp, P2, ay);
+    s.linearise_only = true;
+    rc2 = rc2 ? rc2 : fmbd_mbs_init(m2, &s);
+    EXPECT(rc2 == 0, "init, linearise only: %s", fmbd_err_get()->msg);
+    fmbd_mbs_stats st2;
+    fmbd_mbs_get_stats(m2, &st2);
+    EXPECT(st2.redundant == 1, "linearise only: %lld redundant", (long long)st2.redundant);
+    EXPECT(fmbd_mbs_check_removed(m2, 0.0, NULL) == 0, "check_removed (linearise only): %s",
+           fmbd_err_get()->msg);
+    fmbd_mbs_destroy(&m2);
+  }
   fmbd_mbs_get_stats(m, &st);
   if (getenv("FMBD_TEST_VERBOSE"))
     fprintf(stderr, "t507: z %.6f, redundant %lld, residual %.3g, steps %lld\n", x[2],
