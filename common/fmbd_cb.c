@@ -635,9 +635,6 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
                  o.fmax_hz, hz(er.next_lambda));
     }
     if (o.eig.sturm && !er.dense) {
-      fmbd_chol_stats st;
-      fmbd_chol_get_stats(F, &st);
-      cb->time.solves += st.n_solves - er.n_solves;  // the constraint and projection solves
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
       fmbd_chol_destroy(&F);

@@ -370,11 +370,16 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     while (m + p <= mmax) {
       double *W = V + (m + p) * n;
       double ta = fmbd_wall_s();
-      // W = C Q = L^-1 P M P' L^-T Q
+      // W = C Q = L^-1 P M P' L^-T Q; narrow blocks solve on one BLAS thread, as the
+      // single-vector path does (their triangular solves are memory-bound: a second thread
+      // only spins; 51 k dofs, 20 modes, blocks of 4: 3.0 s CPU on 2 threads, see bench/README.md)
       memcpy(Y, V + m * n, (size_t)(n * p) * sizeof(double));
-      FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, p, Y, n));
+      int th1 = p < 16 ? fmbd_blas_set_threads(1) : -1;
+      rc = fmbd_chol_solve_half(F, FMBD_CHOL_BWD, p, Y, n);
       fmbd_csr_matmat(M, p, Y, n, W, n);
-      FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_FWD, p, W, n));
+      if (rc == FMBD_OK) rc = fmbd_chol_solve_half(F, FMBD_CHOL_FWD, p, W, n);
+      if (th1 > 1) fmbd_blas_set_threads(th1);
+      FMBD_GCALL(rc);
       solves += p;
       double tb = fmbd_wall_s();
       t_op += tb - ta;
@@ -603,10 +608,13 @@ static int64_t auto_ncv(int64_t n, int64_t nreq) {
 }
 
 // block size of a Lanczos pass (0: ARPACK, single vector). Auto (o->block == 0): blocks of 16
-// from 60 wanted pairs on (bench/README.md, fe2cb section: below that ARPACK's fewer solves win)
+// from 60 wanted pairs on; below that blocks of 4 on bodies of 10,000 dofs and more, ARPACK on
+// smaller ones (bench/README.md, fe2cb section: at 20 modes blocks of 4 need 104 solves against
+// ARPACK's 100 but read the factor a quarter as often: Lanczos CPU -25 to -35 % at 12.7 k,
+// 51 k and 188 k dofs; blocks of 16 need twice the solves and lose below 60 pairs)
 static int64_t block_size(const fmbd_eig_opts *o, int64_t n, int64_t nreq, int64_t ncv) {
   int64_t p = o->block;
-  if (p == 0) p = nreq >= 60 ? 16 : 1;
+  if (p == 0) p = nreq >= 60 ? 16 : (n >= 10000 ? 4 : 1);
   if (p <= 1) return 0;
   int64_t mmax = ncv > nreq + 6 * p ? ncv : nreq + 6 * p;  // as in block_run
   return mmax + p <= n ? p : 0;                            // nearly all of a small problem: ARPACK

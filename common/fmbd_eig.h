@@ -18,10 +18,11 @@
 //   of the same order and K - sigma M is as well conditioned as it can be. A shift at -10
 //   against lambda_f = 4e7 loses modes (docs/THEORY.md section 8): this is what the strategy
 //   avoids.
-// - From 60 wanted pairs on (option block), a thick-restart block Lanczos (block Krylov-Schur)
-//   on the symmetric form L^-1 P M P' L^-T of the same operator replaces ARPACK: blocks of 16
-//   vectors, one multi-right-hand-side solve per block (fmbd_eig.c has the method and its
-//   references). Same checks below; bench/README.md has the measured gain.
+// - On problems of 10,000 dofs and more, and from 60 wanted pairs on at any size (option
+//   block), a thick-restart block Lanczos (block Krylov-Schur) with locking on the symmetric
+//   form L^-1 P M P' L^-T of the same operator replaces ARPACK: blocks of 4 vectors below 60
+//   pairs, 16 from 60 on, one multi-right-hand-side solve per block (fmbd_eig.c has the method
+//   and its references). Same checks below; bench/README.md has the measured gain.
 // - Every pair is checked by its residual ||K x - lambda M x|| / max(||K x||, |sigma| ||M x||)
 //   (the second term keeps rigid-body pairs, K x ~ 0, meaningful).
 // - Sturm check: an LDL' factorisation of K - s M (no pivoting; supernodal, fmbd_chol) counts
@@ -60,7 +61,8 @@ typedef struct fmbd_eig_opts {
   int64_t dense_max;  ///< solve densely with LAPACK up to this order. Default 400
   int64_t block;      ///< Lanczos block size: 1 = ARPACK (single vector), >= 2 = block
                       ///< Krylov-Schur with blocks of that many vectors, 0 = automatic (blocks
-                      ///< of 16 from 60 wanted pairs on). Default 0, or the environment
+                      ///< of 16 from 60 wanted pairs on, of 4 below that on problems of 10,000
+                      ///< dofs and more, ARPACK on smaller ones). Default 0, or the environment
                       ///< variable FMBD_EIG_BLOCK when set
   const double *v0;   ///< (n) start vector of the first Lanczos pass, borrowed, or NULL
                       ///< (default): ARPACK's random start / a fixed pseudo-random block. A
