@@ -372,7 +372,10 @@ static void mem_log(const char *where) {
     if (!strncmp(line, "VmRSS:", 6)) rss = atof(line + 6) / 1024.0;
   }
   fclose(f);
-  fmbd_log(FMBD_LOG_DEBUG, "memory %s: %.0f MB resident, %.0f MB peak", where, rss, hwm);
+  // process CPU seconds so far (all threads): the stage split in CPU, not only wall
+  // (bench/README.md)
+  fmbd_log(FMBD_LOG_DEBUG, "memory %s: %.0f MB resident, %.0f MB peak; %.2f s cpu", where, rss, hwm,
+           fmbd_cpu_s());
 }
 
 static double hz(double lambda) {
@@ -659,6 +662,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
         FMBD_GCALL(modes(Ks, Ms, F, &o, nev, lmax, false, &er));
       }
+      mem_log("after the Sturm check");
     }
     take_eig_time(cb, &er);
     cb->nd = er.nev;

@@ -195,6 +195,10 @@ done:
 // B (p x m). Rayleigh-Ritz when the basis is full: H_m = S Theta S'; the residual of the Ritz
 // pair (theta_i, V_m s_i) is ||B s_i||_2 (ARPACK's estimate), converged when <= tol theta_i
 // (ARPACK's test). Restart: keep the k leading Ritz vectors and Q; H = diag(theta), B <- B S_k.
+// Locking: the leading converged Ritz vectors stay in the basis (orthogonalised against, so
+// never found twice) but leave the Rayleigh-Ritz and the restart product V S, which then
+// costs n (m - nl) (k - nl) instead of n m k: with many wanted pairs most of them are locked
+// long before the last restart.
 
 // lcg: a fixed start block, so that results are reproducible run to run
 static double lcg_next(uint64_t *s) {
@@ -330,13 +334,14 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   int64_t cap = mmax + p, ldh = mmax + 2 * p;
   const int64_t rb = 2048;  // row chunk of the in-place products
   double *V = NULL, *H = NULL, *S = NULL, *th = NULL, *C = NULL, *T = NULL, *R = NULL, *R2 = NULL,
-         *G = NULL, *C2 = NULL, *ref = NULL, *B = NULL, *tmp = NULL, *Y = NULL;
+         *G = NULL, *C2 = NULL, *ref = NULL, *B = NULL, *tmp = NULL, *Y = NULL, *thl = NULL;
   int64_t *ord = NULL;
   FMBD_GALLOC(V = fmbd_malloc((size_t)n * (size_t)cap * sizeof(double)));
   FMBD_GALLOC(Y = fmbd_malloc((size_t)n * (size_t)p * sizeof(double)));
   FMBD_GALLOC(H = fmbd_calloc((size_t)(ldh * ldh), sizeof(double)));
   FMBD_GALLOC(S = fmbd_malloc((size_t)(mmax * mmax) * sizeof(double)));
   FMBD_GALLOC(th = fmbd_malloc((size_t)mmax * sizeof(double)));
+  FMBD_GALLOC(thl = fmbd_malloc((size_t)mmax * sizeof(double)));
   FMBD_GALLOC(C = fmbd_malloc((size_t)(ldh * p) * sizeof(double)));
   FMBD_GALLOC(T = fmbd_malloc((size_t)(ldh * p) * sizeof(double)));
   FMBD_GALLOC(C2 = fmbd_malloc((size_t)(ldh * p) * sizeof(double)));
@@ -358,7 +363,7 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_FWD, 1, V, n));
   }
   bk_orth(n, 0, p, V, V, C, 1, R, R2, G, C2, T, ref, &seed, tmp, rb);
-  int64_t solves = 0, restarts = 0, nconv = 0;
+  int64_t solves = 0, restarts = 0, nconv = 0, nl = 0;  // nl: locked columns 0..nl-1 of V
   double t_op = 0.0, t_orth = 0.0, t_rr = 0.0, t_restart = 0.0;
   for (;;) {
     // --- expand until the basis is full ---
@@ -384,30 +389,34 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
       }
       m += p;
     }
-    // --- Rayleigh-Ritz on the symmetric part of H_m ---
+    // --- Rayleigh-Ritz on the symmetric part of the active block H[nl.., nl..] ---
     double tc = fmbd_wall_s();
-    for (int64_t j = 0; j < m; j++) {
-      for (int64_t i = 0; i < m; i++) S[i + j * m] = 0.5 * (H[i + j * ldh] + H[j + i * ldh]);
-    }
-    FMBD_GCALL(fmbd_dense_syev(m, S, th));
-    // descending theta (lowest lambda first): reverse the column order
-    for (int64_t j = 0; j < m / 2; j++) {
-      double t = th[j];
-      th[j] = th[m - 1 - j];
-      th[m - 1 - j] = t;
-      for (int64_t i = 0; i < m; i++) {
-        double u = S[i + j * m];
-        S[i + j * m] = S[i + (m - 1 - j) * m];
-        S[i + (m - 1 - j) * m] = u;
+    int64_t ma = m - nl;
+    for (int64_t j = 0; j < ma; j++) {
+      for (int64_t i = 0; i < ma; i++) {
+        S[i + j * ma] = 0.5 * (H[nl + i + (nl + j) * ldh] + H[nl + j + (nl + i) * ldh]);
       }
     }
-    // B S: the residual coupling of each Ritz vector; B = H[m..m+p-1, 0..m-1]
-    for (int64_t j = 0; j < m; j++) {
-      for (int64_t i = 0; i < p; i++) tmp[i + j * p] = H[m + i + j * ldh];
+    FMBD_GCALL(fmbd_dense_syev(ma, S, th));
+    // descending theta (lowest lambda first): reverse the column order
+    for (int64_t j = 0; j < ma / 2; j++) {
+      double t = th[j];
+      th[j] = th[ma - 1 - j];
+      th[ma - 1 - j] = t;
+      for (int64_t i = 0; i < ma; i++) {
+        double u = S[i + j * ma];
+        S[i + j * ma] = S[i + (ma - 1 - j) * ma];
+        S[i + (ma - 1 - j) * ma] = u;
+      }
     }
-    fmbd_dense_gemm('N', 'N', p, m, m, 1.0, tmp, p, S, m, 0.0, B, p);
+    // B S: the residual coupling of each active Ritz vector; B = H[m..m+p-1, nl..m-1]
+    for (int64_t j = 0; j < ma; j++) {
+      for (int64_t i = 0; i < p; i++) tmp[i + j * p] = H[m + i + (nl + j) * ldh];
+    }
+    fmbd_dense_gemm('N', 'N', p, ma, ma, 1.0, tmp, p, S, ma, 0.0, B, p);
+    int64_t nwa = nreq - nl < ma ? nreq - nl : ma;  // wanted among the active
     nconv = 0;
-    for (int64_t j = 0; j < nreq; j++) {
+    for (int64_t j = 0; j < nwa; j++) {
       double r = 0.0;
       for (int64_t i = 0; i < p; i++) r += B[i + j * p] * B[i + j * p];
       if (sqrt(r) <= tol * fabs(th[j])) ord[nconv++] = j;
@@ -416,45 +425,69 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     double td = fmbd_wall_s();
     t_rr += td - tc;
     fmbd_log(FMBD_LOG_DEBUG,
-             "eig: block Lanczos restart %lld: %lld of %lld converged (%lld solves)",
-             (long long)restarts, (long long)nconv, (long long)nreq, (long long)solves);
-    if (nconv >= nreq || restarts > maxit) break;
-    // --- thick restart: keep k Ritz vectors (the wanted ones and half the rest) and Q ---
+             "eig: block Lanczos restart %lld: %lld locked + %lld converged of %lld (%lld solves)",
+             (long long)restarts, (long long)nl, (long long)nconv, (long long)nreq,
+             (long long)solves);
+    if (nl + nconv >= nreq || restarts > maxit) break;
+    // --- locking: the leading converged active Ritz pairs (largest theta, contiguous) stay in
+    // the basis as columns nl.. and leave the Rayleigh-Ritz and restart products (their
+    // coupling to the rest, ||B s_i|| <= tol theta_i, is dropped: the usual deflation of
+    // converged Ritz pairs; Stewart 2001, section 3; ARPACK's dsaupd locks the same way).
+    // The orthogonalisation still runs against them, so no pair is found twice.
+    int64_t nlock = 0;
+    while (nlock < nconv && ord[nlock] == nlock) nlock++;
+    // --- thick restart: keep k columns in all (the locked, the wanted active Ritz vectors and
+    // half the rest) and Q ---
     int64_t k = nreq + (mmax - nreq - p) / 2;
     if (k > m - p) k = m - p;
     if (k < nreq) k = nreq;
+    int64_t ka = k - nl;  // active Ritz vectors kept: V[:, nl..k-1] = V[:, nl..m-1] S[:, 0..ka-1]
     for (int64_t r0 = 0; r0 < n; r0 += rb) {
       int64_t nr = n - r0 < rb ? n - r0 : rb;
-      fmbd_dense_gemm('N', 'N', nr, k, m, 1.0, V + r0, n, S, m, 0.0, tmp, nr);
-      for (int64_t j = 0; j < k; j++)
-        memcpy(V + r0 + j * n, tmp + j * nr, (size_t)nr * sizeof(double));
+      fmbd_dense_gemm('N', 'N', nr, ka, ma, 1.0, V + nl * n + r0, n, S, ma, 0.0, tmp, nr);
+      for (int64_t j = 0; j < ka; j++)
+        memcpy(V + (nl + j) * n + r0, tmp + j * nr, (size_t)nr * sizeof(double));
     }
     memmove(V + k * n, V + m * n, (size_t)(n * p) * sizeof(double));
     memset(H, 0, (size_t)(ldh * ldh) * sizeof(double));
-    for (int64_t j = 0; j < k; j++) {
-      H[j + j * ldh] = th[j];
-      for (int64_t i = 0; i < p; i++) H[k + i + j * ldh] = B[i + j * p];
+    for (int64_t j = 0; j < ka; j++) {
+      int64_t c = nl + j;
+      H[c + c * ldh] = th[j];
+      if (j >= nlock) {
+        for (int64_t i = 0; i < p; i++) H[k + i + c * ldh] = B[i + j * p];
+      }
     }
+    for (int64_t j = 0; j < nlock; j++) thl[nl + j] = th[j];
+    nl += nlock;
     m = k;
     t_restart += fmbd_wall_s() - td;
   }
   fmbd_log(FMBD_LOG_DEBUG,
-           "eig: block Lanczos (block %lld, basis %lld): %lld solves, operator %.3g s, "
-           "orthogonalisation %.3g s, Rayleigh-Ritz %.3g s, restarts %.3g s",
-           (long long)p, (long long)mmax, (long long)solves, t_op, t_orth, t_rr, t_restart);
-  // --- the converged pairs among the wanted: x = P' L^-T V_m s ---
+           "eig: block Lanczos (block %lld, basis %lld): %lld solves, %lld restarts, %lld locked, "
+           "operator %.3g s, orthogonalisation %.3g s, Rayleigh-Ritz %.3g s, restarts %.3g s",
+           (long long)p, (long long)mmax, (long long)solves, (long long)restarts, (long long)nl,
+           t_op, t_orth, t_rr, t_restart);
+  // --- the locked and the converged active pairs: x = P' L^-T V_l, P' L^-T V_a s ---
   out->solves = solves;
   out->restarts = restarts;
-  if (nconv > 0) {
-    FMBD_GALLOC(out->lam = fmbd_malloc((size_t)(nconv + 1) * sizeof(double)));
-    FMBD_GALLOC(out->X = fmbd_malloc((size_t)n * (size_t)nconv * sizeof(double)));
-    for (int64_t j = 0; j < nconv; j++) {
-      out->lam[j] = sigma + 1.0 / th[ord[j]];
-      if (ord[j] != j) memcpy(S + j * m, S + ord[j] * m, (size_t)m * sizeof(double));
+  int64_t nout = nl + nconv;
+  if (nout > 0) {
+    int64_t ma = m - nl;
+    FMBD_GALLOC(out->lam = fmbd_malloc((size_t)(nout + 1) * sizeof(double)));
+    FMBD_GALLOC(out->X = fmbd_malloc((size_t)n * (size_t)nout * sizeof(double)));
+    for (int64_t j = 0; j < nl; j++) {
+      out->lam[j] = sigma + 1.0 / thl[j];
+      memcpy(out->X + j * n, V + j * n, (size_t)n * sizeof(double));
     }
-    fmbd_dense_gemm('N', 'N', n, nconv, m, 1.0, V, n, S, m, 0.0, out->X, n);
-    FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nconv, out->X, n));
-    out->nconv = nconv;
+    for (int64_t j = 0; j < nconv; j++) {
+      out->lam[nl + j] = sigma + 1.0 / th[ord[j]];
+      if (ord[j] != j) memcpy(S + j * ma, S + ord[j] * ma, (size_t)ma * sizeof(double));
+    }
+    if (nconv > 0) {
+      fmbd_dense_gemm('N', 'N', n, nconv, ma, 1.0, V + nl * n, n, S, ma, 0.0, out->X + nl * n, n);
+    }
+    FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nout, out->X, n));
+    out->nconv = nout;
   }
 done:
   if (rc != 0) run_out_free(out);
@@ -463,6 +496,7 @@ done:
   fmbd_free(H);
   fmbd_free(S);
   fmbd_free(th);
+  fmbd_free(thl);
   fmbd_free(C);
   fmbd_free(T);
   fmbd_free(C2);

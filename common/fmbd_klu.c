@@ -18,8 +18,11 @@
 // full FE bodies"): on the tet10 rod's [M Cq'; Cq 0], KLU and UMFPACK tie at 3 k unknowns with
 // fixed steps and KLU's refactor wins by 30 % with variable steps (a factorisation at every
 // other step); from 6.7 k on UMFPACK wins (fixed steps 1.3x at 6.7 k, 1.8x at 14.7 k; gmsolve's
-// total CPU 3.2x at 38 k). The multibody chains and modal bodies stay far below this order.
+// total CPU 3.2x at 38 k). Only for matrices as dense as a solid mesh's (tet10: 72 entries a
+// column): a 1000-link rigid chain (13 k unknowns, 16 entries a column, little fill) is
+// refactored and solved 2.4 times faster by KLU (bench/README.md, the N-link chain)
 #define UMF_MIN_N 5000
+#define UMF_MIN_COLNNZ 30
 
 struct fmbd_klu {
   int64_t n;
@@ -39,11 +42,11 @@ struct fmbd_klu {
 };
 
 // FMBD_SPARSE_LU = klu | umfpack | auto (unset or empty: auto)
-static int engine_umf(int64_t n) {
+static int engine_umf(int64_t n, int64_t nnz) {
   const char *e = getenv("FMBD_SPARSE_LU");
   if (e && !strcmp(e, "klu")) return 0;
   if (e && !strcmp(e, "umfpack")) return 1;
-  return n >= UMF_MIN_N;
+  return n >= UMF_MIN_N && nnz >= UMF_MIN_COLNNZ * n;
 }
 
 static int klu_sym(fmbd_klu *F) {
@@ -68,7 +71,7 @@ int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu *
   FMBD_GALLOC(F->Ai = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)(nnz ? nnz : 1)));
   for (int64_t i = 0; i <= n; i++) F->Ap[i] = (SuiteSparse_long)Ap[i];
   for (int64_t i = 0; i < nnz; i++) F->Ai[i] = (SuiteSparse_long)Ai[i];
-  F->umf = n > 0 && engine_umf(n);
+  F->umf = n > 0 && engine_umf(n, nnz);
   if (!F->umf) {
     FMBD_GCALL(klu_sym(F));
   } else {

@@ -12,14 +12,14 @@
 //
 // Two engines behind this interface. KLU (left-looking, no supernodes) suits the small,
 // circuit-like multibody matrices; for large systems (a full FE body's [M Cq'; Cq 0], order
-// n >= 5000) UMFPACK takes over: symbolic analysis once per pattern (AMD/COLAMD), a fresh
-// numeric factorisation at every fmbd_klu_factor (multifrontal, BLAS-3 supernodes), its rcond
-// estimate Info[UMFPACK_RCOND] (min/max |diag U|, cruder than KLU's). On a singular UMFPACK
-// factor KLU's factorisation is run to find the zero pivot's column. The environment variable
-// FMBD_SPARSE_LU forces the engine: "klu" or "umfpack" (unset, empty or anything else: the
-// automatic choice by n), read at fmbd_klu_analyze.
-// KLU and UMFPACK allocate with malloc, outside fmbd_malloc (the allocation countdown of the tests
-// does not reach it); it never prints.
+// n >= 5000 with at least 30 entries a column, as a solid mesh has) UMFPACK takes over: symbolic
+// analysis once per pattern (AMD/COLAMD), a fresh numeric factorisation at every fmbd_klu_factor
+// (multifrontal, BLAS-3 supernodes), its rcond estimate Info[UMFPACK_RCOND] (min/max |diag U|,
+// cruder than KLU's). On a singular UMFPACK factor KLU's factorisation is run to find the zero
+// pivot's column. The environment variable FMBD_SPARSE_LU forces the engine: "klu" or "umfpack"
+// (unset, empty or anything else: the automatic choice by n and nnz), read at fmbd_klu_analyze. KLU
+// and UMFPACK allocate with malloc, outside fmbd_malloc (the allocation countdown of the tests does
+// not reach it); it never prints.
 #ifndef FMBD_KLU_H
 #define FMBD_KLU_H
 

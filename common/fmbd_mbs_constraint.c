@@ -28,9 +28,10 @@ static void dA_dp(const double *AG, double pn, const double *Av, double *out) {
   }
 }
 
-// e: nv local direction vectors (3 each)
-static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, const double *xg,
-                      side *s) {
+// e: nv local direction vectors (3 each), of which only those in the bit mask `want` (bit i:
+// direction i) are evaluated with their derivatives
+static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, unsigned want,
+                      const double *xg, side *s) {
   const mpoint *P = &m->p[pt];
   s->body = P->body;
   if (P->body < 0) {
@@ -72,6 +73,7 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, c
   }
   for (int k = 0; k < nm; k++) mv3(A, P->T + 3 * k, s->dr + 3 * (7 + k));
   for (int i = 0; i < nv; i++) {
+    if (!(want >> i & 1)) continue;
     double wv[3], tc[3];
     cross3(th, e[i], tc);
     for (int a = 0; a < 3; a++) wv[a] = e[i][a] + tc[a];
@@ -178,15 +180,37 @@ static void side_bind(fmbd_mbs *m, side *s, int which) {
   for (int i = 0; i < 4; i++) s->dg[i] = w + (size_t)(3 + 3 * i) * (size_t)m->maxn;
 }
 
-// the joint's two sides
-void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2) {
+// the joint's two sides, with the directions of the masks w1, w2 (side_eval)
+static void joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, unsigned w1, unsigned w2,
+                        side *s1, side *s2) {
   side_bind(m, s1, 0);
   side_bind(m, s2, 1);
   double e2[4][3];
   memcpy(e2, j->e[1], sizeof(double) * 9);
   memcpy(e2[3], j->a2, sizeof(double) * 3);
-  side_eval(m, j->pt[0], (const double(*)[3])j->e[0], 3, x, s1);
-  side_eval(m, j->pt[1], (const double(*)[3])e2, j->kind == FMBD_MBS_UNIVERSAL ? 4 : 3, x, s2);
+  side_eval(m, j->pt[0], (const double(*)[3])j->e[0], 3, w1, x, s1);
+  side_eval(m, j->pt[1], (const double(*)[3])e2, j->kind == FMBD_MBS_UNIVERSAL ? 4 : 3, w2, x, s2);
+}
+void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2) {
+  joint_sides(m, j, x, 15, 15, s1, s2);
+}
+
+// the directions each kind's equations use (mbs_eval_constraints), as side_eval masks: side 1
+// in the low, side 2 in the high 4 bits. A revolute joint needs 3 of the 6: half the
+// derivatives d(A g)/dp of the rigid chain's constraint evaluation
+static unsigned joint_dirs(int kind) {
+  switch (kind) {
+    case FMBD_MBS_SPHERICAL:
+      return 0;
+    case FMBD_MBS_REVOLUTE:
+      return 4 | 3 << 4;  // z1; x2, y2
+    case FMBD_MBS_UNIVERSAL:
+      return 4 | 8 << 4;  // z1; a2
+    case FMBD_MBS_FIXED:
+      return 5 | 3 << 4;  // x1, z1; x2, y2
+    default:
+      return 15 | 15 << 4;  // cylindrical, prismatic: x1, y1, z1; x2, y2
+  }
 }
 
 // joint coordinate (revolute angle or slide) and its jacobian (may be NULL)
@@ -216,7 +240,8 @@ void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac)
   int64_t e = 0;
   for (int ij = 0; ij < m->nj; ij++) {
     const mjoint *j = &m->j[ij];
-    mbs_joint_sides(m, j, x, &s1, &s2);
+    unsigned dirs = joint_dirs(j->kind);
+    joint_sides(m, j, x, dirs & 15, dirs >> 4, &s1, &s2);
     for (int k = 0; k < j->neq; k++, e++) {
       meq *q = &m->eq[e];
       double *jac = want_jac ? q->jac : NULL;

@@ -249,7 +249,8 @@ struct fmbd_mbs {
   double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
   double *xddp;                         // x'' one step before
   double *lamp;                         // lam one step before
-  double *xddpp, *lampp;                // x'', lam two steps before (the predictor)
+  double *itx;  // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
+  double *xddpp, *lampp;  // x'', lam two steps before (the predictor)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;
@@ -276,9 +277,10 @@ struct fmbd_mbs {
   mbs_schur *sc;    // the modal blocks' elimination (fmbd_mbs_schur.c) or NULL
   // --- results ---
   fmbd_mbs_stats st;
-  // wall time (s) of the Newton iterations' factorisations, solves and the rest, and the wall
-  // and process CPU clocks at the first step (fmbd_mbs_get_stats: the CPU split)
-  double tm_phase[3], tm_wall0, tm_cpu0;
+  // the Newton iterations' factorisations, solves and the rest: wall time (s) since the last
+  // window's end, CPU time (s) of the windows before, the wall and process CPU clocks at the
+  // last window's end (a window: 8 steps; fmbd_mbs_step, mbs_cpu_share, fmbd_mbs_get_stats)
+  double tm_phase[3], tm_cpu[3], tm_wall0, tm_cpu0;
   int nred;
   int *red;  // equation indices removed
   double qmax_init;
@@ -368,6 +370,9 @@ double mbs_eq_jv(const fmbd_mbs *m, const meq *q, const double *v);
 void mbs_eq_jtv(const fmbd_mbs *m, const meq *q, double f, double *v);
 // fmbd_mbs_system.c
 void mbs_coord_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len);
+// The CPU share of the wall time since the last window's end (1 before the first), at the
+// clocks' readings wall and cpu: the factor that makes the phases' wall time CPU time.
+double mbs_cpu_share(const fmbd_mbs *m, double wall, double cpu);
 void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
                      double ck, bool add_lam);
 int mbs_build_pattern(fmbd_mbs *m);

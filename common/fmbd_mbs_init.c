@@ -749,6 +749,7 @@ static int init_redundancy(fmbd_mbs *m) {
   FMBD_GALLOC(m->lamp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
   FMBD_GALLOC(m->lampp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
   FMBD_GALLOC(m->xddpp = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
+  FMBD_GALLOC(m->itx = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
   FMBD_GALLOC(m->rhs = fmbd_calloc((size_t)m->N, sizeof(double)));
   FMBD_GCALL(mbs_build_pattern(m));
 done:

@@ -12,7 +12,9 @@
 #    step; no load, so kinetic + strain energy is an invariant): for rho_inf <= 0.99 it ends no
 #    higher than it started (the scheme dissipates) and its excursions stay below 1e-4 (1.8e-5
 #    measured at rho_inf = 0, where the dissipation is strongest); above 0.99 fmbd-run warns (at
-#    1 the energy about doubled).
+#    1 the energy grows from 0.6 s on, about doubled at 1 s; whether the run reaches 1 s or
+#    stops a few steps before it at a singular matrix depends on round-off: the growth is the
+#    same to 3e-2 either way, so the run may stop once it grew, its valid prefix kept).
 import csv
 import os
 import subprocess
@@ -84,8 +86,14 @@ for r in ("0", "0.5", "0.9", "0.99", "1"):
         f.write("solver: {t_end: 1.0, step: 2e-4, rho_inf: %s}\n"
                 "bodies:\n  - {name: rod, type: flexible, file: rodbeam.cb.h5, velocity: [1, 0.5, 0],"
                 " angular_velocity: [2, 40, 10]}\noutputs:\n  every: 0.001\n  energy: true\n" % r)
-    p = run("fmbd-run", "spin%s.yaml" % r, "-o", "spin%s.run.h5" % r)
-    with h5py.File(os.path.join(TMP, "spin%s.run.h5" % r)) as f:
+    if float(r) <= 0.99:
+        p = run("fmbd-run", "spin%s.yaml" % r, "-o", "spin%s.run.h5" % r)
+        out = "spin%s.run.h5" % r
+    else:  # the blow-up may end the run (see above): its prefix in .part
+        p = subprocess.run(["fmbd-run", "spin%s.yaml" % r, "-o", "spin%s.run.h5" % r], cwd=TMP,
+                           capture_output=True, text=True)
+        out = "spin%s.run.h5" % r + ("" if p.returncode == 0 else ".part")
+    with h5py.File(os.path.join(TMP, out)) as f:
         e = f["energy/kinetic"][()] + f["energy/strain"][()]
     grow = (e.max() - e[0]) / e[0]
     warned = "rho_inf %s > 0.99" % r in p.stderr
@@ -95,7 +103,9 @@ for r in ("0", "0.5", "0.9", "0.99", "1"):
         check(grow < 1e-4 and e[-1] <= e[0] * (1 + 1e-9) and not warned,
               "rho_inf %s: energy bounded (excursion %.1e) and not above its start at the end" % (r, grow))
     else:
-        check(warned, "rho_inf %s: fmbd-run warns" % r)
+        check(warned and (p.returncode == 0 or grow > 1e-2),
+              "rho_inf %s: fmbd-run warns (the energy grew by %.1e%s)"
+              % (r, grow, "" if p.returncode == 0 else ", then the run stopped"))
 
 print("\n%d failure(s)" % len(failures))
 sys.exit(1 if failures else 0)

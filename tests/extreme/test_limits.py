@@ -8,10 +8,16 @@
 #    (1e-9 relative: a dense symmetric solve of a well-conditioned 200-dof problem, cond(K) ~
 #    1e5, is accurate to ~1e-11 in each eigenvalue; the largest to ~1e-12).
 # 2. A long run: a rigid pendulum (1 kg, 1 m, released horizontal) for 1e6 fixed steps of 1e-4 s
-#    (100 s, about 43 periods): the energy never rises above its start (by more than 1e-12 J of
-#    round-off) and loses less than 1e-5 m g L: the generalized-alpha scheme dissipates (rho_inf
-#    = 0.9); measured 5.0e-6 m g L, and 1.6e-6 / 1.0e-6 / 0.1e-6 per 20 s at rho_inf 0.5 / 0.9 /
-#    0.99: the loss is the scheme's damping, not round-off.
+#    (100 s, about 43 periods): the energy stays within 1e-6 m g L of its start above it and
+#    loses less than 1e-5 m g L. The scheme's own dissipation is far below both: the spectral
+#    radius of generalized-alpha (rho_inf = 0.9) at omega h = 2.6e-4 is 1 - 3.4e-19, an energy
+#    loss of 7e-13 over the 1e6 steps. What moves the energy is the Newton leftover of each
+#    step (|dx| up to the round-off floor 1e3 eps of fmbd_mbs.h, times beta' in x''): with x''
+#    extrapolated linearly and lambda held (before 2026-11-24) it drained 5.0e-6 m g L (that
+#    figure was read as the scheme's damping); with both extrapolated quadratically 5.5e-8 m g L
+#    lost, at most 6.4e-8 J above the start (a Newton test that stopped on the estimated
+#    remaining error alone, also when the last increment exceeded the tolerance, gave 1.8e-7
+#    m g L and 1.5e-7 J: the bounds are a factor 50 above what that looser test left).
 # 3. Steps far too large: first_step = max_step = 10 s for a 2.4 s-period pendulum, variable
 #    steps: the controller rejects and recovers; the motion agrees with a run from 1e-4 s steps
 #    to 1e-3 m RMS (the two runs' own global errors at tolerance 1e-6 are ~1e-4 m; measured 1.1e-4).
@@ -117,8 +123,8 @@ with h5py.File(os.path.join(TMP, "long.run.h5"), "r") as f:
 mgl = 9.81
 print("long run: " + r.stderr.strip())
 check(steps == 1000000, "1e6 steps (%d)" % steps)
-check(e.max() - e[0] <= 1e-12 and (e[0] - e[-1]) < 1e-5 * mgl,
-      "energy never above its start (max %+.1e J) and lost %.2e m g L (< 1e-5)" % (e.max() - e[0], (e[0] - e[-1]) / mgl))
+check(e.max() - e[0] <= 1e-6 * mgl and (e[0] - e[-1]) < 1e-5 * mgl,
+      "energy at most 1e-6 m g L above its start (max %+.1e J) and lost %.2e m g L (< 1e-5)" % (e.max() - e[0], (e[0] - e[-1]) / mgl))
 
 # --- 3. steps far too large --------------------------------------------------------------------
 write("ref.yaml", PEND % ("t_end: 5, first_step: 1e-4, max_step: 1e-2, tolerance: 1e-6", "0.01"))

@@ -13,8 +13,9 @@
 #     and rocker are beams (fegen, fe2cb --modes 10: 22 modal coordinates each), driven crank,
 #     0.1 s at fixed 1e-4 s; the joint between coupler and rocker couples both bodies' modes.
 # Asserted for each: both runs take the same steps; the Newton iterations differ by at most
-# 5 % (the contraction rate changes by the left-out gyroscopic part, about 2 h |w| relative to
-# Mff: < 1 %); the largest distance between the two runs' output points stays below
+# 5 % (both paths keep and refresh their matrix by the same rule; the contraction rate changes
+# by the left-out gyroscopic part, about 2 h |w| relative to Mff, < 1 %; a wrong coupling
+# block shows as more iterations or failed steps); the largest distance between the two runs' output points stays below
 # 2 n_steps newton_tol L (each converged step is within newton_tol of the step's exact solution
 # in the position scale L, for either run; before the chain's chaos, within 0.5 s here, the
 # differences add at most linearly); newton_tol = 1e-10. And -v says which path ran (the

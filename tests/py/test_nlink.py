@@ -15,7 +15,7 @@
 # 4. NM-held (each link's 6 modes held at its joint end0) on 4 links, 0.15 s at a fixed 1e-4 s
 #    step: Newton converges at every step. Before the round-off floor of the modal increments
 #    was eps L_ref sqrt(m) (fmbd_mbs_init.c, rscale) it was 1e-3 of that, below what the solve
-#    attains: 20 of 1510 steps failed with every residual at 1e-16 (and 8 links of 10 elements
+#    attains: 78 of 1539 steps failed with every residual at 1e-16 (and 8 links of 10 elements
 #    stopped at 0.105 s, examples/nlink/README.md).
 import math
 import os
