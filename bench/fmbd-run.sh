@@ -4,7 +4,9 @@
 #     flexible rod (the flexible modes of its CB-reduced eigenproblem, .cb.h5 with `modes: N`),
 #     variable steps (the example's settings) and fixed 1e-3 s steps: steps, Newton
 #     iterations, steps per second and the real-time factor (simulated time / CPU time of the
-#     integration, one core); beside it the rigid-only quadruple pendulum;
+#     integration, one core); at 30 and 100 modes the fixed-step case again with the modal
+#     block not eliminated (FMBD_MBS_SCHUR=0: KLU on the whole iteration matrix); beside it the
+#     rigid-only quadruple pendulum;
 #  2. the peer side by side: the rigid quadruple pendulum in minimal coordinates (the planar
 #     chain's four angles, Lagrange's equations) integrated by scipy's solve_ivp (DOP853,
 #     rtol 1e-10), its CPU time, and the RMS difference of link 3's tip over the first 2 s
@@ -41,12 +43,12 @@ scene = open(os.path.join(ROOT, "examples/quadpend/quadpend.yaml")).read()
 rigid = open(os.path.join(ROOT, "examples/quadpend/quadpend_rigid.yaml")).read()
 
 
-def run(name, text, extra=()):
+def run(name, text, extra=(), env=None):
     """Run a scene; its /stats, plus the RMS error of node A against extra's reference."""
     with open(name + ".yaml", "w") as f:
         f.write(text)
     p = subprocess.run(["fmbd-run", name + ".yaml", "-o", name + ".run.h5", "-q"] + list(extra),
-                       capture_output=True, text=True)
+                       capture_output=True, text=True, env=dict(os.environ, **(env or {})))
     if p.returncode:
         print(p.stderr)
         return None
@@ -77,6 +79,9 @@ for nm in (10, 30, 100):
     if st: row(f"flexible, {nm} modes, variable", st, 7)
     st = run(f"quad{nm}f", fixed.replace("%BODY%", body % nm), ref)
     if st: row(f"flexible, {nm} modes, fixed 1e-3", st, 7)
+    if nm >= 30:  # the same, the modal block not eliminated (KLU on the whole matrix)
+        st = run(f"quad{nm}fk", fixed.replace("%BODY%", body % nm), ref, {"FMBD_MBS_SCHUR": "0"})
+        if st: row(f"  the same, FMBD_MBS_SCHUR=0", st, 7)
 st = run("quadrigid", rigid)
 if st: row("rigid only, variable", st, 7)
 rigid_fixed = re.sub(r"  first_step: .*\n  max_step: .*\n  tolerance: .*\n( +#.*\n)*", "  step: 1e-3\n", rigid)

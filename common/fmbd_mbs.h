@@ -85,7 +85,13 @@
 //   steps while Newton converges (modified Newton); refactored (klu_l_refactor with the old
 //   pivoting, full klu_l_factor if KLU's rcond estimate drops below 1e-13) when the
 //   contraction rate exceeds 0.1, when h differs by more than 25 % from the h of the factor,
-//   and before retrying a step whose Newton failed with an old factor.
+//   and before retrying a step whose Newton failed with an old factor. Modal bodies with at
+//   least 10 modes (not full FE bodies, not shared GM sets) have their modal coordinates
+//   eliminated instead (fmbd_mbs_schur.c): their block's constant part cm Mff + cc Dff + ck Kff
+//   by dense Cholesky once per step size, the rest (frames, other bodies, constraint rows) by
+//   KLU on the Schur complement; the modal block's gyroscopic part is left out of the matrix
+//   (the residual keeps it). Environment FMBD_MBS_SCHUR=0 / 1 forces the whole-matrix KLU /
+//   the elimination of every modal body.
 // NEWTON convergence: with theta the contraction rate of successive increments, stop when
 //   theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II, IV.8), or |dx_i| <= 1e-3 tx_i
 //   in the first iteration, or |dx_i| <= tx_i with theta >= 1 (round-off stagnation), where

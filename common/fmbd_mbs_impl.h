@@ -320,13 +320,6 @@ struct fmbd_mbs {
 #ifndef SCHUR_NM_MIN
 #define SCHUR_NM_MIN 10
 #endif
-// with them the iteration matrix is refreshed at every step while no eliminated body has more
-// than SCHUR_REFRESH_NM modes: measured on the quadruple pendulum's rod (fixed 1e-3 s) 27, 23
-// and 16 % less CPU at 10, 30 and 100 modes, 18 % more at 300 (a matrix evaluation then costs
-// more than the iterations it saves); between 100 and 300 not measured
-#ifndef SCHUR_REFRESH_NM
-#define SCHUR_REFRESH_NM 100
-#endif
 
 // --- constraints ---------------------------------------------------------------------------
 // Kinematics of one joint side: position r and up to 4 attached directions g[i], with their
@@ -395,9 +388,6 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai);
 int mbs_schur_factor(fmbd_mbs *m);
 int mbs_schur_solve(fmbd_mbs *m, double *rhs);
 bool mbs_schur_active(const fmbd_mbs *m);
-// the matrix is refreshed at every step (fmbd_mbs_step.c): the Schur path is on and no
-// eliminated body has more than SCHUR_REFRESH_NM modes
-bool mbs_schur_refresh(const fmbd_mbs *m);
 void mbs_schur_free(mbs_schur **s);
 // fmbd_mbs_fe.c: full FE bodies. mbs_fe_eval: the residual r (7 + n) as mbs_body_eval, and
 // with Ax the block cm M + cc C + ck K added into Ax at the body's positions

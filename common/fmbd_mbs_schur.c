@@ -53,7 +53,7 @@ typedef struct sbody {
 } sbody;
 
 struct mbs_schur {
-  int nsb, nm_max;  // eliminated bodies, the largest one's modes
+  int nsb;
   sbody *sb;
   int64_t nR, nnzS, nrr;
   int64_t *gidx;       // nR: global unknown of each S index
@@ -131,7 +131,6 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
     sbody *sb = &s->sb[s->nsb];
     sb->ib = ib, sb->nm = b->nm, sb->qoff = b->qoff;
     for (int k = 0; k < b->nm; k++) owner[b->qoff + k] = s->nsb;
-    if (b->nm > s->nm_max) s->nm_max = b->nm;
     s->nsb++;
   }
   for (int64_t i = 0; i < N; i++) rmap[i] = owner[i] < 0 ? s->nR++ : -1;
@@ -269,10 +268,6 @@ done:
 
 bool mbs_schur_active(const fmbd_mbs *m) {
   return m->sc && m->sc->active;
-}
-
-bool mbs_schur_refresh(const fmbd_mbs *m) {
-  return m->sc && m->sc->nm_max <= SCHUR_REFRESH_NM;
 }
 
 int mbs_schur_factor(fmbd_mbs *m) {

@@ -102,13 +102,6 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     m->lam[k] = w0 * m->lamn[k] + w1 * m->lamp[k] + w2 * m->lampp[k];
   if (m->h_fact <= 0 || fabs(h / m->h_fact - 1) > 0.25) m->need_factor = true;
   if (force_fresh) m->need_factor = true;
-  // with the modal blocks eliminated (fmbd_mbs_schur.c) a factorisation costs about an
-  // iteration, and a matrix of an earlier step contracts poorly: on the quadruple pendulum
-  // (30-mode rod, fixed 1e-3 s) the first ratio |dx_1| / |dx_0| has median 0.9 with the
-  // matrix of an earlier step, 1.5e-4 with the step's own. So it is refreshed at every step
-  // there: 29449 -> 16490 iterations, 23 % less CPU (100 modes: 16 %; 300 modes: 18 % more,
-  // hence SCHUR_REFRESH_NM; bench/README.md)
-  if (mbs_schur_refresh(m)) m->need_factor = true;
   bool fresh = false;
   double prev = 0;
   // clock readings between the phases (wall; fmbd_mbs_get_stats makes them CPU time)

@@ -12,10 +12,10 @@
 #  2. a closed loop of two modal bodies, each with two interfaces: a four-bar whose coupler
 #     and rocker are beams (fegen, fe2cb --modes 10: 22 modal coordinates each), driven crank,
 #     0.1 s at fixed 1e-4 s; the joint between coupler and rocker couples both bodies' modes.
-# Asserted for each: both runs take the same steps; the Schur path needs at most the Newton
-# iterations of the KLU path (it refreshes its matrix at every step, the KLU path keeps it
-# across steps: a wrong coupling block would show as more iterations or failed steps; the
-# left-out gyroscopic part is about 2 h |w| relative to Mff, < 1 %); the largest distance between the two runs' output points stays below
+# Asserted for each: both runs take the same steps; the Newton iterations differ by at most
+# 5 % (both paths keep and refresh their matrix by the same rule; the contraction rate changes
+# by the left-out gyroscopic part, about 2 h |w| relative to Mff, < 1 %; a wrong coupling
+# block shows as more iterations or failed steps); the largest distance between the two runs' output points stays below
 # 2 n_steps newton_tol L (each converged step is within newton_tol of the step's exact solution
 # in the position scale L, for either run; before the chain's chaos, within 0.5 s here, the
 # differences add at most linearly); newton_tol = 1e-10. And -v says which path ran (the
@@ -67,7 +67,7 @@ def compare(tag, scene, points, L):
     check(s0["steps"] == s1["steps"] and s0["rejected_steps"] == s1["rejected_steps"],
           "%s: same steps (%d, %d rejected)" % (tag, s1["steps"], s1["rejected_steps"]))
     it0, it1 = s0["newton_iterations"], s1["newton_iterations"]
-    check(it1 <= it0, "%s: Newton iterations %d (KLU) and %d (Schur), factorisations %d and %d"
+    check(abs(it1 - it0) <= 0.05 * it0, "%s: Newton iterations %d (KLU) and %d (Schur), factorisations %d and %d"
           % (tag, it0, it1, s0["factorizations"], s1["factorizations"]))
     d = np.max(np.abs(p1 - p0))
     bound = 2 * s0["steps"] * NEWTON_TOL * L
