@@ -17,8 +17,8 @@
 # bases, not of the FE models: hence the second family.
 # Second family (BENCH_FAMILY="chain fe", the default, runs both; "fe" or "chain" one): the
 # spatial slider-crank (examples/spatial-slidercrank/) with its rod a full tet10 .fe.h5 body
-# meshed at BENCH_FE_SIZES mm (default 8 6; BENCH_LARGE=1: 8 6 4 3; 2.5 and below take tens of
-# minutes, bench/README.md), gmsolve --modes 20 --matrices. Peer: scipy eigsh in shift-invert
+# meshed at BENCH_FE_SIZES mm (default 8 6; BENCH_LARGE=1: 8 6 4 3; 2.5 and 2 take minutes and
+# 4-15 GB, bench/README.md), gmsolve --modes 20 --matrices. Peer: scipy eigsh in shift-invert
 # mode on the bordered pencil ([K Cq'; Cq 0], diag(M, 0)) from /linear, which needs no null
 # space (SuperLU factors the bordered matrix); skipped above BENCH_FE_PEER_MAX coordinates
 # (default 400000). Peak RSS of both by /usr/bin/time. build_s is the build stage's wall time,

@@ -1,22 +1,24 @@
 #!/usr/bin/python3
 # examples/slidercrank/floor.py: what sets the floor of the held CB bodies' error against the
-# full FE model (FM) in the planar slider-crank (README.md, "What sets the floor").
+# full FE model (FM) in the planar slider-crank (README.md, "What sets the held bodies' error
+# floor").
 # SPDX-License-Identifier: MIT
 #
 #   floor.py [--size H] [--t-end T] [--variants 1e-4:1e-8,1e-4:1e-10,5e-5:1e-8] [--ranges 10,20,40]
-#            [--out DIR] [--prog FMBD_RUN --tag TAG]
+#            [--out DIR] [--prog FMBD_RUN --tag=TAG]
 #
 # For each variant STEP:NEWTON_TOL it runs the scene (its solver block's `step` and `newton_tol`
-# replaced, t_end = T) with the rod as the FM (`file: rod.fe.h5`) and as the held RFlex bodies
+# replaced, t_end = T) with the rod as the FM (`file: rod.fe.h5`), as the held RFlex bodies
 # with Nm = each range (cbcheck --tol 1e-2 --range Nm --hold bore0 --hold bore1: the scene's
 # rule) and as the CB body of the scene's fe2cb file (120 fixed-interface modes and the 12
-# constraint modes of the two RBE2 bores), all on the scene's mesh2fe chain at --size H. Then it prints, by time window, the RMS
-# of |A - A_FM| (node A's position, the output grid of 1e-3 s shared by all runs) of every body
-# against the FM of the same variant, and of every FM and Nm 10 body against the first
-# variant's: a floor set by the integration moves with the step, one set by the Newton
-# leftover moves with newton_tol. --prog runs another build of fmbd-run (README.md: one whose
-# Newton test stops at 10 eps instead of 1e3 eps of each coordinate's scale), its run files
-# named with TAG. Writes DIR/floor[TAG].md; made files are reused when present.
+# constraint modes of the two RBE2 bores), all on the scene's mesh2fe chain at --size H. Then
+# it prints, by 0.1 s window, the RMS of |A - A_FM| (node A's position, on the output grid of
+# 1e-3 s shared by all runs) of every body against the FM of the same variant, and of the FM
+# and the first Nm body against the first variant's: a floor set by the integration moves
+# with the step, one set by the Newton leftover with newton_tol. --prog runs another build of
+# fmbd-run (README.md: one whose Newton test stops at 30 eps instead of 1e3 eps of each
+# coordinate's scale), its run files named with TAG, and compares its runs with fmbd-run's
+# where those exist. Writes DIR/floor[TAG].md; made files are reused when present.
 # Programs are taken from PATH (make puts build/bin first).
 import argparse
 import os
