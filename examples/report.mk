@@ -22,8 +22,9 @@ RP_JOBS ?= 2
 # bodies still agree to 1e-8 m: by the separation (2.8 s) chaos has grown any difference 1e4 x
 QP_ARGS ?= --size 0.015 --t-end 3 --window-end 0.994
 # planar slider-crank: tet10 of 12 mm (6741 dofs; the scene's 6 mm: 34860), the whole 0.5 s
-# (the FM: 272 s of CPU, half of it at the crank's dead point, 0.3..0.4 s; --t-end 0.1, the
-# torque's ramp: 22 s); the held RFlex body also with Nm 20 and 40 (the tolerance cannot lower its error)
+# (the FM: 76 s of CPU with the binary of c3fde74, 272 s before, half of it then at the crank's
+# dead point, 0.3..0.4 s; to 0.1 s, the torque's ramp: 12 s, 22 s before); the held RFlex body
+# also with Nm 20 and 40 (the tolerance cannot lower its error)
 SC_ARGS ?= --size 0.012 --t-end 0.5 --ranges 20,40
 # spatial slider-crank: tet10 of 10 mm (4068 dofs; the scene's 4 mm: 37857), 0.054 s; the window
 # errors over 0..0.02 s, before the crank's first pass near its dead point (README.md); also CB
