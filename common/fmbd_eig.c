@@ -557,18 +557,24 @@ static int sort_normalise(const fmbd_csr *M, run_out *r) {
   int rc = FMBD_OK;
   int64_t n = M->nrows, k = r->nconv;
   idx_val *iv = NULL;
-  double *X2 = NULL, *lam2 = NULL, *mx = NULL;
+  double *X2 = NULL, *lam2 = NULL, *mx = NULL, *xmx = NULL;
+  enum { NB = 8 };  // x' M x by blocks of 8 columns: one pass over M per block (eig_residuals)
   FMBD_GALLOC(iv = fmbd_malloc((size_t)(k ? k : 1) * sizeof *iv));
   FMBD_GALLOC(X2 = fmbd_malloc((size_t)n * (size_t)(k ? k : 1) * sizeof(double)));
   FMBD_GALLOC(lam2 = fmbd_malloc((size_t)(k + 1) * sizeof(double)));
-  FMBD_GALLOC(mx = fmbd_malloc((size_t)n * sizeof(double)));
+  FMBD_GALLOC(xmx = fmbd_malloc((size_t)(k ? k : 1) * sizeof(double)));
+  FMBD_GALLOC(mx = fmbd_malloc((size_t)n * NB * sizeof(double)));
+  for (int64_t j0 = 0; j0 < k; j0 += NB) {
+    int64_t nb = k - j0 < NB ? k - j0 : NB;
+    fmbd_csr_matmat(M, nb, r->X + j0 * n, n, mx, n);
+    for (int64_t j = 0; j < nb; j++) xmx[j0 + j] = dot(n, r->X + (j0 + j) * n, mx + j * n);
+  }
   for (int64_t j = 0; j < k; j++) iv[j] = (idx_val){r->lam[j], j};
   qsort(iv, (size_t)k, sizeof *iv, cmp_idx_val);
   for (int64_t j = 0; j < k; j++) {
     const double *x = r->X + iv[j].i * n;
     double *y = X2 + j * n;
-    fmbd_csr_matvec(M, x, mx);
-    double s = dot(n, x, mx);
+    double s = xmx[iv[j].i];
     s = s > 0.0 ? 1.0 / sqrt(s) : 1.0;
     int64_t imax = 0;
     for (int64_t i = 1; i < n; i++) {
@@ -588,6 +594,7 @@ done:
   fmbd_free(X2);
   fmbd_free(lam2);
   fmbd_free(mx);
+  fmbd_free(xmx);
   return rc;
 }
 
