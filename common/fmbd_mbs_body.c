@@ -175,9 +175,11 @@ void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const 
 // mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
-// xdd may be NULL (zero accelerations).
+// xdd may be NULL (zero accelerations). Without ff the modal-modal part of B (rows and columns
+// 7..) is neither formed nor written (the Schur path eliminates it: mbs_body_ff forms it alone).
 void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
-                   const double *xddg, double *r, double *B, double cm, double cc, double ck) {
+                   const double *xddg, double *r, double *B, double cm, double cc, double ck,
+                   bool ff) {
   mbody *b = &m->b[ib];
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
@@ -291,8 +293,15 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   mbs_rigid_rows(b, rb, p, xdd ? xdd + 3 : NULL, r);
   const double mu = PMASS * b->snorm;
   if (!B) return;
+  memcpy(b->wB, w, sizeof b->wB);
   // --- velocity tangent Cb (d v / d [R', wb, q']) ---
-  memset(Cb, 0, sizeof(double) * (size_t)n6 * n6);
+  // without ff only columns 0..5 and rows 0..5 of columns 6.. are formed (and read below)
+  if (ff) {
+    memset(Cb, 0, sizeof(double) * (size_t)n6 * n6);
+  } else {
+    memset(Cb, 0, sizeof(double) * (size_t)n6 * 6);
+    for (int l = 0; l < nm; l++) memset(&CB(0, 6 + l), 0, sizeof(double) * 6);
+  }
   if (cc != 0) {
     double AM[9], WW[9];
     mbs_rigid_vel_tangent(A, w, c, Sc, s1qd, I, Iw, H, trH, AM, WW);
@@ -314,9 +323,11 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
         hktw[a] = Hk[3 * a] * w[0] + Hk[3 * a + 1] * w[1] + Hk[3 * a + 2] * w[2];
       }
       const double *cor = b->cor + 3 * k;
-      for (int l = 0; l < nm; l++) {
-        const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-        CB(6 + k, 6 + l) = 2 * dot3(w, sx) + b->Dff[k + (size_t)nm * l];
+      if (ff) {
+        for (int l = 0; l < nm; l++) {
+          const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
+          CB(6 + k, 6 + l) = 2 * dot3(w, sx) + b->Dff[k + (size_t)nm * l];
+        }
       }
       for (int a = 0; a < 3; a++) {
         CB(a, 6 + k) = 2 * aws[a];
@@ -326,16 +337,23 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     }
   }
   // Z = cm Mb + cc Cb (into Mb)
-  for (size_t i = 0; i < (size_t)n6 * n6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+  if (ff) {
+    for (size_t i = 0; i < (size_t)n6 * n6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+  } else {
+    for (size_t i = 0; i < (size_t)n6 * 6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+    for (int l = 0; l < nm; l++) {
+      for (int i = 0; i < 6; i++) MB(i, 6 + l) = cm * MB(i, 6 + l) + cc * CB(i, 6 + l);
+    }
+  }
   // B = T' Z T
   // rows/cols map: x index i -> b index (R: i; p: via 2G; q: i - 1)
-  // first Y = Z T (n6 x n), stored in Cb
+  // first Y = Z T (n6 x n), stored in Cb (without ff: rows 0..5 of the columns 7..)
   double *Y = Cb;
   for (int j = 0; j < n; j++) {
     double *yc = Y + (size_t)n6 * j;
     if (j < 3 || j >= 7) {
       int jb = j < 3 ? j : j - 1;
-      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)n6);
+      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)(ff || j < 3 ? n6 : 6));
     } else {
       int c4 = j - 3;
       double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
@@ -349,12 +367,14 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     bc[0] = yc[0], bc[1] = yc[1], bc[2] = yc[2];
     for (int c4 = 0; c4 < 4; c4++)
       bc[3 + c4] = 2 * (G[c4] * yc[3] + G[4 + c4] * yc[4] + G[8 + c4] * yc[5]);
-    for (int k = 0; k < nm; k++) bc[7 + k] = yc[6 + k];
+    if (ff || j < 7) {
+      for (int k = 0; k < nm; k++) bc[7 + k] = yc[6 + k];
+    }
   }
   for (int i = 0; i < 4; i++) {
     for (int j = 0; j < 4; j++) B[(3 + i) + (size_t)n * (3 + j)] += cm * mu * p[i] * p[j];
   }
-  if (ck != 0) {
+  if (ck != 0 && ff) {
     for (int k = 0; k < nm; k++) {
       for (int l = 0; l < nm; l++)
         B[(7 + k) + (size_t)n * (7 + l)] += ck * b->Kff[k + (size_t)nm * l];
@@ -362,4 +382,25 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   }
 #undef MB
 #undef CB
+}
+
+// the modal-modal block of body ib's iteration block, cm Mff + cc (2 w . SSx + Dff) + ck Kff
+// with (cm, cc, ck) of the matrix in Ax (m->mcoef) and w of the body's last block evaluation
+// (b->wB), written into Ax at its positions: the entries mbs_body_eval leaves out without ff,
+// with the same operations in the same order (the same bits as mbs_body_eval with ff)
+void mbs_body_ff(fmbd_mbs *m, int ib) {
+  const mbody *b = &m->b[ib];
+  const int nm = b->nm, n = b->n;
+  const double cm = m->mcoef[0], cc = m->mcoef[1], ck = m->mcoef[2], *w = b->wB;
+  const int64_t *pos = m->bpos[ib];
+  for (int l = 0; l < nm; l++) {
+    for (int k = 0; k < nm; k++) {
+      const size_t e = k + (size_t)nm * l;
+      double cb = 0;
+      if (cc != 0) cb = 2 * dot3(w, b->SSx + 3 * l + 3 * (size_t)nm * k) + b->Dff[e];
+      double z = cm * b->Mff[e] + cc * cb;
+      if (ck != 0) z += ck * b->Kff[e];
+      m->Ax[pos[(7 + k) + (size_t)n * (7 + l)]] = z;
+    }
+  }
 }
