@@ -27,14 +27,14 @@ static inline v2d ld2(const double *p) {
   return v;
 }
 #endif
-// y += alpha A x
-static void matvec_add(int m, int n, const double *restrict A, const double *restrict x,
+// y += alpha A x (leading dimension lda)
+static void matvec_add(int m, int n, const double *restrict A, int lda, const double *restrict x,
                        double alpha, double *restrict y) {
   int j = 0;
   for (; j + 4 <= n; j += 4) {
     double x0 = alpha * x[j], x1 = alpha * x[j + 1], x2 = alpha * x[j + 2], x3 = alpha * x[j + 3];
-    const double *restrict a0 = A + (size_t)m * j, *restrict a1 = a0 + m, *restrict a2 = a1 + m,
-                           *restrict a3 = a2 + m;
+    const double *restrict a0 = A + (size_t)lda * j, *restrict a1 = a0 + lda,
+                           *restrict a2 = a1 + lda, *restrict a3 = a2 + lda;
     int i = 0;
 #if defined(__GNUC__)
     const v2d X0 = {x0, x0}, X1 = {x1, x1}, X2 = {x2, x2}, X3 = {x3, x3};
@@ -48,14 +48,14 @@ static void matvec_add(int m, int n, const double *restrict A, const double *res
   }
   for (; j < n; j++) {
     double xj = alpha * x[j];
-    const double *restrict a = A + (size_t)m * j;
+    const double *restrict a = A + (size_t)lda * j;
     for (int i = 0; i < m; i++) y[i] += xj * a[i];
   }
 }
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {
   for (int i = 0; i < m; i++) y[i] = 0;
-  matvec_add(m, n, A, x, alpha, y);
+  matvec_add(m, n, A, m, x, alpha, y);
 }
 // --- parts shared by modal bodies (mbs_body_eval) and full FE bodies (mbs_fe_eval) -------
 // the frame's kinematics: A(p/|p|), G(p), |p| into the body's workspace, body angular velocity
@@ -228,7 +228,9 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double *Mb = m->bwork, *Cb = m->bwork + (size_t)n6 * n6, *rb = m->bwork + 2 * (size_t)n6 * n6;
 #define MB(i, j) Mb[(i) + (size_t)n6 * (j)]
 #define CB(i, j) Cb[(i) + (size_t)n6 * (j)]
-  memset(Mb, 0, sizeof(double) * (size_t)n6 * n6);
+  // every entry of the columns 0..5 and the rows 0..5 is written below but the off-diagonal
+  // of the first 3 x 3; the modal-modal part (the constant Mff) only where the block needs it
+  for (int j = 0; j < 6; j++) memset(&MB(0, j), 0, sizeof(double) * 6);
   double Sc[9], Ac[9];
   skew3(c, Sc);
   mm3(A, Sc, Ac);  // A c~
@@ -248,8 +250,10 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       MB(3 + a, 6 + k) = MB(6 + k, 3 + a) = b->Mwf[a + 3 * k];
     }
   }
-  for (int l = 0; l < nm; l++)  // the constant modal mass, column by column
-    memcpy(&MB(6, 6 + l), b->Mff + (size_t)nm * l, sizeof(double) * (size_t)nm);
+  if (B && ff) {
+    for (int l = 0; l < nm; l++)  // the constant modal mass, column by column
+      memcpy(&MB(6, 6 + l), b->Mff + (size_t)nm * l, sizeof(double) * (size_t)nm);
+  }
   // --- quadratic velocity vector v and forces f: rb = v - f (+ K q + D q') ---
   double Iw[3];
   mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
@@ -285,8 +289,11 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   // rb += Mb acc_b
   if (xdd) {
     double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
-    matvec_add(n6, 6, Mb, acc6, 1.0, rb);
-    matvec_add(n6, nm, Mb + (size_t)n6 * 6, qdd, 1.0, rb);
+    matvec_add(n6, 6, Mb, n6, acc6, 1.0, rb);
+    // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
+    // same operations as on the whole columns)
+    matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);
+    matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
   }
   // r = T' rb
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];
