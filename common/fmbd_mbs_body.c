@@ -27,14 +27,14 @@ static inline v2d ld2(const double *p) {
   return v;
 }
 #endif
-// y += alpha A x
-static void matvec_add(int m, int n, const double *restrict A, const double *restrict x,
+// y += alpha A x (leading dimension lda)
+static void matvec_add(int m, int n, const double *restrict A, int lda, const double *restrict x,
                        double alpha, double *restrict y) {
   int j = 0;
   for (; j + 4 <= n; j += 4) {
     double x0 = alpha * x[j], x1 = alpha * x[j + 1], x2 = alpha * x[j + 2], x3 = alpha * x[j + 3];
-    const double *restrict a0 = A + (size_t)m * j, *restrict a1 = a0 + m, *restrict a2 = a1 + m,
-                           *restrict a3 = a2 + m;
+    const double *restrict a0 = A + (size_t)lda * j, *restrict a1 = a0 + lda,
+                           *restrict a2 = a1 + lda, *restrict a3 = a2 + lda;
     int i = 0;
 #if defined(__GNUC__)
     const v2d X0 = {x0, x0}, X1 = {x1, x1}, X2 = {x2, x2}, X3 = {x3, x3};
@@ -48,14 +48,14 @@ static void matvec_add(int m, int n, const double *restrict A, const double *res
   }
   for (; j < n; j++) {
     double xj = alpha * x[j];
-    const double *restrict a = A + (size_t)m * j;
+    const double *restrict a = A + (size_t)lda * j;
     for (int i = 0; i < m; i++) y[i] += xj * a[i];
   }
 }
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {
   for (int i = 0; i < m; i++) y[i] = 0;
-  matvec_add(m, n, A, x, alpha, y);
+  matvec_add(m, n, A, m, x, alpha, y);
 }
 // --- parts shared by modal bodies (mbs_body_eval) and full FE bodies (mbs_fe_eval) -------
 // the frame's kinematics: A(p/|p|), G(p), |p| into the body's workspace, body angular velocity
@@ -175,9 +175,11 @@ void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const 
 // mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
-// xdd may be NULL (zero accelerations).
+// xdd may be NULL (zero accelerations). Without ff the modal-modal part of B (rows and columns
+// 7..) is neither formed nor written (the Schur path eliminates it: mbs_body_ff forms it alone).
 void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
-                   const double *xddg, double *r, double *B, double cm, double cc, double ck) {
+                   const double *xddg, double *r, double *B, double cm, double cc, double ck,
+                   bool ff) {
   mbody *b = &m->b[ib];
   const int nm = b->nm, n6 = 6 + nm, n = b->n;
   const double *x = xg + b->off, *xd = xdg + b->off, *xdd = xddg ? xddg + b->off : NULL;
@@ -226,7 +228,9 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double *Mb = m->bwork, *Cb = m->bwork + (size_t)n6 * n6, *rb = m->bwork + 2 * (size_t)n6 * n6;
 #define MB(i, j) Mb[(i) + (size_t)n6 * (j)]
 #define CB(i, j) Cb[(i) + (size_t)n6 * (j)]
-  memset(Mb, 0, sizeof(double) * (size_t)n6 * n6);
+  // every entry of the columns 0..5 and the rows 0..5 is written below but the off-diagonal
+  // of the first 3 x 3; the modal-modal part (the constant Mff) only where the block needs it
+  for (int j = 0; j < 6; j++) memset(&MB(0, j), 0, sizeof(double) * 6);
   double Sc[9], Ac[9];
   skew3(c, Sc);
   mm3(A, Sc, Ac);  // A c~
@@ -246,8 +250,10 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       MB(3 + a, 6 + k) = MB(6 + k, 3 + a) = b->Mwf[a + 3 * k];
     }
   }
-  for (int l = 0; l < nm; l++)  // the constant modal mass, column by column
-    memcpy(&MB(6, 6 + l), b->Mff + (size_t)nm * l, sizeof(double) * (size_t)nm);
+  if (B && ff) {
+    for (int l = 0; l < nm; l++)  // the constant modal mass, column by column
+      memcpy(&MB(6, 6 + l), b->Mff + (size_t)nm * l, sizeof(double) * (size_t)nm);
+  }
   // --- quadratic velocity vector v and forces f: rb = v - f (+ K q + D q') ---
   double Iw[3];
   mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
@@ -283,16 +289,26 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   // rb += Mb acc_b
   if (xdd) {
     double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
-    matvec_add(n6, 6, Mb, acc6, 1.0, rb);
-    matvec_add(n6, nm, Mb + (size_t)n6 * 6, qdd, 1.0, rb);
+    matvec_add(n6, 6, Mb, n6, acc6, 1.0, rb);
+    // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
+    // same operations as on the whole columns)
+    matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);
+    matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
   }
   // r = T' rb
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];
   mbs_rigid_rows(b, rb, p, xdd ? xdd + 3 : NULL, r);
   const double mu = PMASS * b->snorm;
   if (!B) return;
+  memcpy(b->wB, w, sizeof b->wB);
   // --- velocity tangent Cb (d v / d [R', wb, q']) ---
-  memset(Cb, 0, sizeof(double) * (size_t)n6 * n6);
+  // without ff only columns 0..5 and rows 0..5 of columns 6.. are formed (and read below)
+  if (ff) {
+    memset(Cb, 0, sizeof(double) * (size_t)n6 * n6);
+  } else {
+    memset(Cb, 0, sizeof(double) * (size_t)n6 * 6);
+    for (int l = 0; l < nm; l++) memset(&CB(0, 6 + l), 0, sizeof(double) * 6);
+  }
   if (cc != 0) {
     double AM[9], WW[9];
     mbs_rigid_vel_tangent(A, w, c, Sc, s1qd, I, Iw, H, trH, AM, WW);
@@ -314,9 +330,11 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
         hktw[a] = Hk[3 * a] * w[0] + Hk[3 * a + 1] * w[1] + Hk[3 * a + 2] * w[2];
       }
       const double *cor = b->cor + 3 * k;
-      for (int l = 0; l < nm; l++) {
-        const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-        CB(6 + k, 6 + l) = 2 * dot3(w, sx) + b->Dff[k + (size_t)nm * l];
+      if (ff) {
+        for (int l = 0; l < nm; l++) {
+          const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
+          CB(6 + k, 6 + l) = 2 * dot3(w, sx) + b->Dff[k + (size_t)nm * l];
+        }
       }
       for (int a = 0; a < 3; a++) {
         CB(a, 6 + k) = 2 * aws[a];
@@ -326,16 +344,23 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     }
   }
   // Z = cm Mb + cc Cb (into Mb)
-  for (size_t i = 0; i < (size_t)n6 * n6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+  if (ff) {
+    for (size_t i = 0; i < (size_t)n6 * n6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+  } else {
+    for (size_t i = 0; i < (size_t)n6 * 6; i++) Mb[i] = cm * Mb[i] + cc * Cb[i];
+    for (int l = 0; l < nm; l++) {
+      for (int i = 0; i < 6; i++) MB(i, 6 + l) = cm * MB(i, 6 + l) + cc * CB(i, 6 + l);
+    }
+  }
   // B = T' Z T
   // rows/cols map: x index i -> b index (R: i; p: via 2G; q: i - 1)
-  // first Y = Z T (n6 x n), stored in Cb
+  // first Y = Z T (n6 x n), stored in Cb (without ff: rows 0..5 of the columns 7..)
   double *Y = Cb;
   for (int j = 0; j < n; j++) {
     double *yc = Y + (size_t)n6 * j;
     if (j < 3 || j >= 7) {
       int jb = j < 3 ? j : j - 1;
-      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)n6);
+      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)(ff || j < 3 ? n6 : 6));
     } else {
       int c4 = j - 3;
       double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
@@ -349,12 +374,14 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     bc[0] = yc[0], bc[1] = yc[1], bc[2] = yc[2];
     for (int c4 = 0; c4 < 4; c4++)
       bc[3 + c4] = 2 * (G[c4] * yc[3] + G[4 + c4] * yc[4] + G[8 + c4] * yc[5]);
-    for (int k = 0; k < nm; k++) bc[7 + k] = yc[6 + k];
+    if (ff || j < 7) {
+      for (int k = 0; k < nm; k++) bc[7 + k] = yc[6 + k];
+    }
   }
   for (int i = 0; i < 4; i++) {
     for (int j = 0; j < 4; j++) B[(3 + i) + (size_t)n * (3 + j)] += cm * mu * p[i] * p[j];
   }
-  if (ck != 0) {
+  if (ck != 0 && ff) {
     for (int k = 0; k < nm; k++) {
       for (int l = 0; l < nm; l++)
         B[(7 + k) + (size_t)n * (7 + l)] += ck * b->Kff[k + (size_t)nm * l];
@@ -362,4 +389,25 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   }
 #undef MB
 #undef CB
+}
+
+// the modal-modal block of body ib's iteration block, cm Mff + cc (2 w . SSx + Dff) + ck Kff
+// with (cm, cc, ck) of the matrix in Ax (m->mcoef) and w of the body's last block evaluation
+// (b->wB), written into Ax at its positions: the entries mbs_body_eval leaves out without ff,
+// with the same operations in the same order (the same bits as mbs_body_eval with ff)
+void mbs_body_ff(fmbd_mbs *m, int ib) {
+  const mbody *b = &m->b[ib];
+  const int nm = b->nm, n = b->n;
+  const double cm = m->mcoef[0], cc = m->mcoef[1], ck = m->mcoef[2], *w = b->wB;
+  const int64_t *pos = m->bpos[ib];
+  for (int l = 0; l < nm; l++) {
+    for (int k = 0; k < nm; k++) {
+      const size_t e = k + (size_t)nm * l;
+      double cb = 0;
+      if (cc != 0) cb = 2 * dot3(w, b->SSx + 3 * l + 3 * (size_t)nm * k) + b->Dff[e];
+      double z = cm * b->Mff[e] + cc * cb;
+      if (ck != 0) z += ck * b->Kff[e];
+      m->Ax[pos[(7 + k) + (size_t)n * (7 + l)]] = z;
+    }
+  }
 }

@@ -153,12 +153,14 @@ typedef struct mbody {
   double *q0, *qd0;
   // --- evaluation workspace (filled by mbs_body_eval) ---
   double A[9], G[12], pn, wb[3], c[3], J[9], I[9];
-  double *P;         // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
-  double *Hk;        // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
-  double *Mwf;       // 3 x nm
-  double *cor;       // 3 x nm: sum_l q'_l int rho S_l x S_k
-  bool kdiag;        // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
-  mbs_fe *fe;        // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
+  double *P;     // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
+  double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
+  double *Mwf;   // 3 x nm
+  double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
+  bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
+  double wB[3];  // wb at the last block evaluation (mbs_body_eval with B; mbs_body_ff)
+  bool elim;     // modal block eliminated (fmbd_mbs_schur.c): mbs_eval_system leaves it out of Ax
+  mbs_fe *fe;    // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
   double spin_lam;   // lowest elastic eigenvalue held as its joints hold it (fmbd_mbs_spin.c)
   bool spin_warned;  // mbs_spin_check warned
   bool rate_warned;  // mbs_spin_check warned of h Omega > 1 - rho_inf
@@ -345,9 +347,12 @@ void mbs_spin_check(fmbd_mbs *m);
 bool mbs_constraints_singular(fmbd_mbs *m, double tol, double *smin, char *buf, size_t len);
 // fmbd_mbs_body.c: the residual r (n = 7 + nm) of body ib at (xg, xdg, xddg; xddg may be
 // NULL: zero accelerations) and optionally its block B = cm M + cc C + ck K (n x n, column
-// major); see the comment at the definition
+// major; without ff its modal-modal part is left out); see the comment at the definition
 void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double *xdg,
-                   const double *xddg, double *r, double *B, double cm, double cc, double ck);
+                   const double *xddg, double *r, double *B, double cm, double cc, double ck,
+                   bool ff);
+// the modal-modal part of body ib's block written into Ax (after mbs_body_eval without ff)
+void mbs_body_ff(fmbd_mbs *m, int ib);
 // parts shared by modal and FE bodies (fmbd_mbs_body.c; see there)
 void mbs_frame_kin(mbody *b, const double *p, const double *pd, const double *pdd, double *w,
                    double *wd);
@@ -378,6 +383,9 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
 int mbs_build_pattern(fmbd_mbs *m);
 int mbs_factor(fmbd_mbs *m);
 int mbs_solve(fmbd_mbs *m, double *rhs);
+// the eliminated bodies' modal blocks (b->elim), which mbs_eval_system leaves out of Ax, written
+// into it (for the whole matrix's KLU and other readers of Ax's body blocks)
+void mbs_fill_modal_blocks(fmbd_mbs *m);
 // fmbd_mbs_schur.c: the iteration matrix with the modal coordinates of the modal bodies
 // eliminated (Schur complement on their constant blocks cm Mff + cc Dff + ck Kff; see there).
 // Chosen at mbs_build_pattern for the bodies with at least SCHUR_NM_MIN modes (environment
@@ -385,6 +393,8 @@ int mbs_solve(fmbd_mbs *m, double *rhs);
 // when set, and the whole matrix's KLU when its factorisation fails (not positive definite,
 // singular S: the messages name the unknown as before).
 int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai);
+// Ax zeroed except the eliminated modal blocks (which mbs_eval_system does not write)
+void mbs_schur_clear(fmbd_mbs *m);
 int mbs_schur_factor(fmbd_mbs *m);
 int mbs_schur_solve(fmbd_mbs *m, double *rhs);
 bool mbs_schur_active(const fmbd_mbs *m);

@@ -829,6 +829,7 @@ static int init_velocities(fmbd_mbs *m) {
   int rc = FMBD_OK;
   const int64_t neq = m->neq;
   mbs_eval_system(m, m->t, NULL, true, 1, 0, 0, false);
+  mbs_fill_modal_blocks(m);  // the body blocks of Ax are read below
   FMBD_GCALL(mbs_factor(m));
   {
     memset(m->rhs, 0, sizeof(double) * (size_t)m->N);

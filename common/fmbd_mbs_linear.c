@@ -103,7 +103,8 @@ int fmbd_mbs_linearise(fmbd_mbs *m, double t, const double *x, const double *xd,
         mbs_fe_eval(m, ib, t, m->x, m->xd, NULL, m->bres, blk[k][ib], k == 0, k == 1, k == 2);
       } else {
         FMBD_GALLOC(blk[k][ib] = fmbd_calloc((size_t)b->n * b->n, sizeof(double)));
-        mbs_body_eval(m, ib, t, m->x, m->xd, NULL, m->bres, blk[k][ib], k == 0, k == 1, k == 2);
+        mbs_body_eval(m, ib, t, m->x, m->xd, NULL, m->bres, blk[k][ib], k == 0, k == 1, k == 2,
+                      true);
       }
       if (k == 0) {  // Q = -(residual at zero accelerations)
         for (int i = 0; i < b->n; i++) L->Q[b->off + i] = -m->bres[i];

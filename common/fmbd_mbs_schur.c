@@ -59,6 +59,7 @@ struct mbs_schur {
   int64_t *gidx;       // nR: global unknown of each S index
   int64_t *rrA, *rrS;  // the R x R entries: Ax position, Sx position
   double *Sx, *r;
+  int64_t nz0, *z0;  // the runs [z0[2i], z0[2i + 1]) of Ax outside the eliminated modal blocks
   fmbd_klu *klu;
   bool active;  // the current factor is this one (else the whole matrix's, fmbd_mbs_system.c)
 };
@@ -72,7 +73,7 @@ void mbs_schur_free(mbs_schur **sp) {
     fmbd_free(b->W), fmbd_free(b->V), fmbd_free(b->VW), fmbd_free(b->y), fmbd_free(b->t);
   }
   fmbd_free(s->sb), fmbd_free(s->gidx), fmbd_free(s->rrA), fmbd_free(s->rrS);
-  fmbd_free(s->Sx), fmbd_free(s->r);
+  fmbd_free(s->Sx), fmbd_free(s->r), fmbd_free(s->z0);
   fmbd_klu_destroy(&s->klu);
   fmbd_free(s);
   *sp = NULL;
@@ -249,6 +250,25 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
   FMBD_GALLOC(s->Sx = fmbd_malloc(sizeof(double) * (size_t)(nu ? nu : 1)));
   FMBD_GALLOC(s->r = fmbd_malloc(sizeof(double) * (size_t)(s->nR ? s->nR : 1)));
   FMBD_GCALL(fmbd_klu_analyze(s->nR, SAp, SAi, &s->klu));
+  {  // the modal-modal blocks are not formed in Ax (mbs_eval_system, b->elim): the runs of
+     // the other entries, zeroed before each evaluation (mbs_schur_clear)
+    fmbd_free(mark);
+    FMBD_GALLOC(mark = fmbd_calloc((size_t)(m->nnz ? m->nnz : 1), sizeof(int64_t)));
+    for (int k = 0; k < s->nsb; k++) {
+      const mbody *b = &m->b[s->sb[k].ib];
+      for (int j = 7; j < b->n; j++) {
+        for (int i = 7; i < b->n; i++) mark[m->bpos[s->sb[k].ib][i + (int64_t)b->n * j]] = 1;
+      }
+    }
+    int64_t nz = 0;
+    for (int64_t e = 0; e < m->nnz; e++) nz += !mark[e] && (e == 0 || mark[e - 1]);
+    FMBD_GALLOC(s->z0 = fmbd_malloc(sizeof(int64_t) * 2 * (size_t)(nz ? nz : 1)));
+    for (int64_t e = 0; e < m->nnz; e++) {
+      if (!mark[e] && (e == 0 || mark[e - 1])) s->z0[2 * s->nz0] = e;
+      if (!mark[e] && (e == m->nnz - 1 || mark[e + 1])) s->z0[2 * s->nz0++ + 1] = e + 1;
+    }
+  }
+  for (int k = 0; k < s->nsb; k++) m->b[s->sb[k].ib].elim = true;
   {
     int64_t nf = 0;
     for (int k = 0; k < s->nsb; k++) nf += s->sb[k].nm;
@@ -264,6 +284,12 @@ done:
   fmbd_free(owner), fmbd_free(rmap), fmbd_free(mark), fmbd_free(keys), fmbd_free(SAp),
       fmbd_free(SAi);
   return rc;
+}
+
+void mbs_schur_clear(fmbd_mbs *m) {
+  const mbs_schur *s = m->sc;
+  for (int64_t e = 0; e < s->nz0; e++)
+    memset(m->Ax + s->z0[2 * e], 0, sizeof(double) * (size_t)(s->z0[2 * e + 1] - s->z0[2 * e]));
 }
 
 bool mbs_schur_active(const fmbd_mbs *m) {

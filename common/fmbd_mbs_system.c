@@ -63,7 +63,10 @@ static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len
 void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
                      double ck, bool add_lam) {
   if (matrix) {
-    memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
+    if (m->sc)
+      mbs_schur_clear(m);
+    else
+      memset(m->Ax, 0, sizeof(double) * (size_t)m->nnz);
     m->mcoef[0] = cm, m->mcoef[1] = cc, m->mcoef[2] = ck;
   }
   for (int ib = 0; ib < m->nb; ib++) {  // shared sets' elastic rows are sums: zeroed first
@@ -73,7 +76,7 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
   for (int ib = 0; ib < m->nb; ib++) {
     mbody *b = &m->b[ib];
     if (b->share >= 0) {  // shared elastic coordinates: residual rows added into the set's
-      mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->bres, matrix ? m->bblk : NULL, cm, cc, ck);
+      mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->bres, matrix ? m->bblk : NULL, cm, cc, ck, true);
       memcpy(m->res + b->off, m->bres, sizeof(double) * 7);
       for (int k = 0; k < b->nm; k++) m->res[b->qoff + k] += m->bres[7 + k];
       if (matrix) {
@@ -86,10 +89,15 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
       mbs_fe_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->Ax : NULL, cm, cc, ck);
       continue;
     }
-    mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->bblk : NULL, cm, cc, ck);
-    if (matrix) {
+    mbs_body_eval(m, ib, t, m->x, m->xd, xdd, m->res + b->off, matrix ? m->bblk : NULL, cm, cc, ck,
+                  !b->elim);
+    if (matrix) {  // an eliminated body: its modal-modal block is not formed (mbs_body_ff)
       const int64_t *pos = m->bpos[ib];
-      for (int i = 0; i < b->n * b->n; i++) m->Ax[pos[i]] += m->bblk[i];
+      const int n = b->n;
+      for (int j = 0; j < n; j++) {
+        const int ni = b->elim && j >= 7 ? 7 : n;
+        for (int i = 0; i < ni; i++) m->Ax[pos[i + n * j]] += m->bblk[i + n * j];
+      }
     }
   }
   mbs_eval_constraints(m, m->x, t, true);
@@ -209,6 +217,12 @@ done:
   return rc;
 }
 
+void mbs_fill_modal_blocks(fmbd_mbs *m) {
+  for (int ib = 0; ib < m->nb; ib++) {
+    if (m->b[ib].elim) mbs_body_ff(m, ib);
+  }
+}
+
 // numeric factorisation of Ax (fmbd_klu: a refactor with the old pivoting when possible); a
 // singular matrix is reported with the coordinate or equation of KLU's zero pivot
 int mbs_factor(fmbd_mbs *m) {
@@ -220,6 +234,7 @@ int mbs_factor(fmbd_mbs *m) {
     }
     if (rs == FMBD_ERR_NOMEM) return rs;
     fmbd_err_clear();
+    mbs_fill_modal_blocks(m);  // the whole matrix needs the blocks the evaluation left out
   }
   int rc = fmbd_klu_factor(m->klu, m->Ax);
   if (rc == FMBD_ERR_SINGULAR) {

@@ -157,14 +157,14 @@ int main(void) {
     mbody *b = &m->b[ib];
     int nb = b->n;
     for (int which = 0; which < 2; which++) {
-      mbs_body_eval(m, ib, 0.3, x, xd, xdd, r0, B, which == 0 ? 1 : 0, which == 1 ? 1 : 0, 0);
+      mbs_body_eval(m, ib, 0.3, x, xd, xdd, r0, B, which == 0 ? 1 : 0, which == 1 ? 1 : 0, 0, true);
       double *v = which == 0 ? xdd : xd;
       for (int j = 0; j < nb; j++) {
         double h = 1e-6, keep = v[b->off + j];
         v[b->off + j] = keep + h;
-        mbs_body_eval(m, ib, 0.3, x, xd, xdd, r1 + b->off, NULL, 0, 0, 0);
+        mbs_body_eval(m, ib, 0.3, x, xd, xdd, r1 + b->off, NULL, 0, 0, 0, true);
         v[b->off + j] = keep - h;
-        mbs_body_eval(m, ib, 0.3, x, xd, xdd, r0 + b->off, NULL, 0, 0, 0);
+        mbs_body_eval(m, ib, 0.3, x, xd, xdd, r0 + b->off, NULL, 0, 0, 0, true);
         v[b->off + j] = keep;
         for (int i = 0; i < nb; i++) Bfd[i + nb * j] = (r1[b->off + i] - r0[b->off + i]) / (2 * h);
       }

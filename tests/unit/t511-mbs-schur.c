@@ -9,7 +9,10 @@
 // Schur path (forced by FMBD_MBS_SCHUR=1) solves it with each modal block replaced by its
 // constant part cm Mff + cc Dff + ck Kff. Reference: KLU on the whole matrix with the same
 // replacement. Also: the whole matrix with the gyroscopic part kept gives a solution that
-// differs by far more than the tolerance (the check can tell the two matrices apart).
+// differs by far more than the tolerance (the check can tell the two matrices apart); the
+// modal blocks the Schur path leaves out of the evaluation, formed apart, equal the whole
+// evaluation's bit for bit; and when the elimination fails (C not positive definite) the
+// whole matrix's KLU gets those blocks.
 #include <float.h>
 #include <math.h>
 #include <stdio.h>
@@ -144,6 +147,38 @@ int main(void) {
   // raised so that ck Kff matters against Mff
   const double cm = 1, cc = 2e-3, ck = 1e-4;
   mbs_eval_system(m, m->t, m->xdd, true, cm, cc, ck, true);
+  // the evaluation leaves the eliminated modal blocks out of Ax; mbs_fill_modal_blocks writes
+  // them (as for the whole matrix's KLU when the elimination fails). Together they must give
+  // the whole block of mbs_body_eval with ff bit for bit (the same operations in the same
+  // order: no tolerance), and the blocks left out must be there in the first place
+  int nel = 0;
+  int64_t nbad = 0, nnan = 0;
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *bd = &m->b[ib];
+    if (!bd->elim) continue;
+    nel++;
+    for (int j = 7; j < bd->n; j++) {  // poison the modal block: filled below or caught
+      for (int i = 7; i < bd->n; i++) m->Ax[m->bpos[ib][i + bd->n * j]] = NAN;
+    }
+  }
+  mbs_fill_modal_blocks(m);
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *bd = &m->b[ib];
+    if (!bd->elim) continue;
+    double *B = fmbd_malloc(sizeof(double) * (size_t)(bd->n * bd->n));
+    double *rr = fmbd_malloc(sizeof(double) * (size_t)bd->n);
+    mbs_body_eval(m, ib, m->t, m->x, m->xd, m->xdd, rr, B, cm, cc, ck, true);
+    for (int e = 0; e < bd->n * bd->n; e++) {
+      double v = m->Ax[m->bpos[ib][e]];
+      nnan += isnan(v);
+      nbad += v != B[e];
+    }
+    fmbd_free(B), fmbd_free(rr);
+  }
+  EXPECT(nel == 2 && nbad == 0 && nnan == 0,
+         "modal blocks formed apart: %d bodies eliminated (2 expected), %lld entries differ from "
+         "the whole evaluation (%lld not written)",
+         nel, (long long)nbad, (long long)nnan);
   const int64_t N = m->N, nnz = m->nnz;
   double *b = fmbd_malloc(sizeof(double) * (size_t)N),
          *xs = fmbd_malloc(sizeof(double) * (size_t)N);
@@ -198,6 +233,35 @@ int main(void) {
       "t511: N %lld, S order %lld; Schur vs KLU %.2e (scale %.2e, tol %.2e); gyroscopic part %.2e "
       "moves it by %.2e\n",
       (long long)N, (long long)(N - 2 * NM), d, sc, tol * sc, gyr, de);
+  // the fallback: with C not positive definite (cm = -1, cc = ck = 0: C = -Mff) the
+  // elimination fails and mbs_factor factors the whole matrix with KLU; the modal blocks the
+  // evaluation left out (poisoned with NaN here) must be written first. Reference: KLU on the
+  // same whole matrix formed apart (mbs_fill_modal_blocks): the same matrix, the same solver,
+  // so the same bits (no tolerance)
+  mbs_eval_system(m, m->t, m->xdd, true, -1, 0, 0, true);
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *bd = &m->b[ib];
+    for (int j = 7; bd->elim && j < bd->n; j++) {
+      for (int i = 7; i < bd->n; i++) m->Ax[m->bpos[ib][i + bd->n * j]] = NAN;
+    }
+  }
+  memcpy(xs, b, sizeof(double) * (size_t)N);
+  rc = mbs_factor(m);
+  EXPECT(rc == 0 && !mbs_schur_active(m), "fallback to the whole matrix: rc %d, %s", rc,
+         fmbd_err_get()->msg);
+  rc = rc ? rc : mbs_solve(m, xs);
+  mbs_eval_system(m, m->t, m->xdd, true, -1, 0, 0, true);
+  mbs_fill_modal_blocks(m);
+  memcpy(Ac, m->Ax, sizeof(double) * (size_t)nnz);
+  memcpy(xk, b, sizeof(double) * (size_t)N);
+  rc = rc ? rc : fmbd_klu_factor(m->klu, Ac);
+  rc = rc ? rc : fmbd_klu_solve(m->klu, xk);
+  int64_t ndiff = 0;
+  for (int64_t i = 0; i < N; i++) ndiff += !(xs[i] == xk[i]);
+  EXPECT(rc == 0 && ndiff == 0,
+         "fallback solve: %lld of %lld entries differ from KLU on the "
+         "whole matrix (rc %d)",
+         (long long)ndiff, (long long)N, rc);
   // the solution also continues: the remaining steps through the Schur path (fresh matrix)
   m->need_factor = true;
   for (int k = 0; k < 5 && rc == 0; k++) rc = fmbd_mbs_step(m, NULL);
