@@ -94,16 +94,8 @@ static int key_cmp(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 static int64_t key_find(const int64_t *keys, int64_t n, int64_t key) {
-  int64_t lo = 0, hi = n - 1;
-  while (lo <= hi) {
-    int64_t mid = lo + (hi - lo) / 2;
-    if (keys[mid] == key) return mid;
-    if (keys[mid] < key)
-      lo = mid + 1;
-    else
-      hi = mid - 1;
-  }
-  return -1;
+  const int64_t *f = bsearch(&key, keys, (size_t)n, sizeof key, key_cmp);
+  return f ? f - keys : -1;
 }
 
 int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
@@ -203,8 +195,8 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
     for (int64_t p = Ap[j]; p < Ap[j + 1]; p++) {
       int64_t i = Ai[p];
       if (owner[i] >= 0 || owner[j] >= 0) continue;
-      s->rrA[nr++] = p;
-      keys[nk++] = rmap[j] * s->nR + rmap[i];
+      s->rrA[nr] = p;
+      s->rrS[nr++] = keys[nk++] = rmap[j] * s->nR + rmap[i];  // its key until sorted
     }
   }
   for (int k = 0; k < s->nsb; k++) {
@@ -226,20 +218,7 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
     SAp[keys[e] / s->nR + 1]++;
   }
   for (int64_t c = 0; c < s->nR; c++) SAp[c + 1] += SAp[c];
-  for (int64_t e = 0; e < nr; e++) {
-    const int64_t p = s->rrA[e];
-    int64_t j = 0;  // the column of Ax entry p (Ap is sorted: binary search)
-    int64_t lo = 0, hi = N - 1;
-    while (lo < hi) {
-      int64_t mid = (lo + hi + 1) / 2;
-      if (Ap[mid] <= p)
-        lo = mid;
-      else
-        hi = mid - 1;
-    }
-    j = lo;
-    s->rrS[e] = key_find(keys, nu, rmap[j] * s->nR + rmap[Ai[p]]);
-  }
+  for (int64_t e = 0; e < nr; e++) s->rrS[e] = key_find(keys, nu, s->rrS[e]);
   for (int k = 0; k < s->nsb; k++) {
     sbody *sb = &s->sb[k];
     for (int b = 0; b < sb->nc; b++) {

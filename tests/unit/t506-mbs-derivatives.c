@@ -29,59 +29,7 @@
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
-
-static double urand(unsigned *s) {
-  *s = *s * 1103515245u + 12345u;
-  return ((*s >> 8) & 0xffff) / 65535.0 - 0.5;
-}
-
-// a flexible body with invariants of nm random modes over a cloud of point masses
-static int add_random_flex(fmbd_mbs *m, const char *name, int nm, unsigned seed, const double *pos,
-                           int *id) {
-  enum { NP = 12 };
-  double X[3 * NP], Ph[3 * NP * 8], mass = 0, c[3] = {0}, J[9] = {0};
-  double S1[3 * 8] = {0}, XS[9 * 8] = {0}, SS[9 * 8 * 8] = {0}, Mff[64] = {0}, Kff[64] = {0};
-  for (int i = 0; i < 3 * NP; i++) X[i] = 0.4 * urand(&seed) + (i % 3 == 0 ? 0.2 : 0);
-  for (int i = 0; i < 3 * NP * nm; i++) Ph[i] = urand(&seed);
-  const double mi = 0.3;
-  for (int p = 0; p < NP; p++) {
-    const double *x = X + 3 * p;
-    mass += mi;
-    for (int a = 0; a < 3; a++) {
-      c[a] += mi * x[a];
-      for (int b = 0; b < 3; b++) J[a + 3 * b] += mi * x[a] * x[b];
-    }
-    for (int k = 0; k < nm; k++) {
-      const double *pk = Ph + 3 * NP * k + 3 * p;
-      for (int a = 0; a < 3; a++) {
-        S1[a + 3 * k] += mi * pk[a];
-        for (int b = 0; b < 3; b++) XS[a + 3 * b + 9 * k] += mi * x[a] * pk[b];
-      }
-      for (int l = 0; l < nm; l++) {
-        const double *pl = Ph + 3 * NP * l + 3 * p;
-        for (int a = 0; a < 3; a++)
-          for (int b = 0; b < 3; b++) SS[a + 3 * b + 9 * k + 9 * nm * l] += mi * pk[a] * pl[b];
-        Mff[k + nm * l] += mi * (pk[0] * pl[0] + pk[1] * pl[1] + pk[2] * pl[2]);
-      }
-    }
-  }
-  for (int k = 0; k < nm; k++) Kff[k + nm * k] = 100 * (k + 1);
-  fmbd_mbs_flex_data d = {.nm = nm,
-                          .mass = mass,
-                          .S1 = S1,
-                          .XS = XS,
-                          .SS = SS,
-                          .Mff = Mff,
-                          .Kff = Kff,
-                          .damping_ratio = 0.02};
-  memcpy(d.first_moment, c, sizeof c);
-  memcpy(d.second_moment, J, sizeof J);
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  double ax[3] = {0.3, -0.5, 0.8};
-  fmbd_mbs_rotation_axis_angle(ax, 0.7 + seed % 7, s0.rotation);
-  memcpy(s0.position, pos, 3 * sizeof(double));
-  return fmbd_mbs_add_flex(m, name, &d, &s0, id);
-}
+#include "t5_flex.h"
 
 static double maxabs(const double *a, int n) {
   double v = 0;
@@ -97,8 +45,8 @@ int main(void) {
   int rc = fmbd_mbs_create(&m);
   int b0, b1;
   double pos0[3] = {0, 0, 0}, pos1[3] = {0.5, 0.1, -0.1};
-  rc = rc ? rc : add_random_flex(m, "f0", nm, 11, pos0, &b0);
-  rc = rc ? rc : add_random_flex(m, "f1", nm, 23, pos1, &b1);
+  rc = rc ? rc : add_random_flex(m, "f0", nm, 11, pos0, 100, 0, NULL, &b0);
+  rc = rc ? rc : add_random_flex(m, "f1", nm, 23, pos1, 100, 0, NULL, &b1);
   // one attachment point per body with modal translation and rotation, and joints of every kind
   double T[3 * 8], R[3 * 8];
   int pa, pb;

@@ -24,66 +24,9 @@
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
+#include "t5_flex.h"
 
-enum { NM = 8, NP = 12 };
-
-static double urand(unsigned *s) {
-  *s = *s * 1103515245u + 12345u;
-  return ((*s >> 8) & 0xffff) / 65535.0 - 0.5;
-}
-
-// a flexible body with the invariants of NM random modes over a cloud of point masses;
-// Arot: its initial rotation (row-major)
-static int add_random_flex(fmbd_mbs *m, const char *name, unsigned seed, const double *pos,
-                           double *Arot, int *id) {
-  static double X[3 * NP], Ph[3 * NP * NM], S1[3 * NM], XS[9 * NM], SS[9 * NM * NM], Mff[NM * NM],
-      Kff[NM * NM];
-  double mass = 0, c[3] = {0}, J[9] = {0};
-  memset(S1, 0, sizeof S1), memset(XS, 0, sizeof XS), memset(SS, 0, sizeof SS);
-  memset(Mff, 0, sizeof Mff), memset(Kff, 0, sizeof Kff);
-  for (int i = 0; i < 3 * NP; i++) X[i] = 0.4 * urand(&seed) + (i % 3 == 0 ? 0.2 : 0);
-  for (int i = 0; i < 3 * NP * NM; i++) Ph[i] = urand(&seed);
-  const double mi = 0.3;
-  for (int p = 0; p < NP; p++) {
-    const double *x = X + 3 * p;
-    mass += mi;
-    for (int a = 0; a < 3; a++) {
-      c[a] += mi * x[a];
-      for (int b = 0; b < 3; b++) J[a + 3 * b] += mi * x[a] * x[b];
-    }
-    for (int k = 0; k < NM; k++) {
-      const double *pk = Ph + 3 * NP * k + 3 * p;
-      for (int a = 0; a < 3; a++) {
-        S1[a + 3 * k] += mi * pk[a];
-        for (int b = 0; b < 3; b++) XS[a + 3 * b + 9 * k] += mi * x[a] * pk[b];
-      }
-      for (int l = 0; l < NM; l++) {
-        const double *pl = Ph + 3 * NP * l + 3 * p;
-        for (int a = 0; a < 3; a++)
-          for (int b = 0; b < 3; b++) SS[a + 3 * b + 9 * k + 9 * NM * l] += mi * pk[a] * pl[b];
-        Mff[k + NM * l] += mi * (pk[0] * pl[0] + pk[1] * pl[1] + pk[2] * pl[2]);
-      }
-    }
-  }
-  for (int k = 0; k < NM; k++) Kff[k + NM * k] = 2e3 * (k + 1);
-  fmbd_mbs_flex_data d = {.nm = NM,
-                          .mass = mass,
-                          .S1 = S1,
-                          .XS = XS,
-                          .SS = SS,
-                          .Mff = Mff,
-                          .Kff = Kff,
-                          .damping_ratio = 0.02};
-  memcpy(d.first_moment, c, sizeof c);
-  memcpy(d.second_moment, J, sizeof J);
-  fmbd_mbs_state0 s0 = fmbd_mbs_state0_default();
-  double ax[3] = {0.3, -0.5, 0.8};
-  fmbd_mbs_rotation_axis_angle(ax, 0.7 + seed % 7, s0.rotation);
-  memcpy(Arot, s0.rotation, 9 * sizeof(double));
-  memcpy(s0.position, pos, 3 * sizeof(double));
-  for (int a = 0; a < 3; a++) s0.angular_velocity[a] = 3 * urand(&seed);
-  return fmbd_mbs_add_flex(m, name, &d, &s0, id);
-}
+enum { NM = T5_NM_MAX };
 
 // a point on body b at local x0 with random modal translation and rotation; world: its
 // initial world position
@@ -110,12 +53,12 @@ int main(void) {
   int rc = fmbd_mbs_create(&m);
   int b0, b1, pa, pb, pc, pd, g0, g1, jid;
   double A0[9], A1[9], pos0[3] = {0, 0, 0}, pos1[3] = {0, 0, 0}, wa[3], wb[3], wc[3], wd[3];
-  rc = rc ? rc : add_random_flex(m, "f0", 11, pos0, A0, &b0);
+  rc = rc ? rc : add_random_flex(m, "f0", NM, 11, pos0, 2e3, 3, A0, &b0);
   double xa[3] = {-0.05, 0.02, 0.01}, xb[3] = {0.45, -0.03, 0.02};
   rc = rc ? rc : add_point(m, b0, xa, A0, pos0, &seed, wa, &pa);
   rc = rc ? rc : add_point(m, b0, xb, A0, pos0, &seed, wb, &pb);
   // f1 placed so that its point c sits on f0's point b
-  rc = rc ? rc : add_random_flex(m, "f1", 23, pos1, A1, &b1);
+  rc = rc ? rc : add_random_flex(m, "f1", NM, 23, pos1, 2e3, 3, A1, &b1);
   double xc[3] = {-0.02, 0.04, -0.03}, xd[3] = {0.41, 0.05, 0.0};
   for (int a = 0; a < 3; a++)
     pos1[a] = wb[a] - (A1[3 * a] * xc[0] + A1[3 * a + 1] * xc[1] + A1[3 * a + 2] * xc[2]);
