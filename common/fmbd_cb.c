@@ -282,6 +282,16 @@ static void share_pattern(const fmbd_csr *Ks, fmbd_csr *Ms) {
   Ms->indices = Ks->indices;
 }
 
+// Ks and Ms as lower triangles (fmbd_csr_keep_lower): half their memory, alive beside the
+// factor through the whole reduction (bench/README.md "fe2cb's memory"); the products and the
+// factorisations read them as the full matrices
+static int keep_lower(fmbd_csr *Ks, fmbd_csr *Ms) {
+  bool shared = Ms->indices == Ks->indices;
+  FMBD_CALL(fmbd_csr_keep_lower(Ks, shared ? Ms : NULL));
+  if (!shared) FMBD_CALL(fmbd_csr_keep_lower(Ms, NULL));
+  return FMBD_OK;
+}
+
 // destroy *Ms (before Ks), leaving index arrays it shares with Ks to Ks
 static void release_ms(fmbd_csr **Ms, const fmbd_csr *Ks) {
   if (*Ms && Ks && (*Ms)->indices == Ks->indices) (*Ms)->indptr = (*Ms)->indices = NULL;
@@ -608,6 +618,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
   FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
   share_pattern(Ks, Ms);
+  FMBD_GCALL(keep_lower(Ks, Ms));
   FMBD_GCALL(sub(K, ns, cb->interior, nb, cb->boundary, &Kc));
   FMBD_GCALL(sub(M, ns, cb->interior, nb, cb->boundary, &Mc));
   FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
@@ -666,6 +677,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
     }
+    mem_log("after the Lanczos run");
     if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb));
     mem_log("after the constraint modes and projections");
     if (o.eig.sturm && !er.dense) {
@@ -788,6 +800,7 @@ int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd
   FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
   FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
   share_pattern(Ks, Ms);
+  FMBD_GCALL(keep_lower(Ks, Ms));
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, NULL, cb->nb));

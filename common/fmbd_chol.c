@@ -315,6 +315,45 @@ static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *
   return -1;
 }
 
+// P (A - sigma B) P' put into the zeroed factor before the supernodal loop, for a matrix stored
+// as its lower triangle (fmbd_csr_keep_lower: a full row, which the loop reads per column, is
+// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices, found
+// in the ascending row list of its column's supernode (the order the loop's descendant
+// updates rely on too). The same sums (0 + a - sigma b) as the loop's assembly; the values
+// come from the lower triangle instead of the column's own row.
+static int ldl_prefill(fmbd_chol *F, double sigma) {
+  cholmod_factor *L = F->L;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const fmbd_csr *mat[2] = {F->A, sigma != 0.0 ? F->B : NULL};
+  memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  for (int m = 0; m < 2; m++) {
+    const fmbd_csr *A = mat[m];
+    if (!A) continue;
+    for (int64_t j = 0; j < F->n; j++) {
+      for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
+        int64_t a = F->iperm[A->indices[p]], b = F->iperm[j];
+        int64_t c = a < b ? a : b, r = a < b ? b : a, sn = F->col2super[c];
+        int64_t lo = pi[sn], hi = pi[sn + 1] - 1;
+        while (lo < hi) {
+          int64_t mid = lo + (hi - lo) / 2;
+          if (Ls[mid] < r)
+            lo = mid + 1;
+          else
+            hi = mid;
+        }
+        FMBD_CHECK(Ls[lo] == r, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the LDL' pattern",
+                   (long long)r, (long long)c);
+        double *x = F->Lx + px[sn] + (c - super[sn]) * (pi[sn + 1] - pi[sn]) + (lo - pi[sn]);
+        if (m == 0)
+          *x += A->data[p];
+        else
+          *x -= sigma * A->data[p];
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
 static int super_ldl_factor(fmbd_chol *F, double sigma) {
   cholmod_factor *L = F->L;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s, *perm = L->Perm;
@@ -323,15 +362,17 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   int64_t *map = F->map, *head = F->head, *next = F->next, *lpos = F->lpos, *c2s = F->col2super;
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
+  bool prefill = A->lower || (B && B->lower);
+  if (prefill) FMBD_CALL(ldl_prefill(F, sigma));
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
     int64_t psi = pi[s], nsrow = pi[s + 1] - psi, psx = px[s];
     double *Lsx = Lx + psx;
     for (int64_t i = 0; i < nsrow; i++) map[Ls[psi + i]] = i;
-    memset(Lsx, 0, (size_t)(nsrow * nscol) * sizeof(double));
+    if (!prefill) memset(Lsx, 0, (size_t)(nsrow * nscol) * sizeof(double));
     // --- assemble columns k1..k2-1 of P (A - sigma B) P' (rows >= k) ---
-    for (int64_t k = k1; k < k2; k++) {
+    for (int64_t k = k1; k < k2 && !prefill; k++) {
       int64_t j = perm ? perm[k] : k;
       double *col = Lsx + (k - k1) * nsrow;
       for (int64_t p = A->indptr[j]; p < A->indptr[j + 1]; p++) {
