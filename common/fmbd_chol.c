@@ -5,6 +5,9 @@
 #include <cblas.h>
 #include <cholmod.h>
 #include <dlfcn.h>
+#ifdef __GLIBC__
+#include <malloc.h>  // malloc_trim
+#endif
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -519,6 +522,12 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
     cholmod_l_free_sparse(&F->S, &F->c);
     cholmod_l_free_work(&F->c);
   }
+#ifdef __GLIBC__
+  // the analysis's transient blocks (METIS's graph, CHOLMOD's copies of the pattern) are freed
+  // but stay resident in glibc's heap, which the numeric factor (mmap) does not reuse: give
+  // them back first (51 k dofs: 149 -> 74 MB resident, the LL' peak 326 -> 287 MB)
+  malloc_trim(0);
+#endif
   if (kind == FMBD_CHOL_LDLT) FMBD_GCALL(super_ldl_setup(F));
   if (kind == FMBD_CHOL_LLT) {
     FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(int64_t)));
@@ -588,6 +597,9 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
     double beta[2] = {0.0, 0.0};
     ok = cholmod_l_super_numeric(T, NULL, beta, F->L, &F->c);
     cholmod_l_free_sparse(&T, &F->c);
+#ifdef __GLIBC__
+    malloc_trim(0);  // T and CHOLMOD's update workspace, freed, back to the system
+#endif
   } else {
     fill_values(F, sigma);
     ok = cholmod_l_factorize(F->S, F->L, &F->c);
