@@ -603,7 +603,10 @@ static int csr_to_dense(const fmbd_csr *A, double *D) {
   int64_t n = A->nrows;
   memset(D, 0, (size_t)n * (size_t)n * sizeof(double));
   for (int64_t i = 0; i < n; i++) {
-    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) D[i + A->indices[p] * n] = A->data[p];
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      D[i + A->indices[p] * n] = A->data[p];
+      if (A->lower) D[A->indices[p] + i * n] = A->data[p];  // fmbd_csr_keep_lower storage
+    }
   }
   return FMBD_OK;
 }
