@@ -331,7 +331,7 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);
-    // partial inertia coupling (docs/THEORY.md section 4): the second-order invariant SS (and
+    // partial inertia coupling (docs/THEORY.md section 4c): the second-order invariant SS (and
     // SSx, formed from it below) zero, so every term built from them (the equations, their
     // derivatives, the kinetic energy of fmbd_mbs_energy) is that of the partial model
     b->partial = d->partial_coupling;

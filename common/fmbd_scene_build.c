@@ -695,7 +695,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   if (b->inertia_partial) {
     fmbd_log(FMBD_LOG_INFO,
              "body '%s': partial inertia coupling (the invariants of second order in the modes, "
-             "SS and SSx, taken as zero; docs/THEORY.md section 4)",
+             "SS and SSx, taken as zero; docs/THEORY.md section 4c)",
              b->name);
   }
 done:

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # tests/py/test_fmbd_run_inertia.py: the scene key `inertia_coupling` of a modal body (full or
-# partial: docs/SCENE.md, docs/THEORY.md section 4) through fmbd-run. The physics of the partial
+# partial: docs/SCENE.md, docs/THEORY.md section 4c) through fmbd-run. The physics of the partial
 # model (its own energy conserved, its distance from the full model bounded) is checked in
 # tests/unit/t512-mbs-modal-inertia.c; here the key's way from the scene to the body:
 #  1. a flexible beam pendulum (fegen beam, fe2cb --modes 10) swinging under gravity, 0.3 s at
