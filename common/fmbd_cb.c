@@ -282,6 +282,16 @@ static void share_pattern(const fmbd_csr *Ks, fmbd_csr *Ms) {
   Ms->indices = Ks->indices;
 }
 
+// Ks and Ms as lower triangles (fmbd_csr_keep_lower): half their memory, alive beside the
+// factor through the whole reduction (bench/README.md "fe2cb's memory"); the products and the
+// factorisations read them as the full matrices
+static int keep_lower(fmbd_csr *Ks, fmbd_csr *Ms) {
+  bool shared = Ms->indices == Ks->indices;
+  FMBD_CALL(fmbd_csr_keep_lower(Ks, shared ? Ms : NULL));
+  if (!shared) FMBD_CALL(fmbd_csr_keep_lower(Ms, NULL));
+  return FMBD_OK;
+}
+
 // destroy *Ms (before Ks), leaving index arrays it shares with Ks to Ks
 static void release_ms(fmbd_csr **Ms, const fmbd_csr *Ks) {
   if (*Ms && Ks && (*Ms)->indices == Ks->indices) (*Ms)->indptr = (*Ms)->indices = NULL;
@@ -351,6 +361,65 @@ static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
             "the %lld boundary dofs (a floating part, or a mechanism); add an interface or a "
             "--boundary group there",
             dof_label(dofs, interior[r], lab, sizeof lab), (long long)nb);
+}
+
+// constraint modes Psi = -Ks^-1 Kc, the projections A = Ms Psi + Mc, Ks^-1 A, Ks^-1 Ms Ks^-1 A
+// and the boundary blocks of the reduced matrices, with the factor F of Ks. Called after the
+// Lanczos run: its basis is freed by then, so the four ns x nb blocks are not alive beside it
+// (peak memory, bench/README.md "fe2cb's memory"); the same operations on the same factor as
+// before, so the same numbers.
+static int constraint_modes(fmbd_cb *cb, fmbd_chol *F, const fmbd_csr *Ms, const fmbd_csr *Kc,
+                            const fmbd_csr *Mc, const fmbd_csr *Kb, const fmbd_csr *Mb) {
+  int rc = FMBD_OK;
+  int64_t ns = cb->ns, nb = cb->nb;
+  double t1 = fmbd_wall_s();
+  // --- constraint modes Psi = -Ks^-1 Kc: one multi-rhs solve ---
+  int64_t s0 = 0;
+  {
+    fmbd_chol_stats st;
+    fmbd_chol_get_stats(F, &st);
+    s0 = st.n_solves;
+  }
+  FMBD_GALLOC(cb->Psi = alloc_f64(ns * nb));
+  memset(cb->Psi, 0, (size_t)(ns * nb) * sizeof(double));
+  for (int64_t i = 0; i < ns; i++) {
+    for (int64_t p = Kc->indptr[i]; p < Kc->indptr[i + 1]; p++) {
+      cb->Psi[i + Kc->indices[p] * ns] = -Kc->data[p];
+    }
+  }
+  if (nb > 0) {
+    if (fmbd_progress_enabled()) fmbd_progress("constraint modes: %lld solves", (long long)nb);
+    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->Psi, ns));
+  }
+  cb->time.constraint = fmbd_wall_s() - t1;
+
+  // --- projections: A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, Phi' A, boundary blocks ---
+  t1 = fmbd_wall_s();
+  FMBD_GALLOC(cb->A = alloc_f64(ns * nb));
+  FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
+  FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
+  if (nb > 0) {
+    fmbd_csr_matmat(Ms, nb, cb->Psi, ns, cb->A, ns);
+    for (int64_t i = 0; i < ns; i++) {
+      for (int64_t p = Mc->indptr[i]; p < Mc->indptr[i + 1]; p++) {
+        cb->A[i + Mc->indices[p] * ns] += Mc->data[p];
+      }
+    }
+    memcpy(cb->KsinvA, cb->A, (size_t)(ns * nb) * sizeof(double));
+    if (fmbd_progress_enabled()) fmbd_progress("projections: %lld solves", (long long)(2 * nb));
+    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvA, ns));
+    fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
+    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
+  }
+  FMBD_GCALL(fmbd_cb_condense_boundary(cb, Kc, Mc, Kb, Mb));
+  {
+    fmbd_chol_stats st;
+    fmbd_chol_get_stats(F, &st);
+    cb->time.solves += st.n_solves - s0;
+  }
+  cb->time.projection = fmbd_wall_s() - t1;
+done:
+  return rc;
 }
 
 static void progress_sink(void *ctx, const char *stage, int64_t solves, int64_t nev) {
@@ -549,6 +618,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
   FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
   share_pattern(Ks, Ms);
+  FMBD_GCALL(keep_lower(Ks, Ms));
   FMBD_GCALL(sub(K, ns, cb->interior, nb, cb->boundary, &Kc));
   FMBD_GCALL(sub(M, ns, cb->interior, nb, cb->boundary, &Mc));
   FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
@@ -570,6 +640,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
 
   // --- the factor of Ks, once ---
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
+  mem_log("after the analysis");
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
   fmbd_chol_release_matrix(F);  // factored once: the matrix copy is not needed for solves
@@ -583,7 +654,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->time.nnz_l = st.nnz_l;
   }
 
-  double t1 = fmbd_wall_s();
+  double t1;
   if (o.nm) {
     // held normal modes: the boundary dofs are held, not reduced coordinates
     cb->held = cb->boundary;
@@ -592,61 +663,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->boundary = NULL;
     FMBD_GALLOC(cb->boundary = fmbd_malloc(sizeof(int64_t)));
     cb->nr = 0;
-  } else {
-    // --- constraint modes Psi = -Ks^-1 Kc: one multi-rhs solve ---
-    int64_t s0 = 0;
-    {
-      fmbd_chol_stats st;
-      fmbd_chol_get_stats(F, &st);
-      s0 = st.n_solves;
-    }
-    FMBD_GALLOC(cb->Psi = alloc_f64(ns * nb));
-    memset(cb->Psi, 0, (size_t)(ns * nb) * sizeof(double));
-    for (int64_t i = 0; i < ns; i++) {
-      for (int64_t p = Kc->indptr[i]; p < Kc->indptr[i + 1]; p++) {
-        cb->Psi[i + Kc->indices[p] * ns] = -Kc->data[p];
-      }
-    }
-    if (nb > 0) {
-      if (fmbd_progress_enabled()) fmbd_progress("constraint modes: %lld solves", (long long)nb);
-      FMBD_GCALL(fmbd_chol_solve(F, nb, cb->Psi, ns));
-    }
-    cb->time.constraint = fmbd_wall_s() - t1;
+  }
 
-    // --- projections: A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, Phi' A, boundary blocks ---
-    t1 = fmbd_wall_s();
-    FMBD_GALLOC(cb->A = alloc_f64(ns * nb));
-    FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
-    FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
-    if (nb > 0) {
-      fmbd_csr_matmat(Ms, nb, cb->Psi, ns, cb->A, ns);
-      for (int64_t i = 0; i < ns; i++) {
-        for (int64_t p = Mc->indptr[i]; p < Mc->indptr[i + 1]; p++) {
-          cb->A[i + Mc->indices[p] * ns] += Mc->data[p];
-        }
-      }
-      memcpy(cb->KsinvA, cb->A, (size_t)(ns * nb) * sizeof(double));
-      if (fmbd_progress_enabled()) fmbd_progress("projections: %lld solves", (long long)(2 * nb));
-      FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvA, ns));
-      fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
-      FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
-    }
-    FMBD_GCALL(fmbd_cb_condense_boundary(cb, Kc, Mc, Kb, Mb));
-    {
-      fmbd_chol_stats st;
-      fmbd_chol_get_stats(F, &st);
-      cb->time.solves += st.n_solves - s0;
-    }
-    cb->time.projection = fmbd_wall_s() - t1;
-  }  // !o.nm
-
-  mem_log("after the constraint modes and projections");
-  // --- fixed-interface modes (Lanczos with the same factor; the Sturm check after the factor
-  // is freed, since its LDL' factor is as large) ---
-  fmbd_csr_destroy(&Kc);
-  fmbd_csr_destroy(&Mc);
-  fmbd_csr_destroy(&Kb);
-  fmbd_csr_destroy(&Mb);
+  // --- fixed-interface modes (Lanczos with the same factor; the constraint modes and
+  // projections after it, with the same factor; the Sturm check after the factor is freed,
+  // since its LDL' factor is as large) ---
   if (o.fmax_hz > 0.0 || o.nmodes > 0) {
     double lmax = o.fmax_hz > 0.0 ? pow(2.0 * M_PI * o.fmax_hz, 2) : 0.0;
     int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
@@ -657,6 +678,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
     }
+    mem_log("after the Lanczos run");
+    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb));
+    mem_log("after the constraint modes and projections");
     if (o.eig.sturm && !er.dense) {
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
@@ -691,9 +715,14 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->kappa_next = er.next_lambda;
     er.lambda = er.X = NULL;
   } else {
+    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb));
     FMBD_GALLOC(cb->kappa = alloc_f64(0));
     FMBD_GALLOC(cb->Phi = alloc_f64(0));
   }
+  fmbd_csr_destroy(&Kc);
+  fmbd_csr_destroy(&Mc);
+  fmbd_csr_destroy(&Kb);
+  fmbd_csr_destroy(&Mb);
   mem_log("after the modes");
   int64_t nd = cb->nd;
   FMBD_GALLOC(cb->PhitA = alloc_f64(nd * nb));
@@ -772,6 +801,7 @@ int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd
   FMBD_GCALL(sub(K, ns, cb->interior, ns, cb->interior, &Ks));
   FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
   share_pattern(Ks, Ms);
+  FMBD_GCALL(keep_lower(Ks, Ms));
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, NULL, cb->nb));

@@ -5,6 +5,9 @@
 #include <cblas.h>
 #include <cholmod.h>
 #include <dlfcn.h>
+#ifdef __GLIBC__
+#include <malloc.h>  // malloc_trim
+#endif
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -19,9 +22,10 @@ struct fmbd_chol {
   const fmbd_csr *A, *B;  // borrowed
   cholmod_common c;
   int started;
-  cholmod_sparse *S;     // upper triangle (stype = +1) of the union pattern, CSC
+  int released;          // fmbd_chol_release_matrix called: no refactorisation
+  cholmod_sparse *S;     // upper triangle (stype = +1) of the union pattern, CSC: the analysis
+                         // (and the values of the simplicial LDL'); LLT and LDLT free it after
   int64_t *posA, *posB;  // position in S of each upper entry of A / B (CSR order)
-  int64_t *diag;         // position in S of each diagonal entry, -1 if absent
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
   double sigma;
@@ -103,25 +107,23 @@ static int build_pattern(fmbd_chol *F) {
       nnz++;
     }
   }
+  // the supernodal kinds assemble their numeric matrix from A and B themselves (LLT:
+  // assemble_llt, LDLT: super_ldl_factor): the pattern alone serves their analysis; only the
+  // simplicial LDL' hands S's values to cholmod_l_factorize (and without B the upper entries
+  // of A are S's entries in order: no map either)
+  bool pos = F->kind == FMBD_CHOL_LDLT_SIMPLICIAL;
   F->S = cholmod_l_allocate_sparse((size_t)n, (size_t)n, (size_t)(nnz ? nnz : 1), 1, 1, 1,
-                                   CHOLMOD_REAL, &F->c);
+                                   pos ? CHOLMOD_REAL : CHOLMOD_PATTERN, &F->c);
   if (!F->S) return cholmod_fail(F, "allocate_sparse");
-  // the supernodal LDL' assembles from A and B itself: the pattern alone serves its analysis
-  // (and without B the upper entries of A are S's entries in order: no map either)
-  bool pos = F->kind != FMBD_CHOL_LDLT;
-  if (pos) {
-    if (B) {
-      FMBD_GALLOC(F->posA = fmbd_malloc((size_t)(nA ? nA : 1) * sizeof(int64_t)));
-      FMBD_GALLOC(F->posB = fmbd_malloc((size_t)(nB ? nB : 1) * sizeof(int64_t)));
-    }
-    FMBD_GALLOC(F->diag = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+  if (pos && B) {
+    FMBD_GALLOC(F->posA = fmbd_malloc((size_t)(nA ? nA : 1) * sizeof(int64_t)));
+    FMBD_GALLOC(F->posB = fmbd_malloc((size_t)(nB ? nB : 1) * sizeof(int64_t)));
   }
   SuiteSparse_long *Sp = F->S->p, *Si = F->S->i;
   double *Sx = F->S->x;
   nnz = nA = nB = 0;
   for (int64_t j = 0; j < n; j++) {
     Sp[j] = nnz;
-    if (pos) F->diag[j] = -1;
     int64_t pa = A->indptr[j], ea = A->indptr[j + 1];
     int64_t pb = B ? B->indptr[j] : 0, eb = B ? B->indptr[j + 1] : 0;
     while (true) {
@@ -137,9 +139,8 @@ static int build_pattern(fmbd_chol *F) {
         if (F->posB) F->posB[nB++] = nnz;
         pb++;
       }
-      if (pos && i == j) F->diag[j] = nnz;
       Si[nnz] = i;
-      Sx[nnz] = 0.0;
+      if (Sx) Sx[nnz] = 0.0;
       nnz++;
     }
   }
@@ -169,6 +170,75 @@ static void fill_values(fmbd_chol *F, double sigma) {
       }
     }
   }
+}
+
+// --- the LL' input: tril(P (A - sigma B) P'), assembled here ----------------------------------
+// What cholmod_l_factorize would hand cholmod_l_super_numeric (its permuted copy of S, made by
+// cholmod_l_ptranspose; SuiteSparse CHOLMOD/Cholesky/cholmod_factorize.c), built directly from
+// the upper triangles of A and B: S itself is not kept beside it (peak memory of the LL' step:
+// one copy of the upper triangle instead of two, bench/README.md). The values are the sums
+// fill_values forms (0 + A_ij - sigma B_ij, the same operations in the same order), each
+// entry put at (max, min) of its permuted row and column; super_numeric assigns each entry to
+// its place in the factor, so the order within a column is free and the factor is bitwise the
+// one cholmod_l_factorize gives. dg[k]: the diagonal of pivot k (the singularity test).
+static void llt_entries(const fmbd_chol *F, const fmbd_csr *B, double sigma, int64_t *cnt,
+                        SuiteSparse_long *Ti, double *Tx, double *dg) {
+  const fmbd_csr *A = F->A;
+  const int64_t *iperm = F->iperm;
+  for (int64_t j = 0; j < F->n; j++) {
+    int64_t pa = A->indptr[j], ea = A->indptr[j + 1];
+    int64_t pb = B ? B->indptr[j] : 0, eb = B ? B->indptr[j + 1] : 0;
+    int64_t pj = iperm[j];
+    while (true) {
+      int64_t ia = (pa < ea && A->indices[pa] <= j) ? A->indices[pa] : INT64_MAX;
+      int64_t ib = (pb < eb && B->indices[pb] <= j) ? B->indices[pb] : INT64_MAX;
+      if (ia == INT64_MAX && ib == INT64_MAX) break;
+      int64_t i = ia < ib ? ia : ib;
+      double v = 0.0;
+      if (ia == i) v += A->data[pa++];
+      if (ib == i) v -= sigma * B->data[pb++];
+      int64_t pi = iperm[i];
+      int64_t col = pi < pj ? pi : pj, row = pi < pj ? pj : pi;
+      if (Ti) {
+        int64_t q = cnt[col]++;
+        Ti[q] = row;
+        Tx[q] = v;
+        if (row == col) dg[col] = v;
+      } else {
+        cnt[col]++;
+      }
+    }
+  }
+}
+
+static int assemble_llt(fmbd_chol *F, double sigma, cholmod_sparse **out, double *dg) {
+  int rc = FMBD_OK;
+  int64_t n = F->n, *cnt = NULL;
+  const fmbd_csr *B = (F->B && sigma != 0.0) ? F->B : NULL;
+  cholmod_sparse *T = NULL;
+  *out = NULL;
+  FMBD_GALLOC(cnt = fmbd_calloc((size_t)n + 1, sizeof(int64_t)));
+  llt_entries(F, B, sigma, cnt, NULL, NULL, NULL);
+  int64_t nnz = 0;
+  for (int64_t k = 0; k < n; k++) {
+    int64_t c = cnt[k];
+    cnt[k] = nnz;
+    nnz += c;
+  }
+  cnt[n] = nnz;
+  T = cholmod_l_allocate_sparse((size_t)n, (size_t)n, (size_t)(nnz ? nnz : 1), 0, 1, -1,
+                                CHOLMOD_REAL, &F->c);
+  if (!T) FMBD_GCALL(cholmod_fail(F, "allocate_sparse"));
+  SuiteSparse_long *Tp = T->p;
+  for (int64_t k = 0; k <= n; k++) Tp[k] = cnt[k];
+  for (int64_t k = 0; k < n; k++) dg[k] = 0.0;
+  llt_entries(F, B, sigma, cnt, T->i, T->x, dg);
+  *out = T;
+  T = NULL;
+done:
+  cholmod_l_free_sparse(&T, &F->c);
+  fmbd_free(cnt);
+  return rc;
 }
 
 // --- supernodal LDL' without pivoting ---------------------------------------------------------
@@ -248,6 +318,45 @@ static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *
   return -1;
 }
 
+// P (A - sigma B) P' put into the zeroed factor before the supernodal loop, for a matrix stored
+// as its lower triangle (fmbd_csr_keep_lower: a full row, which the loop reads per column, is
+// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices, found
+// in the ascending row list of its column's supernode (the order the loop's descendant
+// updates rely on too). The same sums (0 + a - sigma b) as the loop's assembly; the values
+// come from the lower triangle instead of the column's own row.
+static int ldl_prefill(fmbd_chol *F, double sigma) {
+  cholmod_factor *L = F->L;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const fmbd_csr *mat[2] = {F->A, sigma != 0.0 ? F->B : NULL};
+  memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  for (int m = 0; m < 2; m++) {
+    const fmbd_csr *A = mat[m];
+    if (!A) continue;
+    for (int64_t j = 0; j < F->n; j++) {
+      for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
+        int64_t a = F->iperm[A->indices[p]], b = F->iperm[j];
+        int64_t c = a < b ? a : b, r = a < b ? b : a, sn = F->col2super[c];
+        int64_t lo = pi[sn], hi = pi[sn + 1] - 1;
+        while (lo < hi) {
+          int64_t mid = lo + (hi - lo) / 2;
+          if (Ls[mid] < r)
+            lo = mid + 1;
+          else
+            hi = mid;
+        }
+        FMBD_CHECK(Ls[lo] == r, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the LDL' pattern",
+                   (long long)r, (long long)c);
+        double *x = F->Lx + px[sn] + (c - super[sn]) * (pi[sn + 1] - pi[sn]) + (lo - pi[sn]);
+        if (m == 0)
+          *x += A->data[p];
+        else
+          *x -= sigma * A->data[p];
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
 static int super_ldl_factor(fmbd_chol *F, double sigma) {
   cholmod_factor *L = F->L;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s, *perm = L->Perm;
@@ -256,15 +365,17 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   int64_t *map = F->map, *head = F->head, *next = F->next, *lpos = F->lpos, *c2s = F->col2super;
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
+  bool prefill = A->lower || (B && B->lower);
+  if (prefill) FMBD_CALL(ldl_prefill(F, sigma));
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
     int64_t psi = pi[s], nsrow = pi[s + 1] - psi, psx = px[s];
     double *Lsx = Lx + psx;
     for (int64_t i = 0; i < nsrow; i++) map[Ls[psi + i]] = i;
-    memset(Lsx, 0, (size_t)(nsrow * nscol) * sizeof(double));
+    if (!prefill) memset(Lsx, 0, (size_t)(nsrow * nscol) * sizeof(double));
     // --- assemble columns k1..k2-1 of P (A - sigma B) P' (rows >= k) ---
-    for (int64_t k = k1; k < k2; k++) {
+    for (int64_t k = k1; k < k2 && !prefill; k++) {
       int64_t j = perm ? perm[k] : k;
       double *col = Lsx + (k - k1) * nsrow;
       for (int64_t p = A->indptr[j]; p < A->indptr[j + 1]; p++) {
@@ -399,11 +510,29 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
   if (!F->L || F->c.status < 0) FMBD_GCALL(cholmod_fail(F, "analyze"));
   F->st.ordering = ordering_name(F->c.method[F->c.selected].ordering);
   F->st.nnz_l = F->c.lnz;
-  if (kind == FMBD_CHOL_LDLT) {
-    // the numeric LDL' reads A and B directly: the CHOLMOD copy of the pattern goes first
+  if (F->L->is_super) {
+    fmbd_log(FMBD_LOG_DEBUG,
+             "analysis: %s ordering, %.4g entries in L, %lld supernodes holding %.4g values and "
+             "%.4g row indices, largest update %.4g",
+             F->st.ordering, F->c.lnz, (long long)F->L->nsuper, (double)F->L->xsize,
+             (double)F->L->ssize, (double)F->L->maxcsize);
+  }
+  if (kind != FMBD_CHOL_LDLT_SIMPLICIAL) {
+    // the numeric LL' and LDL' read A and B directly: the CHOLMOD copy of the pattern goes first
     cholmod_l_free_sparse(&F->S, &F->c);
     cholmod_l_free_work(&F->c);
-    FMBD_GCALL(super_ldl_setup(F));
+  }
+#ifdef __GLIBC__
+  // the analysis's transient blocks (METIS's graph, CHOLMOD's copies of the pattern) are freed
+  // but stay resident in glibc's heap, which the numeric factor (mmap) does not reuse: give
+  // them back first (51 k dofs: 149 -> 74 MB resident, the LL' peak 326 -> 287 MB)
+  malloc_trim(0);
+#endif
+  if (kind == FMBD_CHOL_LDLT) FMBD_GCALL(super_ldl_setup(F));
+  if (kind == FMBD_CHOL_LLT) {
+    FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(int64_t)));
+    const SuiteSparse_long *p = F->L->Perm;
+    for (int64_t k = 0; k < F->n; k++) F->iperm[p ? p[k] : k] = k;
   }
   *out = F;
   F = NULL;
@@ -435,6 +564,8 @@ static double pivot(const cholmod_factor *L, int64_t k) {
   return L->is_ll ? d * d : d;
 }
 
+static int fmbd_chol_check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg);
+
 int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   FMBD_CHECK(F->B || sigma == 0.0, FMBD_ERR_VALUE, "shift %g without a second matrix", sigma);
   F->sigma = sigma;
@@ -449,13 +580,42 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
     F->st.n_factor++;
     return rc;
   }
-  FMBD_CHECK(F->S, FMBD_ERR_INTERNAL, "factor after fmbd_chol_release_matrix");
-  fill_values(F, sigma);
-  int ok = cholmod_l_factorize(F->S, F->L, &F->c);
+  FMBD_CHECK(!F->released, FMBD_ERR_INTERNAL, "factor after fmbd_chol_release_matrix");
+  cholmod_sparse *T = NULL;
+  double *dg = NULL;
+  int ok;
+  if (F->kind == FMBD_CHOL_LLT) {
+    // supernodal LL' of our tril(P (A - sigma B) P'): cholmod_l_factorize's own permuted copy
+    // is not made (assemble_llt)
+    dg = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(double));
+    if (!dg) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory (%lld pivots)", (long long)F->n);
+    int rc = assemble_llt(F, sigma, &T, dg);
+    if (rc) {
+      fmbd_free(dg);
+      return rc;
+    }
+    double beta[2] = {0.0, 0.0};
+    ok = cholmod_l_super_numeric(T, NULL, beta, F->L, &F->c);
+    cholmod_l_free_sparse(&T, &F->c);
+#ifdef __GLIBC__
+    malloc_trim(0);  // T and CHOLMOD's update workspace, freed, back to the system
+#endif
+  } else {
+    fill_values(F, sigma);
+    ok = cholmod_l_factorize(F->S, F->L, &F->c);
+  }
   F->st.t_factor_s += fmbd_wall_s() - t0;
   F->st.n_factor++;
   F->st.flops = F->c.fl;
   F->st.nnz_l = F->c.lnz;
+  int rc = fmbd_chol_check_pivots(F, ok, sigma, dg);
+  fmbd_free(dg);
+  return rc;
+}
+
+// the outcome of a CHOLMOD factorisation: its status, the inertia of the simplicial LDL', the
+// singularity test of the LL' (dg: the diagonal of A - sigma B in pivot order)
+static int fmbd_chol_check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
   if (!ok || F->c.status < 0) return cholmod_fail(F, "factorize");
   const SuiteSparse_long *perm = F->L->Perm;
   if (F->c.status == CHOLMOD_NOT_POSDEF) {
@@ -486,10 +646,9 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   // LL': a singular matrix that round-off left barely positive shows a pivot many orders
   // below its diagonal entry; report the first such row (in pivot order)
   if (F->pivot_rtol > 0.0) {
-    const double *Sx = F->S->x;
     for (int64_t k = 0; k < F->n; k++) {
       int64_t r = perm ? perm[k] : k;
-      double a = F->diag[r] >= 0 ? Sx[F->diag[r]] : 0.0;
+      double a = dg[k];
       double d = pivot(F->L, k);
       if (!(d > F->pivot_rtol * fabs(a))) {
         F->failed_row = r;
@@ -558,14 +717,14 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
 
 void fmbd_chol_release_matrix(fmbd_chol *F) {
   if (!F) return;
+  F->released = 1;
   if (F->started) {
     cholmod_l_free_sparse(&F->S, &F->c);
     cholmod_l_free_work(&F->c);
   }
   fmbd_free(F->posA);
   fmbd_free(F->posB);
-  fmbd_free(F->diag);
-  F->posA = F->posB = F->diag = NULL;
+  F->posA = F->posB = NULL;
 }
 
 int64_t fmbd_chol_negative_pivots(const fmbd_chol *F) {
@@ -606,7 +765,6 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
   fmbd_free(F->wW);
   fmbd_free(F->posA);
   fmbd_free(F->posB);
-  fmbd_free(F->diag);
   fmbd_free(F);
   *pF = NULL;
 }

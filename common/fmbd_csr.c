@@ -128,7 +128,7 @@ int64_t fmbd_csr_find(const fmbd_csr *A, int64_t i, int64_t j) {
 }
 
 double fmbd_csr_get(const fmbd_csr *A, int64_t i, int64_t j) {
-  int64_t p = fmbd_csr_find(A, i, j);
+  int64_t p = A->lower && j > i ? fmbd_csr_find(A, j, i) : fmbd_csr_find(A, i, j);
   return p < 0 ? 0.0 : A->data[p];
 }
 
@@ -148,7 +148,27 @@ int fmbd_csr_add_block(fmbd_csr *A, int k, const int64_t *dofs, const double *Ke
   return FMBD_OK;
 }
 
+// y = A x for a lower-stored symmetric A: each off-diagonal entry serves its row and, as the
+// transposed entry, its column
+static void sym_matvec(const fmbd_csr *A, const double *x, double *y) {
+  memset(y, 0, (size_t)A->nrows * sizeof(double));
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s = 0.0, xi = x[i];
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      double a = A->data[p];
+      s += a * x[j];
+      if (j != i) y[j] += a * xi;
+    }
+    y[i] += s;
+  }
+}
+
 void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
+  if (A->lower) {
+    sym_matvec(A, x, y);
+    return;
+  }
   for (int64_t i = 0; i < A->nrows; i++) {
     double s = 0.0;
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) s += A->data[p] * x[A->indices[p]];
@@ -164,7 +184,41 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   enum { NB = 8 };
   int64_t nc = A->ncols, c = 0;
   double *xt = nrhs >= 2 ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
-  if (xt) {
+  // lower-stored symmetric A: the sums of the transposed entries in a row-major block too
+  double *yt = xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
+  if (xt && A->lower && !yt) {
+    fmbd_free(xt);
+    xt = NULL;
+  }
+  if (xt && A->lower) {
+    for (; c + NB <= nrhs; c += NB) {
+      for (int64_t j = 0; j < nc; j++) {
+        for (int k = 0; k < NB; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
+      }
+      memset(yt, 0, (size_t)nc * NB * sizeof(double));
+      for (int64_t i = 0; i < A->nrows; i++) {
+        double s[NB] = {0};
+        const double *xi = xt + i * NB;
+        for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+          int64_t j = A->indices[p];
+          double a = A->data[p];
+          const double *x = xt + j * NB;
+          for (int k = 0; k < NB; k++) s[k] += a * x[k];
+          if (j != i) {
+            double *y = yt + j * NB;
+            for (int k = 0; k < NB; k++) y[k] += a * xi[k];
+          }
+        }
+        double *y = yt + i * NB;
+        for (int k = 0; k < NB; k++) y[k] += s[k];
+      }
+      for (int64_t i = 0; i < A->nrows; i++) {
+        for (int k = 0; k < NB; k++) Y[i + (c + k) * ldy] = yt[i * NB + k];
+      }
+    }
+    fmbd_free(xt);
+    fmbd_free(yt);
+  } else if (xt) {
     for (; c + NB <= nrhs; c += NB) {
       for (int64_t j = 0; j < nc; j++) {
         for (int k = 0; k < NB; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
@@ -182,6 +236,38 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
     fmbd_free(xt);
   }
   for (; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
+}
+
+int fmbd_csr_keep_lower(fmbd_csr *A, fmbd_csr *B) {
+  FMBD_CHECK(A->nrows == A->ncols && !A->lower, FMBD_ERR_INTERNAL,
+             "keep_lower of a non-square or already lower matrix");
+  FMBD_CHECK(!B || (B->indptr == A->indptr && B->indices == A->indices && !B->lower),
+             FMBD_ERR_INTERNAL, "keep_lower: the second matrix does not share the first's pattern");
+  int64_t n = A->nrows, q = 0;
+  for (int64_t i = 0; i < n; i++) {
+    int64_t p0 = A->indptr[i], p1 = A->indptr[i + 1];
+    A->indptr[i] = q;
+    for (int64_t p = p0; p < p1 && A->indices[p] <= i; p++, q++) {
+      A->indices[q] = A->indices[p];
+      A->data[q] = A->data[p];
+      if (B) B->data[q] = B->data[p];
+    }
+  }
+  A->indptr[n] = q;
+  // shrink (a failed shrink keeps the larger block: still valid)
+  size_t sz = (size_t)(q ? q : 1);
+  int64_t *ix = fmbd_realloc(A->indices, sz * sizeof(int64_t));
+  if (ix) A->indices = ix;
+  double *d = fmbd_realloc(A->data, sz * sizeof(double));
+  if (d) A->data = d;
+  A->lower = true;
+  if (B) {
+    B->indices = A->indices;
+    d = fmbd_realloc(B->data, sz * sizeof(double));
+    if (d) B->data = d;
+    B->lower = true;
+  }
+  return FMBD_OK;
 }
 
 int fmbd_csr_submatrix(const fmbd_csr *A, int64_t nr, const int64_t *rows, int64_t nc,

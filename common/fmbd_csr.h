@@ -3,7 +3,10 @@
 //
 // The storage of docs/DESIGN.md: symmetric matrices are stored in full (both triangles), rows
 // sorted by column. The struct is public: its arrays are owned by the matrix and released
-// by fmbd_csr_destroy.
+// by fmbd_csr_destroy. One exception, for memory (fe2cb's interior Ks and Ms): a symmetric
+// matrix may keep only its lower triangle (lower = true, fmbd_csr_keep_lower); fmbd_csr_matvec,
+// fmbd_csr_matmat, fmbd_csr_get and fmbd_chol read it as the full matrix, nothing else
+// accepts it.
 #ifndef FMBD_CSR_H
 #define FMBD_CSR_H
 
@@ -15,12 +18,18 @@ typedef struct fmbd_csr {
   int64_t *indptr;   ///< nrows+1 row starts into indices/data
   int64_t *indices;  ///< column of each stored entry, increasing within a row
   double *data;      ///< value of each stored entry
+  bool lower;        ///< symmetric, only columns <= row stored (fmbd_csr_keep_lower)
 } fmbd_csr;
 
 /// @brief Number of stored entries.
 static inline int64_t fmbd_csr_nnz(const fmbd_csr *A) {
   return A->indptr[A->nrows];
 }
+
+/// @brief Keep only the lower triangle (columns <= row) of the symmetric square matrix A, in
+/// place (the arrays shrink: about half the memory), and mark it lower. B (may be NULL): a
+/// matrix sharing A's indptr and indices arrays (the same pointers), compacted with them.
+int fmbd_csr_keep_lower(fmbd_csr *A, fmbd_csr *B);
 
 /// @brief Allocate an nrows x ncols matrix with room for nnz entries; indptr zeroed.
 /// @param[out] out caller destroys with fmbd_csr_destroy

@@ -233,6 +233,9 @@ typedef struct fmbd_mbs_flex_data {
   double damping_ratio;     ///< modal damping ratio zeta of every mode (0: none)
   const double *q0, *qd0;   ///< initial modal coordinates and rates (nm each; NULL: zero)
   bool shared;              ///< the body will join a set of fmbd_mbs_share_modal
+  bool partial_coupling;    ///< inertia coupling "partial" (MSC Adams/Flex's partial coupling,
+                            ///< docs/THEORY.md section 4c): SS taken as zero, so the inertia
+                            ///< terms of second order in the modes (SS q, SSx q') vanish
 } fmbd_mbs_flex_data;
 
 /// A full finite-element body (docs/THEORY.md section 4b): every FE dof that the frame does

@@ -195,7 +195,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double s1qd[3] = {0, 0, 0};
   if (nm > 0) {
     double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
-    matvec(9 * nm, nm, b->SS, q, 1.0, P);
+    if (!b->partial) matvec(9 * nm, nm, b->SS, q, 1.0, P);  // partial: SS = 0, P stays zero
     for (int k = 0; k < nm; k++) {
       const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
@@ -258,8 +258,8 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double Iw[3];
   mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
   double ww = dot3(w, w);
-  double *cor = b->cor;  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
-  if (nm > 0) {
+  double *cor = b->cor;         // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
+  if (nm > 0 && !b->partial) {  // partial: SSx = 0, cor stays zero
     matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
   }
   for (int k = 0; k < nm; k++) {
@@ -293,7 +293,11 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
     // same operations as on the whole columns)
     matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);
-    matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
+    if (b->mdiag) {  // the same bits as the product below (it adds exact zeros)
+      for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
+    } else {
+      matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
+    }
   }
   // r = T' rb
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];

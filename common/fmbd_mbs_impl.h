@@ -158,6 +158,8 @@ typedef struct mbody {
   double *Mwf;   // 3 x nm
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
+  bool mdiag;    // Mff diagonal (M-orthonormal modes, the usual modal body): O(nm) Mff products
+  bool partial;  // partial inertia coupling: SS and SSx are zero, P and cor stay zero (not formed)
   double wB[3];  // wb at the last block evaluation (mbs_body_eval with B; mbs_body_ff)
   bool elim;     // modal block eliminated (fmbd_mbs_schur.c): mbs_eval_system leaves it out of Ax
   mbs_fe *fe;    // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL

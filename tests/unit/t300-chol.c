@@ -2,6 +2,7 @@
 // SPDX-License-Identifier: MIT
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "check.h"
 #include "fmbd_alloc.h"
@@ -56,6 +57,69 @@ static int cmpd(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
+// K and M kept as lower triangles (fmbd_csr_keep_lower, M on K's index arrays as fe2cb does):
+// products, entries, the LL' solve and the LDL' count against the full storage
+static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex) {
+  int64_t n = K->nrows, nnz = fmbd_csr_nnz(K);
+  fmbd_csr *Kl = NULL, *Ml = NULL;
+  EXPECT(fmbd_csr_duplicate(K, &Kl) == 0 && fmbd_csr_duplicate(M, &Ml) == 0, "duplicate");
+  // the same pattern (both Kronecker sums of tridiagonals): M on K's arrays
+  fmbd_free(Ml->indptr);
+  fmbd_free(Ml->indices);
+  Ml->indptr = Kl->indptr;
+  Ml->indices = Kl->indices;
+  EXPECT(fmbd_csr_keep_lower(Kl, Ml) == 0 && Kl->lower && Ml->lower, "keep_lower");
+  EXPECT(fmbd_csr_nnz(Kl) == (nnz + n) / 2, "lower nnz %lld of %lld", (long long)fmbd_csr_nnz(Kl),
+         (long long)nnz);
+  int64_t r = n / 2, c = K->indices[K->indptr[r]];  // the first entry of a row: left of it
+  EXPECT(c < r && fmbd_csr_get(Kl, r, c) == fmbd_csr_get(K, r, c) &&
+             fmbd_csr_get(Kl, c, r) == fmbd_csr_get(K, c, r) && fmbd_csr_get(K, c, r) != 0.0,
+         "entries of the lower storage");
+  // products: 11 columns (a block of 8 and 3 single ones); each sum has at most 27 terms, in
+  // another order than the full product's: 27 eps |K| |x| bounds the difference (max norms)
+  const int64_t nc = 11;
+  double *X = fmbd_malloc((size_t)(n * nc) * sizeof(double));
+  double *Y = fmbd_malloc((size_t)(n * nc) * sizeof(double));
+  double *Z = fmbd_malloc((size_t)(n * nc) * sizeof(double));
+  for (int64_t i = 0; i < n * nc; i++) X[i] = cos(0.71 * (double)i);
+  const fmbd_csr *full[2] = {K, M}, *low[2] = {Kl, Ml};
+  for (int t = 0; t < 2; t++) {
+    double amax = fmbd_csr_max_abs(full[t]) * 27.0, e = 0.0;
+    fmbd_csr_matmat(full[t], nc, X, n, Y, n);
+    fmbd_csr_matmat(low[t], nc, X, n, Z, n);
+    for (int64_t i = 0; i < n * nc; i++) e = fmax(e, fabs(Y[i] - Z[i]));
+    EXPECT(e <= 27.0 * 2.2e-16 * amax, "lower-stored product %d differs by %.3g", t, e);
+  }
+  // LL' solve: the factor reads the lower triangle in both storages: the same solution
+  fmbd_chol *F1 = NULL, *F2 = NULL;
+  EXPECT(fmbd_chol_create_llt(K, &F1) == 0 && fmbd_chol_create_llt(Kl, &F2) == 0, "LL'");
+  memcpy(Y, X, (size_t)(n * nc) * sizeof(double));
+  memcpy(Z, X, (size_t)(n * nc) * sizeof(double));
+  EXPECT(fmbd_chol_solve(F1, nc, Y, n) == 0 && fmbd_chol_solve(F2, nc, Z, n) == 0, "solves");
+  EXPECT(memcmp(Y, Z, (size_t)(n * nc) * sizeof(double)) == 0, "LL' solves of the two storages");
+  fmbd_chol_destroy(&F1);
+  fmbd_chol_destroy(&F2);
+  // Sturm counts: exact, from the lower storage (assembled before the supernodal loop)
+  fmbd_chol *Fs = NULL;
+  EXPECT(fmbd_chol_analyze(Kl, Ml, FMBD_CHOL_LDLT, &Fs) == 0, "LDL' analyse");
+  int64_t idx[] = {1, 30, 700, 1200};
+  for (size_t t = 0; Fs && t < sizeof idx / sizeof idx[0]; t++) {
+    int64_t k = idx[t];
+    while (k < n && ex[k] - ex[k - 1] < 1e-9 * ex[k]) k++;
+    double sgm = 0.5 * (ex[k - 1] + ex[k]);
+    EXPECT(fmbd_chol_factor(Fs, sgm) == 0 && fmbd_chol_negative_pivots(Fs) == k,
+           "lower-stored count below %.6g: %lld, exact %lld", sgm,
+           (long long)fmbd_chol_negative_pivots(Fs), (long long)k);
+  }
+  fmbd_chol_destroy(&Fs);
+  Ml->indptr = Ml->indices = NULL;  // Kl's
+  fmbd_csr_destroy(&Ml);
+  fmbd_csr_destroy(&Kl);
+  fmbd_free(X);
+  fmbd_free(Y);
+  fmbd_free(Z);
+}
+
 // the supernodal LDL' count against the simplicial one and the exact count, on a 3-D
 // Laplacian (K3 = K(x)M(x)M + M(x)K(x)M + M(x)M(x)K, M3 = M(x)M(x)M): real supernodes
 static void inertia_3d(void) {
@@ -99,6 +163,7 @@ static void inertia_3d(void) {
   }
   fmbd_chol_destroy(&Fs);
   fmbd_chol_destroy(&Fp);
+  lower_storage(K3, M3, ex);
   free(ex);
   fmbd_csr *all[] = {K, M, KM, MM, MK, K3, t1, t2, M3};
   for (size_t t = 0; t < sizeof all / sizeof all[0]; t++) fmbd_csr_destroy(&all[t]);
