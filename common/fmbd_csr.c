@@ -176,66 +176,84 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
   }
 }
 
+// Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride NB): one pass over A
+// for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
+// (same results, bit for bit). Inlined with w = NB constant for the full blocks.
+enum { NB = 8 };
+static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[NB] = {0};
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      double a = A->data[p];
+      const double *x = xt + A->indices[p] * NB;
+      for (int k = 0; k < w; k++) s[k] += a * x[k];
+    }
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = s[k];
+  }
+}
+
+// the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
+// yt (row-major, stride NB)
+static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
+                              int64_t ldy) {
+  memset(yt, 0, (size_t)A->nrows * NB * sizeof(double));
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[NB] = {0};
+    const double *xi = xt + i * NB;
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      double a = A->data[p];
+      const double *x = xt + j * NB;
+      for (int k = 0; k < w; k++) s[k] += a * x[k];
+      if (j != i) {
+        double *y = yt + j * NB;
+        for (int k = 0; k < w; k++) y[k] += a * xi[k];
+      }
+    }
+    double *y = yt + i * NB;
+    for (int k = 0; k < w; k++) y[k] += s[k];
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * NB + k];
+  }
+}
+
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
                      int64_t ldy) {
-  // 8 columns at a time through a row-major copy of X: the matrix is read once per 8 columns
-  // and each entry updates 8 contiguous sums (one column at a time read A nrhs times: the
-  // block eigensolver's M products, fmbd_eig.c, spent a third of their time there)
-  enum { NB = 8 };
-  int64_t nc = A->ncols, c = 0;
+  // up to 8 columns at a time through a row-major copy of X: the matrix is read once per 8
+  // columns (and once for a remainder of 2-7, e.g. the block eigensolver's blocks of 4) and
+  // each entry updates contiguous sums (one column at a time read A nrhs times: the block
+  // eigensolver's M products, fmbd_eig.c, spent a third of their time there)
+  int64_t nc = A->ncols;
   double *xt = nrhs >= 2 ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
-  // lower-stored symmetric A: the sums of the transposed entries in a row-major block too
   double *yt = xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
-  if (xt && A->lower && !yt) {
-    fmbd_free(xt);
-    xt = NULL;
-  }
-  if (xt && A->lower) {
-    for (; c + NB <= nrhs; c += NB) {
-      for (int64_t j = 0; j < nc; j++) {
-        for (int k = 0; k < NB; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
-      }
-      memset(yt, 0, (size_t)nc * NB * sizeof(double));
-      for (int64_t i = 0; i < A->nrows; i++) {
-        double s[NB] = {0};
-        const double *xi = xt + i * NB;
-        for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
-          int64_t j = A->indices[p];
-          double a = A->data[p];
-          const double *x = xt + j * NB;
-          for (int k = 0; k < NB; k++) s[k] += a * x[k];
-          if (j != i) {
-            double *y = yt + j * NB;
-            for (int k = 0; k < NB; k++) y[k] += a * xi[k];
-          }
-        }
-        double *y = yt + i * NB;
-        for (int k = 0; k < NB; k++) y[k] += s[k];
-      }
-      for (int64_t i = 0; i < A->nrows; i++) {
-        for (int k = 0; k < NB; k++) Y[i + (c + k) * ldy] = yt[i * NB + k];
-      }
-    }
+  if (!xt || (A->lower && !yt)) {
+    // one column, or no room for the copies: a pass per column
+    for (int64_t c = 0; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
     fmbd_free(xt);
     fmbd_free(yt);
-  } else if (xt) {
-    for (; c + NB <= nrhs; c += NB) {
-      for (int64_t j = 0; j < nc; j++) {
-        for (int k = 0; k < NB; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
-      }
-      for (int64_t i = 0; i < A->nrows; i++) {
-        double s[NB] = {0};
-        for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
-          double a = A->data[p];
-          const double *x = xt + A->indices[p] * NB;
-          for (int k = 0; k < NB; k++) s[k] += a * x[k];
-        }
-        for (int k = 0; k < NB; k++) Y[i + (c + k) * ldy] = s[k];
-      }
-    }
-    fmbd_free(xt);
+    return;
   }
-  for (; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
+  for (int64_t c = 0; c < nrhs; c += NB) {
+    int w = nrhs - c < NB ? (int)(nrhs - c) : NB;
+    if (w == 1) {
+      fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
+      continue;
+    }
+    for (int64_t j = 0; j < nc; j++) {
+      for (int k = 0; k < w; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
+    }
+    if (A->lower && w == NB)
+      rows_lower(A, NB, xt, yt, Y + c * ldy, ldy);
+    else if (A->lower)
+      rows_lower(A, w, xt, yt, Y + c * ldy, ldy);
+    else if (w == NB)
+      rows_full(A, NB, xt, Y + c * ldy, ldy);
+    else
+      rows_full(A, w, xt, Y + c * ldy, ldy);
+  }
+  fmbd_free(xt);
+  fmbd_free(yt);
 }
 
 int fmbd_csr_keep_lower(fmbd_csr *A, fmbd_csr *B) {
