@@ -473,7 +473,46 @@ bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
   if (bad_row) *bad_row = -1;
   if (A->nrows != A->ncols) return false;
   double tol = rtol * fmbd_csr_max_abs(A);
-  for (int64_t i = 0; i < A->nrows; i++) {
+  int64_t n = A->nrows, *cur = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t));
+  if (cur) {
+    // one pass: the rows i that hold (i, j), j > i, come in increasing i, so the partner
+    // (j, i) is found by a cursor moving forward along row j; the entries it steps over, and
+    // those left below the diagonal at the end, have no partner (O(nnz), no searches; the
+    // same answer and bad row as the two searching passes below)
+    int64_t lower_bad = INT64_MAX;  // first row with an entry only below the diagonal
+    for (int64_t j = 0; j < n; j++) cur[j] = A->indptr[j];
+    for (int64_t i = 0; i < n; i++) {
+      for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+        int64_t j = A->indices[p];
+        if (j <= i) continue;
+        int64_t q = cur[j], e = A->indptr[j + 1];
+        for (; q < e && A->indices[q] < i; q++) {
+          if (fabs(A->data[q]) > tol && j < lower_bad) lower_bad = j;
+        }
+        double aji = 0.0;
+        if (q < e && A->indices[q] == i) aji = A->data[q++];
+        cur[j] = q;
+        if (fabs(A->data[p] - aji) > tol) {
+          if (bad_row) *bad_row = i;
+          fmbd_free(cur);
+          return false;
+        }
+      }
+    }
+    for (int64_t j = 0; j < n && j < lower_bad; j++) {
+      for (int64_t q = cur[j]; q < A->indptr[j + 1] && A->indices[q] < j; q++) {
+        if (fabs(A->data[q]) > tol) {
+          lower_bad = j;
+          break;
+        }
+      }
+    }
+    fmbd_free(cur);
+    if (lower_bad == INT64_MAX) return true;
+    if (bad_row) *bad_row = lower_bad;
+    return false;
+  }
+  for (int64_t i = 0; i < n; i++) {
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       int64_t j = A->indices[p];
       if (j <= i) continue;
@@ -486,7 +525,7 @@ bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
     }
   }
   // entries present only in the lower triangle
-  for (int64_t i = 0; i < A->nrows; i++) {
+  for (int64_t i = 0; i < n; i++) {
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       int64_t j = A->indices[p];
       if (j >= i) continue;
