@@ -176,7 +176,7 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
   }
 }
 
-// Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride NB): one pass over A
+// Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride w): one pass over A
 // for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
 // (same results, bit for bit). Inlined with w = NB constant for the full blocks.
 enum { NB = 8 };
@@ -185,7 +185,7 @@ static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double 
     double s[NB] = {0};
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       double a = A->data[p];
-      const double *x = xt + A->indices[p] * NB;
+      const double *x = xt + A->indices[p] * w;
       for (int k = 0; k < w; k++) s[k] += a * x[k];
     }
     for (int k = 0; k < w; k++) Y[i + k * ldy] = s[k];
@@ -193,40 +193,46 @@ static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double 
 }
 
 // the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
-// yt (row-major, stride NB)
+// yt (row-major, stride w)
 static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
                               int64_t ldy) {
-  memset(yt, 0, (size_t)A->nrows * NB * sizeof(double));
+  memset(yt, 0, (size_t)A->nrows * (size_t)w * sizeof(double));
   for (int64_t i = 0; i < A->nrows; i++) {
     double s[NB] = {0};
-    const double *xi = xt + i * NB;
+    const double *xi = xt + i * w;
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       int64_t j = A->indices[p];
       double a = A->data[p];
-      const double *x = xt + j * NB;
+      const double *x = xt + j * w;
       for (int k = 0; k < w; k++) s[k] += a * x[k];
       if (j != i) {
-        double *y = yt + j * NB;
+        double *y = yt + j * w;
         for (int k = 0; k < w; k++) y[k] += a * xi[k];
       }
     }
-    double *y = yt + i * NB;
+    double *y = yt + i * w;
     for (int k = 0; k < w; k++) y[k] += s[k];
   }
   for (int64_t i = 0; i < A->nrows; i++) {
-    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * NB + k];
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * w + k];
   }
 }
 
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
                      int64_t ldy) {
-  // up to 8 columns at a time through a row-major copy of X: the matrix is read once per 8
-  // columns (and once for a remainder of 2-7, e.g. the block eigensolver's blocks of 4) and
-  // each entry updates contiguous sums (one column at a time read A nrhs times: the block
-  // eigensolver's M products, fmbd_eig.c, spent a third of their time there)
-  int64_t nc = A->ncols;
-  double *xt = nrhs >= 2 ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
-  double *yt = xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
+  // up to 8 columns at a time through a row-major copy of X (min(nrhs, 8) columns: no more
+  // than is used): the matrix is read once per 8 columns (and once for a remainder of 2-7,
+  // e.g. the block eigensolver's blocks of 4) and each entry updates contiguous sums (one
+  // column at a time read A nrhs times: the block eigensolver's M products, fmbd_eig.c, spent
+  // a third of their time there). A lower-stored A takes a remainder one column at a time:
+  // its blocked form needs a second n x w copy (fe2cb at 188 k dofs, blocks of 4: +11 MB on
+  // the peak) for no gain measurable on the loaded development machine (Lanczos operator
+  // time, 3 runs each).
+  int64_t nc = A->ncols, wm = nrhs < NB ? nrhs : NB;
+  bool blocked = A->lower ? nrhs >= NB : nrhs >= 2;
+  double *xt = blocked ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;
+  double *yt =
+      xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;
   if (!xt || (A->lower && !yt)) {
     // one column, or no room for the copies: a pass per column
     for (int64_t c = 0; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
@@ -236,17 +242,15 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   }
   for (int64_t c = 0; c < nrhs; c += NB) {
     int w = nrhs - c < NB ? (int)(nrhs - c) : NB;
-    if (w == 1) {
-      fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
+    if (w == 1 || (A->lower && w < NB)) {
+      for (int k = 0; k < w; k++) fmbd_csr_matvec(A, X + (c + k) * ldx, Y + (c + k) * ldy);
       continue;
     }
     for (int64_t j = 0; j < nc; j++) {
-      for (int k = 0; k < w; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
+      for (int k = 0; k < w; k++) xt[j * w + k] = X[j + (c + k) * ldx];
     }
-    if (A->lower && w == NB)
+    if (A->lower)
       rows_lower(A, NB, xt, yt, Y + c * ldy, ldy);
-    else if (A->lower)
-      rows_lower(A, w, xt, yt, Y + c * ldy, ldy);
     else if (w == NB)
       rows_full(A, NB, xt, Y + c * ldy, ldy);
     else
