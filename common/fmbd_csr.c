@@ -176,66 +176,88 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
   }
 }
 
+// Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride w): one pass over A
+// for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
+// (same results, bit for bit). Inlined with w = NB constant for the full blocks.
+enum { NB = 8 };
+static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[NB] = {0};
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      double a = A->data[p];
+      const double *x = xt + A->indices[p] * w;
+      for (int k = 0; k < w; k++) s[k] += a * x[k];
+    }
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = s[k];
+  }
+}
+
+// the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
+// yt (row-major, stride w)
+static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
+                              int64_t ldy) {
+  memset(yt, 0, (size_t)A->nrows * (size_t)w * sizeof(double));
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[NB] = {0};
+    const double *xi = xt + i * w;
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      double a = A->data[p];
+      const double *x = xt + j * w;
+      for (int k = 0; k < w; k++) s[k] += a * x[k];
+      if (j != i) {
+        double *y = yt + j * w;
+        for (int k = 0; k < w; k++) y[k] += a * xi[k];
+      }
+    }
+    double *y = yt + i * w;
+    for (int k = 0; k < w; k++) y[k] += s[k];
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * w + k];
+  }
+}
+
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
                      int64_t ldy) {
-  // 8 columns at a time through a row-major copy of X: the matrix is read once per 8 columns
-  // and each entry updates 8 contiguous sums (one column at a time read A nrhs times: the
-  // block eigensolver's M products, fmbd_eig.c, spent a third of their time there)
-  enum { NB = 8 };
-  int64_t nc = A->ncols, c = 0;
-  double *xt = nrhs >= 2 ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
-  // lower-stored symmetric A: the sums of the transposed entries in a row-major block too
-  double *yt = xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
-  if (xt && A->lower && !yt) {
-    fmbd_free(xt);
-    xt = NULL;
-  }
-  if (xt && A->lower) {
-    for (; c + NB <= nrhs; c += NB) {
-      for (int64_t j = 0; j < nc; j++) {
-        for (int k = 0; k < NB; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
-      }
-      memset(yt, 0, (size_t)nc * NB * sizeof(double));
-      for (int64_t i = 0; i < A->nrows; i++) {
-        double s[NB] = {0};
-        const double *xi = xt + i * NB;
-        for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
-          int64_t j = A->indices[p];
-          double a = A->data[p];
-          const double *x = xt + j * NB;
-          for (int k = 0; k < NB; k++) s[k] += a * x[k];
-          if (j != i) {
-            double *y = yt + j * NB;
-            for (int k = 0; k < NB; k++) y[k] += a * xi[k];
-          }
-        }
-        double *y = yt + i * NB;
-        for (int k = 0; k < NB; k++) y[k] += s[k];
-      }
-      for (int64_t i = 0; i < A->nrows; i++) {
-        for (int k = 0; k < NB; k++) Y[i + (c + k) * ldy] = yt[i * NB + k];
-      }
-    }
+  // up to 8 columns at a time through a row-major copy of X (min(nrhs, 8) columns: no more
+  // than is used): the matrix is read once per 8 columns (and once for a remainder of 2-7,
+  // e.g. the block eigensolver's blocks of 4) and each entry updates contiguous sums (one
+  // column at a time read A nrhs times: the block eigensolver's M products, fmbd_eig.c, spent
+  // a third of their time there). A lower-stored A takes a remainder one column at a time:
+  // its blocked form needs a second n x w copy (fe2cb at 188 k dofs, blocks of 4: +11 MB on
+  // the peak) for no gain measurable on the loaded development machine (Lanczos operator
+  // time, 3 runs each).
+  int64_t nc = A->ncols, wm = nrhs < NB ? nrhs : NB;
+  bool blocked = A->lower ? nrhs >= NB : nrhs >= 2;
+  double *xt = blocked ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;
+  double *yt =
+      xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;
+  if (!xt || (A->lower && !yt)) {
+    // one column, or no room for the copies: a pass per column
+    for (int64_t c = 0; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
     fmbd_free(xt);
     fmbd_free(yt);
-  } else if (xt) {
-    for (; c + NB <= nrhs; c += NB) {
-      for (int64_t j = 0; j < nc; j++) {
-        for (int k = 0; k < NB; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
-      }
-      for (int64_t i = 0; i < A->nrows; i++) {
-        double s[NB] = {0};
-        for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
-          double a = A->data[p];
-          const double *x = xt + A->indices[p] * NB;
-          for (int k = 0; k < NB; k++) s[k] += a * x[k];
-        }
-        for (int k = 0; k < NB; k++) Y[i + (c + k) * ldy] = s[k];
-      }
-    }
-    fmbd_free(xt);
+    return;
   }
-  for (; c < nrhs; c++) fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
+  for (int64_t c = 0; c < nrhs; c += NB) {
+    int w = nrhs - c < NB ? (int)(nrhs - c) : NB;
+    if (w == 1 || (A->lower && w < NB)) {
+      for (int k = 0; k < w; k++) fmbd_csr_matvec(A, X + (c + k) * ldx, Y + (c + k) * ldy);
+      continue;
+    }
+    for (int64_t j = 0; j < nc; j++) {
+      for (int k = 0; k < w; k++) xt[j * w + k] = X[j + (c + k) * ldx];
+    }
+    if (A->lower)
+      rows_lower(A, NB, xt, yt, Y + c * ldy, ldy);
+    else if (w == NB)
+      rows_full(A, NB, xt, Y + c * ldy, ldy);
+    else
+      rows_full(A, w, xt, Y + c * ldy, ldy);
+  }
+  fmbd_free(xt);
+  fmbd_free(yt);
 }
 
 int fmbd_csr_keep_lower(fmbd_csr *A, fmbd_csr *B) {
@@ -455,7 +477,46 @@ bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
   if (bad_row) *bad_row = -1;
   if (A->nrows != A->ncols) return false;
   double tol = rtol * fmbd_csr_max_abs(A);
-  for (int64_t i = 0; i < A->nrows; i++) {
+  int64_t n = A->nrows, *cur = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t));
+  if (cur) {
+    // one pass: the rows i that hold (i, j), j > i, come in increasing i, so the partner
+    // (j, i) is found by a cursor moving forward along row j; the entries it steps over, and
+    // those left below the diagonal at the end, have no partner (O(nnz), no searches; the
+    // same answer and bad row as the two searching passes below)
+    int64_t lower_bad = INT64_MAX;  // first row with an entry only below the diagonal
+    for (int64_t j = 0; j < n; j++) cur[j] = A->indptr[j];
+    for (int64_t i = 0; i < n; i++) {
+      for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+        int64_t j = A->indices[p];
+        if (j <= i) continue;
+        int64_t q = cur[j], e = A->indptr[j + 1];
+        for (; q < e && A->indices[q] < i; q++) {
+          if (fabs(A->data[q]) > tol && j < lower_bad) lower_bad = j;
+        }
+        double aji = 0.0;
+        if (q < e && A->indices[q] == i) aji = A->data[q++];
+        cur[j] = q;
+        if (fabs(A->data[p] - aji) > tol) {
+          if (bad_row) *bad_row = i;
+          fmbd_free(cur);
+          return false;
+        }
+      }
+    }
+    for (int64_t j = 0; j < n && j < lower_bad; j++) {
+      for (int64_t q = cur[j]; q < A->indptr[j + 1] && A->indices[q] < j; q++) {
+        if (fabs(A->data[q]) > tol) {
+          lower_bad = j;
+          break;
+        }
+      }
+    }
+    fmbd_free(cur);
+    if (lower_bad == INT64_MAX) return true;
+    if (bad_row) *bad_row = lower_bad;
+    return false;
+  }
+  for (int64_t i = 0; i < n; i++) {
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       int64_t j = A->indices[p];
       if (j <= i) continue;
@@ -468,7 +529,7 @@ bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
     }
   }
   // entries present only in the lower triangle
-  for (int64_t i = 0; i < A->nrows; i++) {
+  for (int64_t i = 0; i < n; i++) {
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       int64_t j = A->indices[p];
       if (j >= i) continue;

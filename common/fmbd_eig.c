@@ -431,9 +431,9 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   }
   bk_orth(n, 0, 0, p, V, V, C, 1, R, R2, G, C2, T, ref, nloc, &seed, tmp, rb);
   int64_t solves = 0, restarts = 0, nconv = 0, nl = 0;  // nl: locked columns 0..nl-1 of V
-  int64_t m_rs = 0;                  // m after the last restart (0: none yet)
+  int64_t m_rs = 0;                                     // m after the last restart (0: none yet)
   int64_t n_orth1 = 0, n_orth2 = 0;  // blocks orthogonalised with one / two global passes
-  double t_op = 0.0, t_orth = 0.0, t_rr = 0.0, t_restart = 0.0;
+  double t_op = 0.0, t_mprod = 0.0, t_orth = 0.0, t_rr = 0.0, t_restart = 0.0;
   for (;;) {
     // --- expand until the basis is full ---
     while (m + p <= mmax) {
@@ -445,7 +445,9 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
       memcpy(Y, V + m * n, (size_t)(n * p) * sizeof(double));
       int th1 = p < 16 ? fmbd_blas_set_threads(1) : -1;
       rc = fmbd_chol_solve_half(F, FMBD_CHOL_BWD, p, Y, n);
+      double tm = fmbd_wall_s();
       fmbd_csr_matmat(M, p, Y, n, W, n);
+      t_mprod += fmbd_wall_s() - tm;
       if (rc == FMBD_OK) rc = fmbd_chol_solve_half(F, FMBD_CHOL_FWD, p, W, n);
       if (th1 > 1) fmbd_blas_set_threads(th1);
       FMBD_GCALL(rc);
@@ -543,10 +545,10 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   }
   fmbd_log(FMBD_LOG_DEBUG,
            "eig: block Lanczos (block %lld, basis %lld): %lld solves, %lld restarts, %lld locked, "
-           "operator %.3g s, orthogonalisation %.3g s (%lld blocks with one global pass, %lld "
-           "with two), Rayleigh-Ritz %.3g s, restarts %.3g s",
+           "operator %.3g s (M products %.3g s), orthogonalisation %.3g s (%lld blocks with one "
+           "global pass, %lld with two), Rayleigh-Ritz %.3g s, restarts %.3g s",
            (long long)p, (long long)mmax, (long long)solves, (long long)restarts, (long long)nl,
-           t_op, t_orth, (long long)n_orth1, (long long)n_orth2, t_rr, t_restart);
+           t_op, t_mprod, t_orth, (long long)n_orth1, (long long)n_orth2, t_rr, t_restart);
   if (fmbd_log_level() >= FMBD_LOG_DEBUG || o->orth_check) {
     // loss of orthogonality of the final basis [V_m Q]: max |(V' V - I)_ij| (m^2 n flops: a
     // few percent of the run, so only on request)
@@ -563,25 +565,31 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     fmbd_log(FMBD_LOG_DEBUG, "eig: block Lanczos basis of %lld vectors: max |V'V - I| = %.2g",
              (long long)mq, w);
   }
-  // --- the locked and the converged active pairs: x = P' L^-T V_l, P' L^-T V_a s ---
+  // --- the locked and the converged active pairs: x = P' L^-T V_l, P' L^-T V_a s, made in
+  // the basis' own storage (the locked vectors are its leading columns; V_a s by row chunks
+  // into the columns after them, as the restart does), which then shrinks to the nout modes:
+  // no second copy of the modes beside the basis (1,000 modes of 188 k dofs: 1.5 GB)
   out->solves = solves;
   out->restarts = restarts;
   int64_t nout = nl + nconv;
   if (nout > 0) {
     int64_t ma = m - nl;
     FMBD_GALLOC(out->lam = fmbd_malloc((size_t)(nout + 1) * sizeof(double)));
-    FMBD_GALLOC(out->X = fmbd_malloc((size_t)n * (size_t)nout * sizeof(double)));
-    for (int64_t j = 0; j < nl; j++) {
-      out->lam[j] = sigma + 1.0 / thl[j];
-      memcpy(out->X + j * n, V + j * n, (size_t)n * sizeof(double));
-    }
+    for (int64_t j = 0; j < nl; j++) out->lam[j] = sigma + 1.0 / thl[j];
     for (int64_t j = 0; j < nconv; j++) {
       out->lam[nl + j] = sigma + 1.0 / th[ord[j]];
       if (ord[j] != j) memcpy(S + j * ma, S + ord[j] * ma, (size_t)ma * sizeof(double));
     }
-    if (nconv > 0) {
-      fmbd_dense_gemm('N', 'N', n, nconv, ma, 1.0, V + nl * n, n, S, ma, 0.0, out->X + nl * n, n);
+    for (int64_t r0 = 0; r0 < n && nconv > 0; r0 += rb) {
+      int64_t nr = n - r0 < rb ? n - r0 : rb;
+      fmbd_dense_gemm('N', 'N', nr, nconv, ma, 1.0, V + nl * n + r0, n, S, ma, 0.0, tmp, nr);
+      for (int64_t j = 0; j < nconv; j++)
+        memcpy(V + (nl + j) * n + r0, tmp + j * nr, (size_t)nr * sizeof(double));
     }
+    double *X = fmbd_realloc(V, (size_t)n * (size_t)nout * sizeof(double));
+    FMBD_GCHECK(X, FMBD_ERR_NOMEM, "out of memory");
+    V = NULL;
+    out->X = X;
     FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nout, out->X, n));
     out->nconv = nout;
   }
@@ -621,10 +629,9 @@ static int sort_normalise(const fmbd_csr *M, run_out *r) {
   int rc = FMBD_OK;
   int64_t n = M->nrows, k = r->nconv;
   idx_val *iv = NULL;
-  double *X2 = NULL, *lam2 = NULL, *mx = NULL, *xmx = NULL;
+  double *lam2 = NULL, *mx = NULL, *xmx = NULL, *t = NULL;
   enum { NB = 8 };  // x' M x by blocks of 8 columns: one pass over M per block (eig_residuals)
   FMBD_GALLOC(iv = fmbd_malloc((size_t)(k ? k : 1) * sizeof *iv));
-  FMBD_GALLOC(X2 = fmbd_malloc((size_t)n * (size_t)(k ? k : 1) * sizeof(double)));
   FMBD_GALLOC(lam2 = fmbd_malloc((size_t)(k + 1) * sizeof(double)));
   FMBD_GALLOC(xmx = fmbd_malloc((size_t)(k ? k : 1) * sizeof(double)));
   FMBD_GALLOC(mx = fmbd_malloc((size_t)n * NB * sizeof(double)));
@@ -633,32 +640,48 @@ static int sort_normalise(const fmbd_csr *M, run_out *r) {
     fmbd_csr_matmat(M, nb, r->X + j0 * n, n, mx, n);
     for (int64_t j = 0; j < nb; j++) xmx[j0 + j] = dot(n, r->X + (j0 + j) * n, mx + j * n);
   }
-  for (int64_t j = 0; j < k; j++) iv[j] = (idx_val){r->lam[j], j};
-  qsort(iv, (size_t)k, sizeof *iv, cmp_idx_val);
+  fmbd_free(mx);
+  mx = NULL;
+  // scale each column in place, then permute the columns in place by following the cycles of
+  // the sorting permutation with one spare vector (no second copy of the modes)
   for (int64_t j = 0; j < k; j++) {
-    const double *x = r->X + iv[j].i * n;
-    double *y = X2 + j * n;
-    double s = xmx[iv[j].i];
+    double *x = r->X + j * n;
+    double s = xmx[j];
     s = s > 0.0 ? 1.0 / sqrt(s) : 1.0;
     int64_t imax = 0;
     for (int64_t i = 1; i < n; i++) {
       if (fabs(x[i]) > fabs(x[imax])) imax = i;
     }
     if (x[imax] < 0.0) s = -s;
-    for (int64_t i = 0; i < n; i++) y[i] = s * x[i];
-    lam2[j] = iv[j].v;
+    for (int64_t i = 0; i < n; i++) x[i] = s * x[i];
   }
-  fmbd_free(r->X);
+  for (int64_t j = 0; j < k; j++) iv[j] = (idx_val){r->lam[j], j};
+  qsort(iv, (size_t)k, sizeof *iv, cmp_idx_val);
+  for (int64_t j = 0; j < k; j++) lam2[j] = iv[j].v;
+  FMBD_GALLOC(t = fmbd_malloc((size_t)(n ? n : 1) * sizeof(double)));
+  for (int64_t j = 0; j < k; j++) {
+    // column j receives old column iv[j].i; done entries are marked with i = -1
+    if (iv[j].i < 0 || iv[j].i == j) continue;
+    memcpy(t, r->X + j * n, (size_t)n * sizeof(double));
+    int64_t c = j;
+    while (iv[c].i != j) {
+      int64_t src = iv[c].i;
+      memcpy(r->X + c * n, r->X + src * n, (size_t)n * sizeof(double));
+      iv[c].i = -1;
+      c = src;
+    }
+    memcpy(r->X + c * n, t, (size_t)n * sizeof(double));
+    iv[c].i = -1;
+  }
   fmbd_free(r->lam);
-  r->X = X2;
   r->lam = lam2;
-  X2 = lam2 = NULL;
+  lam2 = NULL;
 done:
   fmbd_free(iv);
-  fmbd_free(X2);
   fmbd_free(lam2);
   fmbd_free(mx);
   fmbd_free(xmx);
+  fmbd_free(t);
   return rc;
 }
 

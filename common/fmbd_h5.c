@@ -927,7 +927,8 @@ int fmbd_h5_write_f64_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t col
   double *buf = NULL;
   hsize_t block;
   int64_t dims[2] = {rows, cols};
-  FMBD_GCALL(create_dataset(f, path, H5T_IEEE_F64LE, 2, dims, NULL, &d, &block));
+  // A for the compression trial (its first values: the leading columns, the same kind of data)
+  FMBD_GCALL(create_dataset(f, path, H5T_IEEE_F64LE, 2, dims, A, &d, &block));
   if (rows == 0 || cols == 0) goto done;
   if ((int64_t)block * cols < 65536) block = (hsize_t)((65536 + cols - 1) / cols);
   if ((int64_t)block > rows) block = (hsize_t)rows;

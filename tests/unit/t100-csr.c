@@ -20,6 +20,38 @@ int main(void) {
   EXPECT(fmbd_csr_check(A) == 0, "check");
   int64_t bad;
   EXPECT(fmbd_csr_is_symmetric(A, 0.0, &bad), "symmetric");
+  {
+    // asymmetries and the row reported: a value (row 1), an entry only below the diagonal
+    // (row 3), one only above it (row 0); a tiny lower-only entry within the tolerance
+    fmbd_csr *S = NULL;
+    EXPECT(fmbd_csr_pattern_from_elements(5, 4, 2, ed, &S) == 0, "pattern");
+    for (int e = 0; e < 4; e++) fmbd_csr_add_block(S, 2, ed + 2 * e, ke);
+    int64_t r = -1;
+    S->data[fmbd_csr_find(S, 1, 2)] += 1e-3;
+    EXPECT(!fmbd_csr_is_symmetric(S, 1e-6, &r) && r == 1, "value asymmetry row %lld", (long long)r);
+    EXPECT(fmbd_csr_is_symmetric(S, 1e-2, &r) && r == -1, "within tolerance");
+    S->data[fmbd_csr_find(S, 1, 2)] -= 1e-3;
+    fmbd_csr *T = NULL;  // the chain plus (3, 0) only, then (0, 3) only
+    EXPECT(fmbd_csr_create(5, 5, 14, &T) == 0, "create");
+    int64_t ptr[6] = {0, 2, 5, 8, 12, 14}, col[14] = {0, 1, 0, 1, 2, 1, 2, 3, 0, 2, 3, 4, 3, 4};
+    for (int i = 0; i < 6; i++) T->indptr[i] = ptr[i];
+    for (int q = 0; q < 14; q++) {
+      T->indices[q] = col[q];
+      T->data[q] = q == 8 ? 0.5 : 1.0;
+    }
+    EXPECT(!fmbd_csr_is_symmetric(T, 1e-6, &r) && r == 3, "lower-only entry row %lld",
+           (long long)r);
+    T->data[8] = 1e-9;
+    EXPECT(fmbd_csr_is_symmetric(T, 1e-6, &r), "lower-only entry within the tolerance");
+    // the same entry moved above the diagonal: row 0 holds (0, 3), row 3 does not hold (3, 0)
+    int64_t ptr2[6] = {0, 3, 6, 9, 12, 14}, col2[14] = {0, 1, 3, 0, 1, 2, 1, 2, 3, 2, 3, 4, 3, 4};
+    for (int i = 0; i < 6; i++) T->indptr[i] = ptr2[i];
+    for (int q = 0; q < 14; q++) T->indices[q] = col2[q], T->data[q] = q == 2 ? 0.5 : 1.0;
+    EXPECT(!fmbd_csr_is_symmetric(T, 1e-6, &r) && r == 0, "upper-only entry row %lld",
+           (long long)r);
+    fmbd_csr_destroy(&S);
+    fmbd_csr_destroy(&T);
+  }
   double x[5] = {1, 1, 1, 1, 1}, y[5];
   fmbd_csr_matvec(A, x, y);
   for (int i = 0; i < 5; i++) EXPECT(fabs(y[i]) < 1e-15, "rigid mode y[%d]=%g", i, y[i]);

@@ -164,7 +164,8 @@ static void check_solve(model *o) {
   const double cm = 1, cc = 2e-3, ck = 1e-4;  // ck raised so that Kff matters against Mff
   mbs_eval_system(m, m->t, m->xdd, true, cm, cc, ck, true);
   const int64_t N = m->N, nnz = m->nnz;
-  double *b = fmbd_malloc(sizeof(double) * (size_t)N), *xs = fmbd_malloc(sizeof(double) * (size_t)N);
+  double *b = fmbd_malloc(sizeof(double) * (size_t)N),
+         *xs = fmbd_malloc(sizeof(double) * (size_t)N);
   double *xk = fmbd_malloc(sizeof(double) * (size_t)N);
   double *Ac = fmbd_malloc(sizeof(double) * (size_t)nnz);
   unsigned seed = 3;
@@ -279,14 +280,16 @@ int main(void) {
   fmbd_mbs_get_stats(md.m, &sd);
   fmbd_mbs_get_stats(mg.m, &sg);
   const double bound = 2 * nst * NEWTON_TOL * L;
-  EXPECT(dmax <= bound, "diagonal vs general basis: the tip %.3g m apart (bound %.3g)", dmax, bound);
+  EXPECT(dmax <= bound, "diagonal vs general basis: the tip %.3g m apart (bound %.3g)", dmax,
+         bound);
   EXPECT(fabs((double)sd.newton_iterations - (double)sg.newton_iterations) <=
              0.05 * (double)sg.newton_iterations,
          "Newton iterations %lld (diagonal) and %lld (general)", (long long)sd.newton_iterations,
          (long long)sg.newton_iterations);
-  printf("t512: diagonal vs general basis over %d steps: %.2e m (bound %.2e), iterations %lld / "
-         "%lld\n",
-         nst, dmax, bound, (long long)sd.newton_iterations, (long long)sg.newton_iterations);
+  printf(
+      "t512: diagonal vs general basis over %d steps: %.2e m (bound %.2e), iterations %lld / "
+      "%lld\n",
+      nst, dmax, bound, (long long)sd.newton_iterations, (long long)sg.newton_iterations);
   fmbd_mbs_destroy(&md.m), fmbd_mbs_destroy(&mg.m);
   // --- part 3: partial against full, free spinning body D ---
   model mf, mp;
@@ -297,7 +300,8 @@ int main(void) {
   kin k = {0};
   double pmax = 0, phi = 0;  // |Phi_p|: the modes at the tip
   for (int j = 0; j < NM; j++)
-    for (int a = 0; a < 3; a++) phi += D.Ph[3 * NP * j + 3 * (NP - 1) + a] * D.Ph[3 * NP * j + 3 * (NP - 1) + a];
+    for (int a = 0; a < 3; a++)
+      phi += D.Ph[3 * NP * j + 3 * (NP - 1) + a] * D.Ph[3 * NP * j + 3 * (NP - 1) + a];
   phi = sqrt(phi);
   const int np3 = 100;
   sample(&mf, &D, h, &k), sample(&mp, &D, h, &k);
@@ -316,9 +320,10 @@ int main(void) {
   EXPECT(pmax <= pb && pmax > 10 * NEWTON_TOL * L,
          "partial vs full coupling: the tip %.3g m apart (bound %.3g; at least %.3g)", pmax, pb,
          10 * NEWTON_TOL * L);
-  printf("t512: partial vs full over %.2f s: %.2e m (bound %.2e; |u| %.2e m, |u'| %.2e m/s, |w| "
-         "%.2f rad/s, |w'| %.2f rad/s^2)\n",
-         t3, pmax, pb, k.u, k.ud, k.w, k.wd);
+  printf(
+      "t512: partial vs full over %.2f s: %.2e m (bound %.2e; |u| %.2e m, |u'| %.2e m/s, |w| "
+      "%.2f rad/s, |w'| %.2f rad/s^2)\n",
+      t3, pmax, pb, k.u, k.ud, k.w, k.wd);
   fmbd_mbs_destroy(&mf.m), fmbd_mbs_destroy(&mp.m);
   // --- part 4: the partial model's own energy ---
   double e1 = 0, e2 = 0, e3 = 0, ef = 0;
@@ -332,8 +337,9 @@ int main(void) {
          "partial coupling: energy drift %.3g %.3g %.3g (h 4, 2, 1 ms), orders %.2f %.2f; the full "
          "model's %.3g",
          e1, e2, e3, o1, o2, ef);
-  printf("t512: partial coupling, energy drift %.2e %.2e %.2e (h = 4, 2, 1 ms), orders %.2f %.2f; "
-         "the full model's at 1 ms %.2e\n",
-         e1, e2, e3, o1, o2, ef);
+  printf(
+      "t512: partial coupling, energy drift %.2e %.2e %.2e (h = 4, 2, 1 ms), orders %.2f %.2f; "
+      "the full model's at 1 ms %.2e\n",
+      e1, e2, e3, o1, o2, ef);
   TEST_EXIT();
 }
