@@ -143,6 +143,9 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
         // there depends on its pivot order. Rejected as a Newton failure: the step is
         // reduced and, at the smallest step, the report is made at the last accepted state
         // (fmbd_mbs_step), the same for any ordering (bench/README.md, the chain, lever 1)
+        if (debug)
+          fmbd_log(FMBD_LOG_DEBUG, "t = %.9g h = %.3g Newton %d: %s", m->t, h, it,
+                   fmbd_err_get()->msg);
         fmbd_err_clear();
         *singular = true;
         fresh = true;
