@@ -5,8 +5,10 @@
 #     variable steps (the example's settings) and fixed 1e-3 s steps: steps, Newton
 #     iterations, steps per second and the real-time factor (simulated time / CPU time of the
 #     integration, one core); at 30 and 100 modes the fixed-step case again with the modal
-#     block not eliminated (FMBD_MBS_SCHUR=0: KLU on the whole iteration matrix); beside it the
-#     rigid-only quadruple pendulum;
+#     block not eliminated (FMBD_MBS_SCHUR=0: KLU on the whole iteration matrix) and with the
+#     rod's partial inertia coupling (inertia_coupling: partial, docs/THEORY.md section 4c;
+#     node A's error against the full model's reference); beside it the rigid-only quadruple
+#     pendulum;
 #  2. the peer side by side: the rigid quadruple pendulum in minimal coordinates (the planar
 #     chain's four angles, Lagrange's equations) integrated by scipy's solve_ivp (DOP853,
 #     rtol 1e-10), its CPU time, and the RMS difference of link 3's tip over the first 2 s
@@ -82,6 +84,10 @@ for nm in (10, 30, 100):
     if nm >= 30:  # the same, the modal block not eliminated (KLU on the whole matrix)
         st = run(f"quad{nm}fk", fixed.replace("%BODY%", body % nm), ref, {"FMBD_MBS_SCHUR": "0"})
         if st: row(f"  the same, FMBD_MBS_SCHUR=0", st, 7)
+        # the same, partial inertia coupling (docs/THEORY.md section 4c); error against the
+        # full model's reference, as every row
+        st = run(f"quad{nm}fp", fixed.replace("%BODY%", body % nm + "    inertia_coupling: partial\n"), ref)
+        if st: row(f"  the same, partial coupling", st, 7)
 st = run("quadrigid", rigid)
 if st: row("rigid only, variable", st, 7)
 rigid_fixed = re.sub(r"  first_step: .*\n  max_step: .*\n  tolerance: .*\n( +#.*\n)*", "  step: 1e-3\n", rigid)

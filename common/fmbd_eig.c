@@ -98,6 +98,7 @@ typedef struct run_out {
   double *lam;  // (nconv) owned
   double *X;    // n x nconv owned
   int64_t solves, restarts;
+  double orth_loss;  // block runs: max |V'V - I| of the final basis, when measured (else NAN)
 } run_out;
 
 static void run_out_free(run_out *r) {
@@ -323,25 +324,60 @@ static void bk_mgs(int64_t n, int64_t m, int64_t p, const double *V, double *W, 
 }
 
 // W (= C Q) -> the next block: W_in = V C + W_out R with W_out orthonormal and orthogonal to
-// V (n x m). BCGS2: W = V C1 + Q1 R1, Q1 = V C2 + Q2 R2, so C = C1 + C2 R1, R = R2 R1.
-// C (m x p, ldc) is overwritten. Work: T, C2 (m x p), R2, G (p x p), ref (p), work (p x p +
-// rb x p).
-static void bk_orth(int64_t n, int64_t m, int64_t p, const double *V, double *W, double *C,
-                    int64_t ldc, double *R, double *R2, double *G, double *C2, double *T,
-                    double *ref, uint64_t *seed, double *work, int64_t rb) {
+// V (n x m). Block Gram-Schmidt in up to three passes, each a pair of matrix-matrix products:
+//  1. a local pass against columns lo..m-1 of V, the part of the basis that C Q has large
+//     components on (the block Q and the one before it; after a restart every active kept
+//     Ritz vector and Q). Against every other column the components of C Q are small: in exact
+//     arithmetic zero (Lanczos' three-term recurrence), in floating point of the order of the
+//     basis' loss of orthogonality times ||C|| (Paige's analysis of the Lanczos process).
+//  2. a global pass against all of V: it removes those small components and the round-off of
+//     the local pass, eps ||W_in|| spread over every direction, without cancellation.
+//  3. only when the global pass has cancelled: Kahan's and Parlett's "twice is enough" test
+//     (B. N. Parlett, The Symmetric Eigenvalue Problem, SIAM 1998, section 6.9), in block form.
+//     Column j of the block, Gram-Schmidt-orthogonalised against V and the earlier columns,
+//     keeps R(j, j) of its norm before the global pass, nloc_j (R from Cholesky-QR); when
+//     R(j, j) >= nloc_j / sqrt(2) for every j, one global pass has left the block orthogonal
+//     to V to the round-off of that pass, a few eps nloc_j / R(j, j) <= a few sqrt(2) eps,
+//     and a second pass cannot improve it; otherwise (a column has lost more than 1 - 1/sqrt(2)
+//     of its norm to V or to the block: cancellation) the global pass and the Cholesky-QR are
+//     repeated (BCGS2: Barlow and Smoktunowicz, Numer. Math. 123 (2013) 395-423).
+// After one global pass the block is made orthonormal by Cholesky-QR twice (CholQR2: the first
+// leaves eps cond(W)^2 of non-orthogonality inside the block, the second removes it at the
+// cost of a p x p Gram matrix, n p^2 flops against the n m p of a global pass).
+// With m = 0 (the start block) only the Cholesky-QR passes run. Returns the number of global
+// passes (1 or 2). C (m x p, ldc) is overwritten. Work: T (m x p), C2 (m x p), R2, G (p x p),
+// ref, nloc (p), work (p x p + rb x p).
+static int bk_orth(int64_t n, int64_t m, int64_t lo, int64_t p, const double *V, double *W,
+                   double *C, int64_t ldc, double *R, double *R2, double *G, double *C2, double *T,
+                   double *ref, double *nloc, uint64_t *seed, double *work, int64_t rb) {
   for (int64_t j = 0; j < p; j++) {
     memset(C + j * ldc, 0, (size_t)m * sizeof(double));
     ref[j] = sqrt(bk_dot(n, W + j * n, W + j * n));
   }
+  if (m > 0 && lo < m) bk_project(n, m - lo, p, V + lo * n, W, C + lo, ldc, T);
+  for (int64_t j = 0; j < p; j++) nloc[j] = sqrt(bk_dot(n, W + j * n, W + j * n));
   bk_project(n, m, p, V, W, C, ldc, T);
-  if (!bk_cholqr(n, p, W, R, G, work, rb)) bk_mgs(n, m, p, V, W, R, ref, seed, T);
+  bool one = false;
+  if (bk_cholqr(n, p, W, R, G, work, rb)) {
+    one = true;
+    for (int64_t j = 0; j < p; j++) one = one && R[j + j * p] * sqrt(2.0) >= nloc[j];
+  } else {
+    bk_mgs(n, m, p, V, W, R, ref, seed, T);
+  }
   for (int64_t j = 0; j < p; j++) ref[j] = 1.0;
-  memset(C2, 0, (size_t)((m ? m : 1) * p) * sizeof(double));
-  bk_project(n, m, p, V, W, C2, m ? m : 1, T);
-  if (!bk_cholqr(n, p, W, R2, G, work, rb)) bk_mgs(n, m, p, V, W, R2, ref, seed, T);
-  if (m > 0) fmbd_dense_gemm('N', 'N', m, p, p, 1.0, C2, m, R, p, 1.0, C, ldc);
+  int passes = 1;
+  if (one) {
+    if (!bk_cholqr(n, p, W, R2, G, work, rb)) bk_mgs(n, m, p, V, W, R2, ref, seed, T);
+  } else {
+    passes = 2;
+    memset(C2, 0, (size_t)((m ? m : 1) * p) * sizeof(double));
+    bk_project(n, m, p, V, W, C2, m ? m : 1, T);
+    if (!bk_cholqr(n, p, W, R2, G, work, rb)) bk_mgs(n, m, p, V, W, R2, ref, seed, T);
+    if (m > 0) fmbd_dense_gemm('N', 'N', m, p, p, 1.0, C2, m, R, p, 1.0, C, ldc);
+  }
   fmbd_dense_gemm('N', 'N', p, p, p, 1.0, R2, p, R, p, 0.0, G, p);
   memcpy(R, G, (size_t)(p * p) * sizeof(double));
+  return m > 0 ? passes : 0;
 }
 
 static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv, int64_t p,
@@ -351,6 +387,7 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   int64_t n = M->nrows;
   double sigma = fmbd_chol_sigma(F);
   memset(out, 0, sizeof *out);
+  out->orth_loss = NAN;
   // basis: at most mmax columns with H known, plus the block Q; mmax >= nreq + 6p, so that a
   // restart keeps the wanted Ritz vectors and still adds several blocks (with nreq + 2p, one
   // block per restart: 60 modes of the 51 k-dof rod took 4856 solves instead of 274)
@@ -362,7 +399,8 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   int64_t cap = mmax + p, ldh = mmax + 2 * p;
   const int64_t rb = 2048;  // row chunk of the in-place products
   double *V = NULL, *H = NULL, *S = NULL, *th = NULL, *C = NULL, *T = NULL, *R = NULL, *R2 = NULL,
-         *G = NULL, *C2 = NULL, *ref = NULL, *B = NULL, *tmp = NULL, *Y = NULL, *thl = NULL;
+         *G = NULL, *C2 = NULL, *ref = NULL, *B = NULL, *tmp = NULL, *Y = NULL, *thl = NULL,
+         *nloc = NULL;
   int64_t *ord = NULL;
   FMBD_GALLOC(V = fmbd_malloc((size_t)n * (size_t)cap * sizeof(double)));
   FMBD_GALLOC(Y = fmbd_malloc((size_t)n * (size_t)p * sizeof(double)));
@@ -377,6 +415,7 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   FMBD_GALLOC(R2 = fmbd_malloc((size_t)(p * p) * sizeof(double)));
   FMBD_GALLOC(G = fmbd_malloc((size_t)(p * p) * sizeof(double)));
   FMBD_GALLOC(ref = fmbd_malloc((size_t)p * sizeof(double)));
+  FMBD_GALLOC(nloc = fmbd_malloc((size_t)p * sizeof(double)));
   FMBD_GALLOC(B = fmbd_malloc((size_t)(p * mmax) * sizeof(double)));
   FMBD_GALLOC(ord = fmbd_malloc((size_t)mmax * sizeof(int64_t)));
   FMBD_GALLOC(tmp = fmbd_malloc(((size_t)rb * (size_t)mmax + (size_t)(p * p)) * sizeof(double)));
@@ -390,9 +429,11 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     fmbd_csr_matvec(M, v0, V);
     FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_FWD, 1, V, n));
   }
-  bk_orth(n, 0, p, V, V, C, 1, R, R2, G, C2, T, ref, &seed, tmp, rb);
+  bk_orth(n, 0, 0, p, V, V, C, 1, R, R2, G, C2, T, ref, nloc, &seed, tmp, rb);
   int64_t solves = 0, restarts = 0, nconv = 0, nl = 0;  // nl: locked columns 0..nl-1 of V
-  double t_op = 0.0, t_orth = 0.0, t_rr = 0.0, t_restart = 0.0;
+  int64_t m_rs = 0;                                     // m after the last restart (0: none yet)
+  int64_t n_orth1 = 0, n_orth2 = 0;  // blocks orthogonalised with one / two global passes
+  double t_op = 0.0, t_mprod = 0.0, t_orth = 0.0, t_rr = 0.0, t_restart = 0.0;
   for (;;) {
     // --- expand until the basis is full ---
     while (m + p <= mmax) {
@@ -404,7 +445,9 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
       memcpy(Y, V + m * n, (size_t)(n * p) * sizeof(double));
       int th1 = p < 16 ? fmbd_blas_set_threads(1) : -1;
       rc = fmbd_chol_solve_half(F, FMBD_CHOL_BWD, p, Y, n);
+      double tm = fmbd_wall_s();
       fmbd_csr_matmat(M, p, Y, n, W, n);
+      t_mprod += fmbd_wall_s() - tm;
       if (rc == FMBD_OK) rc = fmbd_chol_solve_half(F, FMBD_CHOL_FWD, p, W, n);
       if (th1 > 1) fmbd_blas_set_threads(th1);
       FMBD_GCALL(rc);
@@ -412,9 +455,13 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
       double tb = fmbd_wall_s();
       t_op += tb - ta;
       if (o->progress) o->progress(o->progress_ctx, "Lanczos", solves0 + solves, nreq);
-      // coefficients against the whole basis [V_m Q] -> column block m..m+p-1 of H
-      int64_t mq = m + p;
-      bk_orth(n, mq, p, V, W, C, mq, R, R2, G, C2, T, ref, &seed, tmp, rb);
+      // coefficients against the whole basis [V_m Q] -> column block m..m+p-1 of H; the local
+      // pass runs against Q and the block before it, or after a restart against every active
+      // column (C Q couples to all kept Ritz vectors through B)
+      int64_t mq = m + p, lo = m == m_rs ? nl : m - p;
+      int np = bk_orth(n, mq, lo, p, V, W, C, mq, R, R2, G, C2, T, ref, nloc, &seed, tmp, rb);
+      if (np == 1) n_orth1++;
+      if (np == 2) n_orth2++;
       t_orth += fmbd_wall_s() - tb;
       for (int64_t j = 0; j < p; j++) {
         for (int64_t i = 0; i < mq; i++) H[i + (m + j) * ldh] = C[i + j * mq];
@@ -493,32 +540,56 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     for (int64_t j = 0; j < nlock; j++) thl[nl + j] = th[j];
     nl += nlock;
     m = k;
+    m_rs = k;
     t_restart += fmbd_wall_s() - td;
   }
   fmbd_log(FMBD_LOG_DEBUG,
            "eig: block Lanczos (block %lld, basis %lld): %lld solves, %lld restarts, %lld locked, "
-           "operator %.3g s, orthogonalisation %.3g s, Rayleigh-Ritz %.3g s, restarts %.3g s",
+           "operator %.3g s (M products %.3g s), orthogonalisation %.3g s (%lld blocks with one "
+           "global pass, %lld with two), Rayleigh-Ritz %.3g s, restarts %.3g s",
            (long long)p, (long long)mmax, (long long)solves, (long long)restarts, (long long)nl,
-           t_op, t_orth, t_rr, t_restart);
-  // --- the locked and the converged active pairs: x = P' L^-T V_l, P' L^-T V_a s ---
+           t_op, t_mprod, t_orth, (long long)n_orth1, (long long)n_orth2, t_rr, t_restart);
+  if (fmbd_log_level() >= FMBD_LOG_DEBUG || o->orth_check) {
+    // loss of orthogonality of the final basis [V_m Q]: max |(V' V - I)_ij| (m^2 n flops: a
+    // few percent of the run, so only on request)
+    int64_t mq = m + p;
+    double *Gm = fmbd_malloc((size_t)(mq * mq) * sizeof(double));
+    FMBD_GCHECK(Gm, FMBD_ERR_NOMEM, "out of memory");
+    fmbd_dense_gemm('T', 'N', mq, mq, n, 1.0, V, n, V, n, 0.0, Gm, mq);
+    double w = 0.0;
+    for (int64_t j = 0; j < mq; j++) {
+      for (int64_t i = 0; i < mq; i++) w = fmax(w, fabs(Gm[i + j * mq] - (i == j ? 1.0 : 0.0)));
+    }
+    fmbd_free(Gm);
+    out->orth_loss = w;
+    fmbd_log(FMBD_LOG_DEBUG, "eig: block Lanczos basis of %lld vectors: max |V'V - I| = %.2g",
+             (long long)mq, w);
+  }
+  // --- the locked and the converged active pairs: x = P' L^-T V_l, P' L^-T V_a s, made in
+  // the basis' own storage (the locked vectors are its leading columns; V_a s by row chunks
+  // into the columns after them, as the restart does), which then shrinks to the nout modes:
+  // no second copy of the modes beside the basis (1,000 modes of 188 k dofs: 1.5 GB)
   out->solves = solves;
   out->restarts = restarts;
   int64_t nout = nl + nconv;
   if (nout > 0) {
     int64_t ma = m - nl;
     FMBD_GALLOC(out->lam = fmbd_malloc((size_t)(nout + 1) * sizeof(double)));
-    FMBD_GALLOC(out->X = fmbd_malloc((size_t)n * (size_t)nout * sizeof(double)));
-    for (int64_t j = 0; j < nl; j++) {
-      out->lam[j] = sigma + 1.0 / thl[j];
-      memcpy(out->X + j * n, V + j * n, (size_t)n * sizeof(double));
-    }
+    for (int64_t j = 0; j < nl; j++) out->lam[j] = sigma + 1.0 / thl[j];
     for (int64_t j = 0; j < nconv; j++) {
       out->lam[nl + j] = sigma + 1.0 / th[ord[j]];
       if (ord[j] != j) memcpy(S + j * ma, S + ord[j] * ma, (size_t)ma * sizeof(double));
     }
-    if (nconv > 0) {
-      fmbd_dense_gemm('N', 'N', n, nconv, ma, 1.0, V + nl * n, n, S, ma, 0.0, out->X + nl * n, n);
+    for (int64_t r0 = 0; r0 < n && nconv > 0; r0 += rb) {
+      int64_t nr = n - r0 < rb ? n - r0 : rb;
+      fmbd_dense_gemm('N', 'N', nr, nconv, ma, 1.0, V + nl * n + r0, n, S, ma, 0.0, tmp, nr);
+      for (int64_t j = 0; j < nconv; j++)
+        memcpy(V + (nl + j) * n + r0, tmp + j * nr, (size_t)nr * sizeof(double));
     }
+    double *X = fmbd_realloc(V, (size_t)n * (size_t)nout * sizeof(double));
+    FMBD_GCHECK(X, FMBD_ERR_NOMEM, "out of memory");
+    V = NULL;
+    out->X = X;
     FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nout, out->X, n));
     out->nconv = nout;
   }
@@ -537,6 +608,7 @@ done:
   fmbd_free(R2);
   fmbd_free(G);
   fmbd_free(ref);
+  fmbd_free(nloc);
   fmbd_free(B);
   fmbd_free(ord);
   fmbd_free(tmp);
@@ -557,10 +629,9 @@ static int sort_normalise(const fmbd_csr *M, run_out *r) {
   int rc = FMBD_OK;
   int64_t n = M->nrows, k = r->nconv;
   idx_val *iv = NULL;
-  double *X2 = NULL, *lam2 = NULL, *mx = NULL, *xmx = NULL;
+  double *lam2 = NULL, *mx = NULL, *xmx = NULL, *t = NULL;
   enum { NB = 8 };  // x' M x by blocks of 8 columns: one pass over M per block (eig_residuals)
   FMBD_GALLOC(iv = fmbd_malloc((size_t)(k ? k : 1) * sizeof *iv));
-  FMBD_GALLOC(X2 = fmbd_malloc((size_t)n * (size_t)(k ? k : 1) * sizeof(double)));
   FMBD_GALLOC(lam2 = fmbd_malloc((size_t)(k + 1) * sizeof(double)));
   FMBD_GALLOC(xmx = fmbd_malloc((size_t)(k ? k : 1) * sizeof(double)));
   FMBD_GALLOC(mx = fmbd_malloc((size_t)n * NB * sizeof(double)));
@@ -569,32 +640,48 @@ static int sort_normalise(const fmbd_csr *M, run_out *r) {
     fmbd_csr_matmat(M, nb, r->X + j0 * n, n, mx, n);
     for (int64_t j = 0; j < nb; j++) xmx[j0 + j] = dot(n, r->X + (j0 + j) * n, mx + j * n);
   }
-  for (int64_t j = 0; j < k; j++) iv[j] = (idx_val){r->lam[j], j};
-  qsort(iv, (size_t)k, sizeof *iv, cmp_idx_val);
+  fmbd_free(mx);
+  mx = NULL;
+  // scale each column in place, then permute the columns in place by following the cycles of
+  // the sorting permutation with one spare vector (no second copy of the modes)
   for (int64_t j = 0; j < k; j++) {
-    const double *x = r->X + iv[j].i * n;
-    double *y = X2 + j * n;
-    double s = xmx[iv[j].i];
+    double *x = r->X + j * n;
+    double s = xmx[j];
     s = s > 0.0 ? 1.0 / sqrt(s) : 1.0;
     int64_t imax = 0;
     for (int64_t i = 1; i < n; i++) {
       if (fabs(x[i]) > fabs(x[imax])) imax = i;
     }
     if (x[imax] < 0.0) s = -s;
-    for (int64_t i = 0; i < n; i++) y[i] = s * x[i];
-    lam2[j] = iv[j].v;
+    for (int64_t i = 0; i < n; i++) x[i] = s * x[i];
   }
-  fmbd_free(r->X);
+  for (int64_t j = 0; j < k; j++) iv[j] = (idx_val){r->lam[j], j};
+  qsort(iv, (size_t)k, sizeof *iv, cmp_idx_val);
+  for (int64_t j = 0; j < k; j++) lam2[j] = iv[j].v;
+  FMBD_GALLOC(t = fmbd_malloc((size_t)(n ? n : 1) * sizeof(double)));
+  for (int64_t j = 0; j < k; j++) {
+    // column j receives old column iv[j].i; done entries are marked with i = -1
+    if (iv[j].i < 0 || iv[j].i == j) continue;
+    memcpy(t, r->X + j * n, (size_t)n * sizeof(double));
+    int64_t c = j;
+    while (iv[c].i != j) {
+      int64_t src = iv[c].i;
+      memcpy(r->X + c * n, r->X + src * n, (size_t)n * sizeof(double));
+      iv[c].i = -1;
+      c = src;
+    }
+    memcpy(r->X + c * n, t, (size_t)n * sizeof(double));
+    iv[c].i = -1;
+  }
   fmbd_free(r->lam);
-  r->X = X2;
   r->lam = lam2;
-  X2 = lam2 = NULL;
+  lam2 = NULL;
 done:
   fmbd_free(iv);
-  fmbd_free(X2);
   fmbd_free(lam2);
   fmbd_free(mx);
   fmbd_free(xmx);
+  fmbd_free(t);
   return rc;
 }
 
@@ -680,6 +767,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   res->next_lambda = NAN;
   res->sturm_shift = NAN;
   res->sturm_count = -1;
+  res->orth_loss = NAN;
   int64_t n = K->nrows;
   res->n = n;
   fmbd_chol *own = NULL, *ldl = NULL;
@@ -820,6 +908,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     if (bs > 0) {
       FMBD_GCALL(block_run(M, op, nreq, ncv, bs, tol, o.maxit, &o, v0, res->n_solves, &r));
       res->block = bs;
+      res->orth_loss = r.orth_loss;
     } else {
       FMBD_GCALL(arpack_run(M, op, nreq, ncv, tol, o.maxit, &o, v0, res->n_solves, &r));
       res->block = 1;

@@ -68,6 +68,9 @@ typedef struct fmbd_eig_opts {
                       ///< (default): ARPACK's random start / a fixed pseudo-random block. A
                       ///< pass after a failed check starts afresh without it. With the block
                       ///< method it becomes the first column of the start block (as OP v0)
+  bool orth_check;    ///< block method: measure the final basis' loss of orthogonality
+                      ///< (fmbd_eig_result.orth_loss; m^2 n flops). Default false; always
+                      ///< measured (and logged) at log level debug (-vv)
   fmbd_eig_progress_fn progress;  ///< may be NULL (default)
   void *progress_ctx;
 } fmbd_eig_opts;
@@ -91,6 +94,8 @@ typedef struct fmbd_eig_result {
   int passes;           ///< Lanczos runs, including the estimate pass
   int64_t n_solves;     ///< operator applications (sparse solves)
   int64_t n_restarts;   ///< ARPACK restart iterations, summed over runs
+  double orth_loss;     ///< block method, when measured (opts orth_check or -vv): max |(V' V -
+                        ///< I)_ij| of the last pass' final basis V; else NAN
   double t_factor_s;    ///< shifted factorisations done here (not the caller's)
   double t_lanczos_s;   ///< ARPACK iterations + solves + eigenvector extraction
   double t_sturm_s;     ///< LDL' factorisations of the Sturm check

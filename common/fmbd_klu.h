@@ -4,7 +4,9 @@
 //
 // The matrix is given in compressed columns (Ap[n + 1], Ai[nnz] with sorted row indices in each
 // column, values Ax[nnz]). An fmbd_klu object holds a copy of the pattern and KLU's symbolic
-// analysis of it (BTF + AMD ordering, done once by fmbd_klu_analyze), and the numeric factor
+// analysis of it (done once by fmbd_klu_analyze: AMD ordering, with or without KLU's block
+// triangular form, whichever predicts the smaller factor; the environment variable
+// FMBD_KLU_BTF = 0 or 1 forces one), and the numeric factor
 // of the values given to the last fmbd_klu_factor. That factor is reused across calls where
 // possible: fmbd_klu_factor refactors with the previous pivot order (klu_l_refactor) and
 // falls back to a full factorisation with fresh partial pivoting (klu_l_factor) when the

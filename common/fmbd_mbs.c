@@ -331,7 +331,14 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);
-    memcpy(b->SS, d->SS, sizeof(double) * 9 * n1 * n1);
+    // partial inertia coupling (docs/THEORY.md section 4c): the second-order invariant SS (and
+    // SSx, formed from it below) zero, so every term built from them (the equations, their
+    // derivatives, the kinetic energy of fmbd_mbs_energy) is that of the partial model
+    b->partial = d->partial_coupling;
+    if (b->partial)
+      memset(b->SS, 0, sizeof(double) * 9 * n1 * n1);
+    else
+      memcpy(b->SS, d->SS, sizeof(double) * 9 * n1 * n1);
     for (size_t i = 0; i < n1; i++) {
       for (size_t k = 0; k < n1; k++) {
         b->Mff[i + n1 * k] = 0.5 * (d->Mff[i + n1 * k] + d->Mff[k + n1 * i]);
@@ -344,13 +351,14 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
       double kk = b->Kff[k + n1 * k], mk = b->Mff[k + n1 * k];
       b->Dff[k + n1 * k] = 2 * d->damping_ratio * sqrt(fmax(kk, 0) * mk);
     }
-    b->kdiag = true;
-    for (size_t i = 0; i < n1 && b->kdiag; i++) {
+    // Kff and Mff exactly diagonal (Dff is): the modes of fe2cb's and cbcheck's bodies are
+    // the M-orthonormal eigenvectors of the reduced problem, stored as Mff = I and Kff =
+    // diag(chibar) exactly (fmbd_rflex.c); O(nm) products and the Schur path's C diagonal
+    b->kdiag = b->mdiag = true;
+    for (size_t i = 0; i < n1; i++) {
       for (size_t k = 0; k < n1; k++) {
-        if (i != k && b->Kff[i + n1 * k] != 0) {
-          b->kdiag = false;
-          break;
-        }
+        if (i != k && b->Kff[i + n1 * k] != 0) b->kdiag = false;
+        if (i != k && b->Mff[i + n1 * k] != 0) b->mdiag = false;
       }
     }
     if (d->q0) memcpy(b->q0, d->q0, sizeof(double) * n1);

@@ -79,14 +79,17 @@
 //   Neglected (convergence is monitored every iteration): the derivatives with respect to x
 //   of M x'', of the quadratic velocity vector, of gravity and loads (follower loads too), and
 //   the geometric stiffness (Phi_x' lambda)_x; they carry a factor h^2 relative to M.
+//   The residual's Phi_x' lambda: from the Jacobians where the matrix is formed, else from each
+//   joint side's force and moments on its point and directions (the same sum, another order).
 //   Sparse matrix (one dense (7+nm)^2 block per body, constraint rows on the coordinates of
 //   their two bodies) in compressed columns, factored with KLU (SuiteSparse klu_l_*): the
-//   symbolic analysis once at fmbd_mbs_init, the numeric factor kept across iterations and
-//   steps while Newton converges (modified Newton); refactored (klu_l_refactor with the old
-//   pivoting, full klu_l_factor if KLU's rcond estimate drops below 1e-13) when the
-//   contraction rate exceeds 0.1, when h differs by more than 25 % from the h of the factor,
-//   and before retrying a step whose Newton failed with an old factor. Modal bodies with at
-//   least 10 modes (not full FE bodies, not shared GM sets) have their modal coordinates
+//   symbolic analysis once at fmbd_mbs_init (AMD, with or without KLU's block triangular
+//   form, whichever predicts the smaller factor: without, on these KKT matrices), the numeric
+//   factor kept across iterations and steps while Newton converges (modified Newton); refactored
+//   (klu_l_refactor with the old pivoting, full klu_l_factor if KLU's rcond estimate drops below
+//   1e-13) when the contraction rate exceeds 0.1, when h differs by more than 25 % from the h of
+//   the factor, and before retrying a step whose Newton failed with an old factor. Modal bodies
+//   with at least 10 modes (not full FE bodies, not shared GM sets) have their modal coordinates
 //   eliminated instead (fmbd_mbs_schur.c): their block's constant part cm Mff + cc Dff + ck Kff
 //   by dense Cholesky once per step size, the rest (frames, other bodies, constraint rows) by
 //   KLU on the Schur complement; the modal block's gyroscopic part is left out of the matrix
@@ -230,6 +233,9 @@ typedef struct fmbd_mbs_flex_data {
   double damping_ratio;     ///< modal damping ratio zeta of every mode (0: none)
   const double *q0, *qd0;   ///< initial modal coordinates and rates (nm each; NULL: zero)
   bool shared;              ///< the body will join a set of fmbd_mbs_share_modal
+  bool partial_coupling;    ///< inertia coupling "partial" (MSC Adams/Flex's partial coupling,
+                            ///< docs/THEORY.md section 4c): SS taken as zero, so the inertia
+                            ///< terms of second order in the modes (SS q, SSx q') vanish
 } fmbd_mbs_flex_data;
 
 /// A full finite-element body (docs/THEORY.md section 4b): every FE dof that the frame does
@@ -401,8 +407,12 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s);
 /// largest residual: joint 'J' equation k (...) (scaled residual R); largest correction:
 /// body 'B' coordinate ..."; the residual may also be a driver's or a body's equation of
 /// motion);
-/// FMBD_ERR_SINGULAR; FMBD_ERR_EXTERNAL. After an error the state is that of the last
-/// accepted step (queries still work, e.g. to keep a run's valid prefix).
+/// FMBD_ERR_SINGULAR (a singular iteration matrix at the smallest step; at larger steps a
+/// singular matrix at a Newton iterate rejects the attempt and the step shrinks); at the
+/// smallest step, constraint rows dependent at the last accepted state (a dead point) give
+/// FMBD_ERR_CONVERGE naming their joints and drivers; FMBD_ERR_EXTERNAL. After an error the
+/// state is that of the last accepted step (queries still work, e.g. to keep a run's valid
+/// prefix).
 int fmbd_mbs_step(fmbd_mbs *m, bool *at_output);
 
 /// Called after every accepted step; return nonzero to stop the run (fmbd_mbs_run returns

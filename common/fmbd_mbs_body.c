@@ -189,22 +189,26 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double *A = b->A, *G = b->G, w[3], wd[3];
   mbs_frame_kin(b, p, pd, xdd ? xdd + 3 : NULL, w, wd);
   // --- inertia at q: c, J, H_k, Mwf, H ---
+  // c, J and s1qd accumulated in locals (registers: the sums over the modes are chains of
+  // dependent additions, which through b->c, b->J in memory waited on each store; the same
+  // operations in the same order), copied to the body below
   double *c = b->c, *J = b->J, *I = b->I, H[9] = {0};
-  memcpy(c, b->c0, sizeof b->c);
-  memcpy(J, b->J0, sizeof b->J);
+  double cl[3], Jl[9];
+  memcpy(cl, b->c0, sizeof cl);
+  memcpy(Jl, b->J0, sizeof Jl);
   double s1qd[3] = {0, 0, 0};
   if (nm > 0) {
     double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
-    matvec(9 * nm, nm, b->SS, q, 1.0, P);
+    if (!b->partial) matvec(9 * nm, nm, b->SS, q, 1.0, P);  // partial: SS = 0, P stays zero
     for (int k = 0; k < nm; k++) {
       const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
       for (int a = 0; a < 3; a++) {
-        c[a] += b->S1[a + 3 * k] * q[k];
+        cl[a] += b->S1[a + 3 * k] * q[k];
         s1qd[a] += b->S1[a + 3 * k] * qd[k];
         for (int bb = 0; bb < 3; bb++) {
           // J_ab += q_k (XS_abk + XS_bak) + q_k P_k,ab; H_k,ab = XS_bak + P_k,ab
-          J[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[a + 3 * bb]);
+          Jl[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[a + 3 * bb]);
           Hk[a + 3 * bb] = X[bb + 3 * a] + Pk[a + 3 * bb];
         }
       }
@@ -215,11 +219,13 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     // symmetrise J (round-off)
     for (int a = 0; a < 3; a++) {
       for (int bb = a + 1; bb < 3; bb++) {
-        double s = 0.5 * (J[3 * a + bb] + J[3 * bb + a]);
-        J[3 * a + bb] = J[3 * bb + a] = s;
+        double s = 0.5 * (Jl[3 * a + bb] + Jl[3 * bb + a]);
+        Jl[3 * a + bb] = Jl[3 * bb + a] = s;
       }
     }
   }
+  memcpy(c, cl, sizeof cl);
+  memcpy(J, Jl, sizeof Jl);
   double trJ = J[0] + J[4] + J[8];
   for (int i = 0; i < 9; i++) I[i] = -J[i];
   I[0] += trJ, I[4] += trJ, I[8] += trJ;
@@ -258,8 +264,8 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double Iw[3];
   mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
   double ww = dot3(w, w);
-  double *cor = b->cor;  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
-  if (nm > 0) {
+  double *cor = b->cor;         // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
+  if (nm > 0 && !b->partial) {  // partial: SSx = 0, cor stays zero
     matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
   }
   for (int k = 0; k < nm; k++) {
@@ -293,7 +299,11 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
     // same operations as on the whole columns)
     matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);
-    matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
+    if (b->mdiag) {  // the same bits as the product below (it adds exact zeros)
+      for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
+    } else {
+      matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
+    }
   }
   // r = T' rb
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];

@@ -29,9 +29,10 @@ static void dA_dp(const double *AG, double pn, const double *Av, double *out) {
 }
 
 // e: nv local direction vectors (3 each), of which only those in the bit mask `want` (bit i:
-// direction i) are evaluated with their derivatives
+// direction i) are evaluated, with their derivatives and dr when deriv (without: r, g and
+// what side_force needs)
 static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, unsigned want,
-                      const double *xg, side *s) {
+                      const double *xg, bool deriv, side *s) {
   const mpoint *P = &m->p[pt];
   s->body = P->body;
   if (P->body < 0) {
@@ -46,14 +47,15 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
   const int64_t *sup = P->sup;
   s->n = n;
   const double *x = xg + b->off, *p = x + 3, *q = xg + b->qoff;
-  double A[9], G[12], pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+  double *A = s->A, G[12], pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
   quat_to_A(p, A);
   quat_G(p, G);
-  double AG[12];  // A G (3 x 4 row-major)
+  double *AG = s->AG;  // A G (3 x 4 row-major)
   for (int i = 0; i < 3; i++) {
     for (int c = 0; c < 4; c++)
       AG[4 * i + c] = A[3 * i] * G[c] + A[3 * i + 1] * G[4 + c] + A[3 * i + 2] * G[8 + c];
   }
+  s->f = -2.0 / pn;
   double u[3];
   memcpy(u, P->x0, sizeof u);
   double th[3] = {0, 0, 0};
@@ -61,9 +63,19 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
     double qk = q[sup ? sup[k] : k];
     for (int a = 0; a < 3; a++) u[a] += P->T[a + 3 * k] * qk, th[a] += P->Rr[a + 3 * k] * qk;
   }
-  double Au[3];
+  double *Au = s->Au;
   mv3(A, u, Au);
   for (int a = 0; a < 3; a++) s->r[a] = x[a] + Au[a];
+  if (!deriv) {
+    for (int i = 0; i < nv; i++) {
+      if (!(want >> i & 1)) continue;
+      double wv[3], tc[3];
+      cross3(th, e[i], tc);
+      for (int a = 0; a < 3; a++) wv[a] = e[i][a] + tc[a];
+      mv3(A, wv, s->g[i]);
+    }
+    return;
+  }
   double D[12];
   memset(s->dr, 0, sizeof(double) * 3 * (size_t)n);
   for (int a = 0; a < 3; a++) s->dr[a + 3 * a] = 1;
@@ -182,17 +194,56 @@ static void side_bind(fmbd_mbs *m, side *s, int which) {
 
 // the joint's two sides, with the directions of the masks w1, w2 (side_eval)
 static void joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, unsigned w1, unsigned w2,
-                        side *s1, side *s2) {
+                        bool deriv, side *s1, side *s2) {
   side_bind(m, s1, 0);
   side_bind(m, s2, 1);
   double e2[4][3];
   memcpy(e2, j->e[1], sizeof(double) * 9);
   memcpy(e2[3], j->a2, sizeof(double) * 3);
-  side_eval(m, j->pt[0], (const double(*)[3])j->e[0], 3, w1, x, s1);
-  side_eval(m, j->pt[1], (const double(*)[3])e2, j->kind == FMBD_MBS_UNIVERSAL ? 4 : 3, w2, x, s2);
+  side_eval(m, j->pt[0], (const double(*)[3])j->e[0], 3, w1, x, deriv, s1);
+  side_eval(m, j->pt[1], (const double(*)[3])e2, j->kind == FMBD_MBS_UNIVERSAL ? 4 : 3, w2, x,
+            deriv, s2);
 }
 void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2) {
-  joint_sides(m, j, x, 15, 15, s1, s2);
+  joint_sides(m, j, x, 15, 15, true, s1, s2);
+}
+
+// The generalized force of one side, (dr/dx)' F + sum_i (dg_i/dx)' M_i over the side's n
+// coordinates into gf (directions in the mask want; e: their local vectors), from the side's
+// kinematics alone (side_eval without deriv): R: F; p_c: -2/|p| (A G)_c . tau with
+// tau = F x (A u) + sum_i M_i x g_i (side_eval's d(A v)/dp = -2/|p| (A v) x (A G)_c and
+// a . (b x c) = c . (a x b)); modal k: (A'F) . T_k + sum_i (A'M_i) . (Rr_k x e_i)
+static void side_force(const fmbd_mbs *m, int pt, const side *s, const double (*e)[3], int nv,
+                       unsigned want, const double *F, const double (*M)[3], double *gf) {
+  if (s->n == 0) return;
+  const mpoint *P = &m->p[pt];
+  const int nm = s->n - 7;
+  double tau[3], t[3];
+  cross3(F, s->Au, tau);
+  for (int i = 0; i < nv; i++) {
+    if (!(want >> i & 1)) continue;
+    cross3(M[i], s->g[i], t);
+    for (int a = 0; a < 3; a++) tau[a] += t[a];
+  }
+  for (int a = 0; a < 3; a++) gf[a] = F[a];
+  for (int c = 0; c < 4; c++)
+    gf[3 + c] = s->f * (s->AG[c] * tau[0] + s->AG[4 + c] * tau[1] + s->AG[8 + c] * tau[2]);
+  if (nm <= 0) return;
+  double AF[3], AM[4][3];
+  mtv3(s->A, F, AF);
+  for (int i = 0; i < nv; i++) {
+    if (want >> i & 1) mtv3(s->A, M[i], AM[i]);
+  }
+  for (int k = 0; k < nm; k++) {
+    double v = dot3(AF, P->T + 3 * k);
+    for (int i = 0; i < nv; i++) {
+      if (!(want >> i & 1)) continue;
+      double rc[3];
+      cross3(P->Rr + 3 * k, e[i], rc);
+      v += dot3(AM[i], rc);
+    }
+    gf[7 + k] = v;
+  }
 }
 
 // the directions each kind's equations use (mbs_eval_constraints), as side_eval masks: side 1
@@ -234,51 +285,107 @@ double mbs_joint_coord(const mjoint *j, const side *s1, const side *s2, double *
   return eq_dd(s1, 2, s2, jac);
 }
 
-// Evaluate every equation (value and, with want_jac, jacobian) at (x, t).
-void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac) {
+// The form of joint equation k of a kind: EQ_POS (r1 - r2)_a with a = i1; EQ_DOT g1[i1] . g2[i2];
+// EQ_DD (r2 - r1) . g1[i1]
+enum { EQ_POS, EQ_DOT, EQ_DD };
+static int joint_eq_form(int kind, int k, int *i1, int *i2) {
+  *i1 = k, *i2 = 0;
+  switch (kind) {
+    case FMBD_MBS_SPHERICAL:
+      return EQ_POS;
+    case FMBD_MBS_REVOLUTE:
+      if (k < 3) return EQ_POS;
+      *i1 = 2, *i2 = k - 3;
+      return EQ_DOT;
+    case FMBD_MBS_UNIVERSAL:
+      if (k < 3) return EQ_POS;
+      *i1 = 2, *i2 = 3;
+      return EQ_DOT;
+    case FMBD_MBS_CYLINDRICAL:
+    case FMBD_MBS_PRISMATIC:
+      if (k < 2) {
+        *i1 = 2, *i2 = k;
+        return EQ_DOT;
+      }
+      if (k < 4) {
+        *i1 = k - 2;
+        return EQ_DD;
+      }
+      *i1 = 0, *i2 = 1;
+      return EQ_DOT;
+    case FMBD_MBS_FIXED:
+      if (k < 3) return EQ_POS;
+      if (k < 5) {
+        *i1 = 2, *i2 = k - 3;
+        return EQ_DOT;
+      }
+      *i1 = 0, *i2 = 1;
+      return EQ_DOT;
+    default:
+      return -1;
+  }
+}
+
+// Every equation's value and, with want_jac, its Jacobian at (x, t); with res, Phi_x' lambda
+// of the kept equations added into res. Without want_jac the joints' part is formed without
+// their Jacobians: an equation depends on x only through its sides' points r_s and directions
+// g_s,i, so sum_k lam_k dPhi_k/dx = sum_s (dr_s/dx)' F_s + sum_i (dg_s,i/dx)' M_s,i with
+// F_s = sum_k lam_k dPhi_k/dr_s and M_s,i = sum_k lam_k dPhi_k/dg_s,i (side_force): the
+// residual of a Newton iteration without a new matrix needs no derivative arrays (a rigid
+// chain: 3 x 4 products per side instead of 5 Jacobian rows of 14 entries and their scatter)
+static void eval_eqs(fmbd_mbs *m, const double *x, double t, bool want_jac, double *res) {
   side s1, s2;
   int64_t e = 0;
+  const bool force = res && !want_jac;
   for (int ij = 0; ij < m->nj; ij++) {
     const mjoint *j = &m->j[ij];
     unsigned dirs = joint_dirs(j->kind);
-    joint_sides(m, j, x, dirs & 15, dirs >> 4, &s1, &s2);
+    joint_sides(m, j, x, dirs & 15, dirs >> 4, !force, &s1, &s2);
+    double F1[3] = {0, 0, 0}, F2[3] = {0, 0, 0}, M1[4][3] = {{0}}, M2[4][3] = {{0}};
+    const int64_t e0 = e;
     for (int k = 0; k < j->neq; k++, e++) {
       meq *q = &m->eq[e];
       double *jac = want_jac ? q->jac : NULL;
+      int i1, i2, form = joint_eq_form(j->kind, k, &i1, &i2);
       double v = 0;
-      switch (j->kind) {
-        case FMBD_MBS_SPHERICAL:
-          v = eq_pos(&s1, &s2, k, jac);
-          break;
-        case FMBD_MBS_REVOLUTE:
-          v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, k - 3, jac);
-          break;
-        case FMBD_MBS_UNIVERSAL:
-          v = k < 3 ? eq_pos(&s1, &s2, k, jac) : eq_dot(&s1, 2, &s2, 3, jac);
-          break;
-        case FMBD_MBS_CYLINDRICAL:
-        case FMBD_MBS_PRISMATIC:
-          if (k < 2)
-            v = eq_dot(&s1, 2, &s2, k, jac);
-          else if (k < 4)
-            v = eq_dd(&s1, k - 2, &s2, jac);
-          else
-            v = eq_dot(&s1, 0, &s2, 1, jac);
-          break;
-        case FMBD_MBS_FIXED:
-          if (k < 3)
-            v = eq_pos(&s1, &s2, k, jac);
-          else if (k < 5)
-            v = eq_dot(&s1, 2, &s2, k - 3, jac);
-          else
-            v = eq_dot(&s1, 0, &s2, 1, jac);
-          break;
-        default:
-          break;
-      }
+      if (form == EQ_POS)
+        v = eq_pos(&s1, &s2, i1, jac);
+      else if (form == EQ_DOT)
+        v = eq_dot(&s1, i1, &s2, i2, jac);
+      else if (form == EQ_DD)
+        v = eq_dd(&s1, i1, &s2, jac);
       q->phi = v;
+      if (!res || !q->kept) continue;
+      const double lam = m->lam[q->row];
+      if (!force) {
+        mbs_eq_jtv(m, q, lam, res);
+      } else if (form == EQ_POS) {
+        F1[i1] += lam, F2[i1] -= lam;
+      } else if (form == EQ_DOT) {
+        for (int a = 0; a < 3; a++) M1[i1][a] += lam * s2.g[i2][a], M2[i2][a] += lam * s1.g[i1][a];
+      } else if (form == EQ_DD) {
+        for (int a = 0; a < 3; a++) {
+          double lg = lam * s1.g[i1][a];
+          F1[a] -= lg, F2[a] += lg;
+          M1[i1][a] += lam * (s2.r[a] - s1.r[a]);
+        }
+      }
+    }
+    if (force && j->neq > 0) {  // the sides' forces (dr: scratch of 3 maxn >= n entries)
+      double e2[4][3];
+      memcpy(e2, j->e[1], sizeof(double) * 9);
+      memcpy(e2[3], j->a2, sizeof(double) * 3);
+      side_force(m, j->pt[0], &s1, (const double(*)[3])j->e[0], 3, dirs & 15, F1,
+                 (const double(*)[3])M1, s1.dr);
+      side_force(m, j->pt[1], &s2, (const double(*)[3])e2, j->kind == FMBD_MBS_UNIVERSAL ? 4 : 3,
+                 dirs >> 4, F2, (const double(*)[3])M2, s2.dr);
+      const int64_t *cols = m->eq[e0].cols;
+      for (int i = 0; i < s1.n; i++) res[cols[i]] += s1.dr[i];
+      for (int i = 0; i < s2.n; i++) res[cols[s1.n + i]] += s2.dr[i];
     }
   }
+  const bool jac_all = want_jac || res != NULL;  // drivers and normalisation: through jac
+  const int64_t ed = e;
   for (int id = 0; id < m->nd; id++, e++) {
     const mdriver *d = &m->d[id];
     meq *q = &m->eq[e];
@@ -286,13 +393,13 @@ void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac)
     if (d->joint >= 0) {
       const mjoint *j = &m->j[d->joint];
       mbs_joint_sides(m, j, x, &s1, &s2);
-      double v = mbs_joint_coord(j, &s1, &s2, want_jac ? q->jac : NULL);
+      double v = mbs_joint_coord(j, &s1, &s2, jac_all ? q->jac : NULL);
       q->phi = j->kind == FMBD_MBS_REVOLUTE ? remainder(v - f, 2 * M_PI) : v - f;
     } else {
       const mbody *b = &m->b[d->body];
       int c = d->coord < 3 ? d->coord : 7 + (d->coord - 3);
       q->phi = x[mbs_col(b, c)] - f;
-      if (want_jac) {
+      if (jac_all) {
         memset(q->jac, 0, sizeof(double) * (size_t)q->nj);
         for (int i = 0; i < q->nj; i++) {
           if (q->cols[i] == mbs_col(b, c)) q->jac[i] = 1;
@@ -305,11 +412,23 @@ void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac)
     meq *q = &m->eq[e];
     const double *p = x + b->off + 3;
     q->phi = 0.5 * b->snorm * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3] - 1);
-    if (want_jac) {
+    if (jac_all) {
       memset(q->jac, 0, sizeof(double) * (size_t)q->nj);
       for (int c = 0; c < 4; c++) q->jac[3 + c] = b->snorm * p[c];
     }
   }
+  if (!res) return;
+  for (int64_t k = ed; k < m->neq; k++) {  // the drivers' and normalisations' Phi_x' lambda
+    const meq *q = &m->eq[k];
+    if (q->kept) mbs_eq_jtv(m, q, m->lam[q->row], res);
+  }
+}
+
+void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac) {
+  eval_eqs(m, x, t, want_jac, NULL);
+}
+void mbs_eval_constraints_res(fmbd_mbs *m, const double *x, double t, double *res) {
+  eval_eqs(m, x, t, false, res);
 }
 
 // time derivatives of the prescribed part: Phi_t and Phi_tt of each equation

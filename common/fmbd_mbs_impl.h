@@ -158,6 +158,8 @@ typedef struct mbody {
   double *Mwf;   // 3 x nm
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
+  bool mdiag;    // Mff diagonal (M-orthonormal modes, the usual modal body): O(nm) Mff products
+  bool partial;  // partial inertia coupling: SS and SSx are zero, P and cor stay zero (not formed)
   double wB[3];  // wb at the last block evaluation (mbs_body_eval with B; mbs_body_ff)
   bool elim;     // modal block eliminated (fmbd_mbs_schur.c): mbs_eval_system leaves it out of Ax
   mbs_fe *fe;    // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
@@ -330,6 +332,9 @@ typedef struct side {
   int body, n;
   double r[3], g[4][3];
   double *dr, *dg[4];
+  // the body's rotation A, A G (3 x 4 row-major), -2/|p| and A u (the point from the frame's
+  // origin, world axes): what the generalized forces of the side need (fmbd_mbs_constraint.c)
+  double A[9], AG[12], f, Au[3];
 } side;
 
 // --- internal functions ----------------------------------------------------------------------
@@ -370,6 +375,9 @@ void mbs_eq_describe(const fmbd_mbs *m, const meq *e, char *buf, size_t len);
 void mbs_joint_sides(fmbd_mbs *m, const mjoint *j, const double *x, side *s1, side *s2);
 double mbs_joint_coord(const mjoint *j, const side *s1, const side *s2, double *jac);
 void mbs_eval_constraints(fmbd_mbs *m, const double *x, double t, bool want_jac);
+// every equation's value at (x, t) and, with res, Phi_x' lambda of the kept ones added into res
+// (the joints' without forming their Jacobians, which are left stale; see there)
+void mbs_eval_constraints_res(fmbd_mbs *m, const double *x, double t, double *res);
 void mbs_eq_time_derivs(const fmbd_mbs *m, double t, int64_t e, double *ft, double *ftt);
 double mbs_eq_jv(const fmbd_mbs *m, const meq *q, const double *v);
 void mbs_eq_jtv(const fmbd_mbs *m, const meq *q, double f, double *v);

@@ -23,6 +23,9 @@
 // tolerance as with the exact matrix; the matrix only sets the contraction rate theta.
 // Cost per factorisation: a Cholesky nm^3/3 when h changed, 2 nm^2 nc for W, nm nc^2 for
 // A_RF W, KLU on S (order N - sum nm); per solve 2 nm^2 + 4 nm nc per body plus S's solve.
+// A body with diagonal Mff and Kff (M-orthonormal modes, the usual modal body: b->mdiag,
+// b->kdiag; Dff is diagonal by construction) has C diagonal: no Cholesky, W = C^-1 A_FR and
+// y = C^-1 r_F by division, nm nc and nm operations.
 // Against KLU's LU of the whole matrix (about (7 + nm)^3 2/3 per body with dense blocks) this
 // gains from about 10 modes on (bench/README.md, "Schur complement of the modal blocks").
 #include <math.h>
@@ -45,9 +48,10 @@ typedef struct sbody {
   int64_t *pu, *pv;  // Ax positions of (q_k, c_j) at pu[k + nm j], (c_j, q_k) at pv[j + nc k]
                      // (-1: structurally zero)
   int64_t *ps;       // Sx positions of (cs[i], cs[j]) at ps[i + nc j]
-  double *L;         // nm x nm: Cholesky factor (lower) of C
+  double *L;         // nm x nm: Cholesky factor (lower) of C; diag: C's diagonal (nm)
   double cf[3];      // (cm, cc, ck) of L
   bool have_L;
+  bool diag;  // Mff, Kff (and Dff) diagonal (b->mdiag, b->kdiag): C diagonal, O(nm nc) and O(nm)
   double *W, *V, *VW;  // nm x nc: A_FR, then C^-1 A_FR; nc x nm: A_RF; nc x nc: A_RF W
   double *y, *t;       // nm, nc workspace
 } sbody;
@@ -123,6 +127,7 @@ int mbs_schur_setup(fmbd_mbs *m, const int64_t *Ap, const int64_t *Ai) {
     if (b->fe || b->share >= 0 || b->nm < nmin) continue;
     sbody *sb = &s->sb[s->nsb];
     sb->ib = ib, sb->nm = b->nm, sb->qoff = b->qoff;
+    sb->diag = b->mdiag && b->kdiag;  // Dff is diagonal by construction (fmbd_mbs_add_flex)
     for (int k = 0; k < b->nm; k++) owner[b->qoff + k] = s->nsb;
     s->nsb++;
   }
@@ -284,7 +289,19 @@ int mbs_schur_factor(fmbd_mbs *m) {
     const mbody *b = &m->b[sb->ib];
     const int nm = sb->nm, nc = sb->nc;
     const size_t nn = (size_t)nm * nm;
-    if (!sb->have_L || sb->cf[0] != cm || sb->cf[1] != cc || sb->cf[2] != ck) {
+    if (sb->diag && (!sb->have_L || sb->cf[0] != cm || sb->cf[1] != cc || sb->cf[2] != ck)) {
+      sb->have_L = false;
+      for (int k = 0; k < nm; k++) {
+        const size_t e = k + (size_t)nm * k;
+        const double d = cm * b->Mff[e] + cc * b->Dff[e] + ck * b->Kff[e];
+        FMBD_CHECK(d > 0 && isfinite(d), FMBD_ERR_SINGULAR,
+                   "body '%s': modal block not positive definite (coordinate %d: %g)", b->name,
+                   k + 1, d);
+        sb->L[k] = d;
+      }
+      sb->cf[0] = cm, sb->cf[1] = cc, sb->cf[2] = ck;
+      sb->have_L = true;
+    } else if (!sb->have_L || sb->cf[0] != cm || sb->cf[1] != cc || sb->cf[2] != ck) {
       for (size_t e = 0; e < nn; e++) sb->L[e] = cm * b->Mff[e] + cc * b->Dff[e] + ck * b->Kff[e];
       sb->have_L = false;
       FMBD_CALL(fmbd_dense_chol(nm, sb->L));
@@ -296,10 +313,16 @@ int mbs_schur_factor(fmbd_mbs *m) {
       sb->W[e] = sb->pu[e] >= 0 ? m->Ax[sb->pu[e]] : 0;
       sb->V[e] = sb->pv[e] >= 0 ? m->Ax[sb->pv[e]] : 0;
     }
-    cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, nm, nc, 1.0,
-                sb->L, nm, sb->W, nm);
-    cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasTrans, CblasNonUnit, nm, nc, 1.0, sb->L,
-                nm, sb->W, nm);
+    if (sb->diag) {
+      for (int j = 0; j < nc; j++) {
+        for (int k = 0; k < nm; k++) sb->W[k + (size_t)nm * j] /= sb->L[k];
+      }
+    } else {
+      cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, nm, nc, 1.0,
+                  sb->L, nm, sb->W, nm);
+      cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasTrans, CblasNonUnit, nm, nc, 1.0,
+                  sb->L, nm, sb->W, nm);
+    }
     fmbd_dense_gemm('N', 'N', nc, nc, nm, 1.0, sb->V, nc, sb->W, nm, 0.0, sb->VW, nc);
   }
   memset(s->Sx, 0, sizeof(double) * (size_t)s->nnzS);
@@ -319,9 +342,13 @@ int mbs_schur_solve(fmbd_mbs *m, double *rhs) {
   for (int k = 0; k < s->nsb; k++) {  // y = C^-1 r_F; r_R -= A_RF y
     sbody *sb = &s->sb[k];
     const int nm = sb->nm, nc = sb->nc;
-    memcpy(sb->y, rhs + sb->qoff, sizeof(double) * (size_t)nm);
-    cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, nm, sb->L, nm, sb->y, 1);
-    cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, nm, sb->L, nm, sb->y, 1);
+    if (sb->diag) {
+      for (int k = 0; k < nm; k++) sb->y[k] = rhs[sb->qoff + k] / sb->L[k];
+    } else {
+      memcpy(sb->y, rhs + sb->qoff, sizeof(double) * (size_t)nm);
+      cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, nm, sb->L, nm, sb->y, 1);
+      cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, nm, sb->L, nm, sb->y, 1);
+    }
     if (nc == 0) continue;
     cblas_dgemv(CblasColMajor, CblasNoTrans, nc, nm, 1.0, sb->V, nc, sb->y, 1, 0.0, sb->t, 1);
     for (int j = 0; j < nc; j++) s->r[sb->cs[j]] -= sb->t[j];

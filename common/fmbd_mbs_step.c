@@ -57,15 +57,31 @@ static void worst_residual(const fmbd_mbs *m, char *buf, size_t len) {
   snprintf(buf, len, "%s (scaled residual %.3g); largest correction: %s", what, m->worst_v, dxw);
 }
 
+// At the smallest step: a dead point or singular position (the constraint rows dependent at
+// the last accepted state, whatever the iterate or KLU's pivot order was) is named as such
+// (the error set, true); `how` says what failed beyond it
+static bool dead_point(fmbd_mbs *m, double h, const char *how) {
+  char who[600];
+  double smin;
+  if (!mbs_constraints_singular(m, SINGULAR_TOL, &smin, who, sizeof who)) return false;
+  fmbd_err_set(FMBD_ERR_CONVERGE, __FILE__, __LINE__, __func__,
+               "t = %.9g s: the constraints are singular (a dead point or singular position): "
+               "the equations of %s are dependent (smallest singular value %.2g of their "
+               "unit-normalised rows); %s beyond it at h = %.3g s",
+               m->t, who, smin, how, h);
+  return true;
+}
+
 // One attempt of a step of size h from the saved state. Returns FMBD_OK with *conv and *err
-// (scaled local error, 0 for fixed steps) or an error code (singular matrix, KLU).
+// (scaled local error, 0 for fixed steps) or an error code (singular matrix at the smallest
+// step, KLU); *singular: not converged because the iteration matrix was singular.
 static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fresh_out,
-                   double *err) {
+                   bool *singular, double *err) {
   const double am = m->am, af = m->af, be = m->beta, ga = m->gamma;
   const double bp = (1 - am) / (be * h * h * (1 - af)), gp = ga / (be * h);
   const double t1 = m->t + h;
   const int64_t n = m->n;
-  *conv = false, *err = 0;
+  *conv = false, *singular = false, *err = 0;
   // predictor: x''_{n+1} and lambda_{n+1} extrapolated quadratically from the last three
   // accepted steps (Lagrange's polynomial through t_n, t_{n-1}, t_{n-2}; linearly after the
   // first step, constant at it). Measured (bench/README.md, the N-link chain): with x'' linear
@@ -119,7 +135,20 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     clk1 = fmbd_wall_s();
     m->tm_phase[2] += clk1 - clk;
     if (matrix) {
-      FMBD_CALL(mbs_factor(m));
+      int fr = mbs_factor(m);
+      if (fr == FMBD_ERR_SINGULAR && h > m->set.min_step * (1 + 1e-9)) {
+        // a singular iteration matrix at a Newton iterate of a step that can still be made
+        // smaller: the iterate (off the constraint manifold, or past a fold the predictor
+        // overshot) is no state of the mechanism, and whether KLU meets an exact zero pivot
+        // there depends on its pivot order. Rejected as a Newton failure: the step is
+        // reduced and, at the smallest step, the report is made at the last accepted state
+        // (fmbd_mbs_step), the same for any ordering (bench/README.md, the chain, lever 1)
+        fmbd_err_clear();
+        *singular = true;
+        fresh = true;
+        break;
+      }
+      FMBD_CALL(fr);
       m->need_factor = false;
       m->h_fact = h;
       fresh = true;
@@ -245,11 +274,14 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
       m->h_prop = h;
       h = lim - m->t;
     }
-    bool conv, fresh;
+    bool conv, fresh, singular;
     double err;
-    int arc = attempt(m, h, retried_fresh, &conv, &fresh, &err);
+    int arc = attempt(m, h, retried_fresh, &conv, &fresh, &singular, &err);
     if (arc != 0) {
       restore_state(m);  // the caller may still query (and write) the last accepted state
+      // a singular matrix at the smallest step (attempt): a dead point is named as below
+      if (arc == FMBD_ERR_SINGULAR && dead_point(m, h, "the iteration matrix is singular"))
+        return FMBD_ERR_CONVERGE;
       return arc;
     }
     if (!conv) {
@@ -277,18 +309,7 @@ int fmbd_mbs_step(fmbd_mbs *m, bool *at_output) {
                     "mass or initial velocity of absurd magnitude?); first at %s",
                     m->t + h, buf);
         }
-        // at the smallest step: a dead point or singular position (the constraint rows
-        // dependent at the last accepted state) is named as such
-        char who[600];
-        double smin;
-        if (mbs_constraints_singular(m, SINGULAR_TOL, &smin, who, sizeof who)) {
-          FMBD_FAIL(FMBD_ERR_CONVERGE,
-                    "t = %.9g s: the constraints are singular (a dead point or singular "
-                    "position): the equations of %s are dependent (smallest singular value "
-                    "%.2g of their unit-normalised rows); Newton did not converge beyond it at "
-                    "h = %.3g s",
-                    m->t, who, smin, h);
-        }
+        if (dead_point(m, h, "Newton did not converge")) return FMBD_ERR_CONVERGE;
         FMBD_FAIL(FMBD_ERR_CONVERGE,
                   "t = %.9g s, h = %.3g s: Newton did not converge; largest residual: %s", m->t + h,
                   h, buf);

@@ -58,8 +58,9 @@ static void unknown_describe(const fmbd_mbs *m, int64_t i, char *buf, size_t len
   snprintf(buf, len, "unknown %lld", (long long)i);
 }
 
-// res = body residuals (+ Phi_x' lam when add_lam), eq phi/jac, and with `matrix` the matrix
-// Ax = [cm M + cc C + ck K, Phi_x'; Phi_x, 0] (dynamics block as mbs_body_eval).
+// res = body residuals (+ Phi_x' lam when add_lam), eq phi, and with `matrix` the equations'
+// jac and the matrix Ax = [cm M + cc C + ck K, Phi_x'; Phi_x, 0] (dynamics block as
+// mbs_body_eval; without `matrix` the joints' jac are not evaluated and stay stale).
 void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, double cm, double cc,
                      double ck, bool add_lam) {
   if (matrix) {
@@ -100,16 +101,18 @@ void mbs_eval_system(fmbd_mbs *m, double t, const double *xdd, bool matrix, doub
       }
     }
   }
+  if (!matrix) {  // the residual alone: Phi_x' lambda without the Jacobians
+    mbs_eval_constraints_res(m, m->x, t, add_lam ? m->res : NULL);
+    return;
+  }
   mbs_eval_constraints(m, m->x, t, true);
   for (int64_t e = 0; e < m->neq; e++) {
     meq *q = &m->eq[e];
     if (!q->kept) continue;
     if (add_lam) mbs_eq_jtv(m, q, m->lam[q->row], m->res);
-    if (matrix) {
-      for (int i = 0; i < q->nj; i++) {
-        m->Ax[q->pr[i]] += q->jac[i];
-        m->Ax[q->pc[i]] += q->jac[i];
-      }
+    for (int i = 0; i < q->nj; i++) {
+      m->Ax[q->pr[i]] += q->jac[i];
+      m->Ax[q->pc[i]] += q->jac[i];
     }
   }
 }

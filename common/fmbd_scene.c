@@ -683,15 +683,25 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
     }
   }
   snprintf(what, sizeof what, "body '%s'", b->name);
-  static const char *const keys[] = {"name",          "type",
-                                     "mass",          "com",
-                                     "inertia",       "geometry",
-                                     "file",          "modes",
-                                     "damping_ratio", "make",
-                                     "position",      "orientation",
-                                     "velocity",      "angular_velocity",
-                                     "basis",         "basis_body",
-                                     "basis_kind",    NULL};
+  static const char *const keys[] = {"name",
+                                     "type",
+                                     "mass",
+                                     "com",
+                                     "inertia",
+                                     "geometry",
+                                     "file",
+                                     "modes",
+                                     "damping_ratio",
+                                     "make",
+                                     "position",
+                                     "orientation",
+                                     "velocity",
+                                     "angular_velocity",
+                                     "basis",
+                                     "basis_body",
+                                     "basis_kind",
+                                     "inertia_coupling",
+                                     NULL};
   TRY(check_map(c, n, what, keys));
   const char *type = "rigid";
   if ((x = get(c, n, "type"))) TRY(as_str(c, x, "body type", &type));
@@ -699,8 +709,9 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
   for (int i = 0; i < 9; i++) b->rotation[i] = (i % 4 == 0);
   if (!strcmp(type, "rigid")) {
     b->kind = FMBD_SCENE_RIGID;
-    static const char *const flexkeys[] = {"file",  "modes",      "damping_ratio", "make",
-                                           "basis", "basis_body", "basis_kind",    NULL};
+    static const char *const flexkeys[] = {
+        "file",       "modes",      "damping_ratio",    "make", "basis",
+        "basis_body", "basis_kind", "inertia_coupling", NULL};
     for (int i = 0; flexkeys[i]; i++) {
       if ((x = get(c, n, flexkeys[i]))) {
         return fail_at(c, x, "key '%s' is for flexible bodies; %s is rigid (type: flexible?)",
@@ -786,6 +797,14 @@ static int parse_body(ctx *c, yaml_node_t *n, int idx) {
       TRY(as_double(c, x, "damping_ratio", &b->damping_ratio));
       if (b->damping_ratio < 0) return fail_at(c, x, "damping_ratio must not be negative");
       b->damping_set = true;
+    }
+    if ((x = get(c, n, "inertia_coupling"))) {  // full (default) or partial (docs/SCENE.md)
+      b->inertia_loc = loc_of(x);
+      TRY(as_str(c, x, "inertia_coupling", &f));
+      if (!strcmp(f, "partial"))
+        b->inertia_partial = true;
+      else if (strcmp(f, "full"))
+        return fail_at(c, x, "%s: inertia_coupling '%s': full or partial", what, f);
     }
     if ((x = get(c, n, "make"))) {
       static const char *const mk[] = {"geometry", "mesh2fe", "fe",       "fe2cb",   "cb",

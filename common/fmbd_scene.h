@@ -60,6 +60,8 @@ typedef struct fmbd_scene_body {
   int64_t modes;     ///< first N flexible modes kept; 0 = all in the file
   bool damping_set;
   double damping_ratio;  ///< modal damping ratio of every kept mode (default 0)
+  bool inertia_partial;  ///< inertia_coupling: partial (default full; docs/SCENE.md)
+  fmbd_scene_loc inertia_loc;
   fmbd_scene_chain chain;
   // --- initial state (world) ---
   double position[3];  ///< body-frame origin

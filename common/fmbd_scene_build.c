@@ -420,6 +420,12 @@ static int load_fe(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f)
           "drop it, or use the .cb.h5 or .rflex.h5 of this body",
           b->name, b->file);
   }
+  if (b->inertia_partial) {
+    SFAIL(s, b->inertia_loc, FMBD_ERR_SCENE,
+          "body '%s': 'inertia_coupling: partial' is for modal bodies; a full-model body (%s) "
+          "keeps its full inertia",
+          b->name, b->file);
+  }
   FMBD_GCALL(fmbd_fe_read(f, &fe));
   if (!fe->K || !fe->M || !fe->expand) {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s': %s has no /K, /M or /expand", b->name,
@@ -679,12 +685,19 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
                           .Mff = r->Mff,
                           .Kff = r->Kff,
                           .damping_ratio = b->damping_ratio,
-                          .shared = b->basis_gms};
+                          .shared = b->basis_gms,
+                          .partial_coupling = b->inertia_partial};
   memcpy(d.first_moment, r->first_moment, sizeof d.first_moment);
   memcpy(d.second_moment, r->second_moment, sizeof d.second_moment);
   fmbd_mbs_state0 s0 = body_state0(b);
   rc = fmbd_mbs_add_flex(m->mbs, b->name, &d, &s0, &m->body_id[bi]);
   if (rc) SFAIL(s, b->loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
+  if (b->inertia_partial) {
+    fmbd_log(FMBD_LOG_INFO,
+             "body '%s': partial inertia coupling (the invariants of second order in the modes, "
+             "SS and SSx, taken as zero; docs/THEORY.md section 4c)",
+             b->name);
+  }
 done:
   fmbd_free(format);
   fmbd_h5_close(&f);

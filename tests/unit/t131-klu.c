@@ -3,7 +3,8 @@
 // order 190 (diagonal 4, off-diagonals -1 and -1.5), C 10 rows picking single unknowns. Each
 // engine solves A x = b for a known x (b = A x computed here), again after new values (a second
 // factorisation on the same analysis), reports a numerically zero column as singular with that
-// column's index, and refuses to solve once the factor is dropped.
+// column's index, and refuses to solve once the factor is dropped; KLU again with its analysis
+// forced with and without the block triangular form (FMBD_KLU_BTF).
 // SPDX-License-Identifier: MIT
 //
 // Tolerance: LU with partial (threshold) pivoting is backward stable, |A x^ - b| <= c n eps
@@ -102,6 +103,13 @@ int main(void) {
   engine("klu", 0);
   engine("umfpack", 1);
   engine("", 0);  // automatic: order 200 is below the UMFPACK threshold
+  // KLU's analysis with and without its block triangular form, each forced (the automatic
+  // choice, the smaller predicted factor, ran above): the same checks on both orderings
+  setenv("FMBD_KLU_BTF", "1", 1);
+  engine("klu", 0);
+  setenv("FMBD_KLU_BTF", "0", 1);
+  engine("klu", 0);
+  unsetenv("FMBD_KLU_BTF");
   unsetenv("FMBD_SPARSE_LU");
   TEST_EXIT();
 }

@@ -19,6 +19,7 @@
 // So no finite-difference check of d r / d x is asserted here: it would test a matrix the
 // code does not claim. The drivers' time derivatives (Phi_t = -f'(t), Phi_tt = -f''(t) in the
 // velocity and acceleration equations) are checked in t510-mbs-fn.
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -184,6 +185,29 @@ int main(void) {
     // the Jacobians use A(p/|p|) at |p| = 1 exactly; FD error O(h^2) ~ 1e-12 relative
     EXPECT(err < 1e-7 * fmax(1, sc), "%s: max |analytic - FD| %.3g (scale %.3g)", buf, err, sc);
   }
+  // --- Phi_x' lambda without the Jacobians (mbs_eval_constraints_res, the residual of a
+  // Newton iteration without a new matrix) against sum_e lambda_e jac_e (one joint equation not
+  // kept: its multiplier must not enter). Both sum the same products in another order: the
+  // difference is round-off, a few eps times sum_e |lambda_e| |jac_e|; 64 eps of it is the bound
+  m->lam = fmbd_calloc((size_t)neq, 8);
+  double lsc = 0;
+  for (e = 0; e < neq; e++) {
+    meq *q = &m->eq[e];
+    q->kept = e != 4, q->row = e;  // not kept: the revolute joint's second equation
+    m->lam[e] = 10 * urand(&seed);
+    lsc += fabs(m->lam[e]) * maxabs(q->jac, q->nj);
+  }
+  memset(r0, 0, sizeof(double) * (size_t)n), memset(r1, 0, sizeof(double) * (size_t)n);
+  for (e = 0; e < neq; e++) {
+    if (m->eq[e].kept) mbs_eq_jtv(m, &m->eq[e], m->lam[e], r0);
+  }
+  mbs_eval_constraints_res(m, x, 0.3, r1);
+  double derr = 0;
+  for (int64_t i = 0; i < n; i++) derr = fmax(derr, fabs(r1[i] - r0[i]));
+  if (getenv("FMBD_TEST_VERBOSE"))
+    fprintf(stderr, "t506: Phi_x' lambda: %.3g of %.3g\n", derr, lsc);
+  EXPECT(derr <= 64 * DBL_EPSILON * lsc,
+         "Phi_x' lambda without Jacobians: max diff %.3g (scale %.3g)", derr, lsc);
   fmbd_free(x), fmbd_free(xd), fmbd_free(xdd), fmbd_free(r0), fmbd_free(r1), fmbd_free(B),
       fmbd_free(Bfd);
   fmbd_free(phi0), fmbd_free(jfd);
