@@ -160,8 +160,9 @@ static void body_inert(const fmbd_mbs *m, int ib, binert *o) {
     }
   }
   // second-order terms: sum_kl SS_ab,kl q_k q_l; Mwf q' = sum_k q'_k (XSx_k + sum_l q_l SSx_lk)
+  // (partial inertia coupling: SS and SSx are zero, their terms left out)
   for (int k = 0; k < nm; k++) {
-    for (int l = 0; l < nm; l++) {
+    for (int l = 0; l < nm && !b->partial; l++) {
       const double *S = b->SS + 9 * k + 9 * (size_t)nm * l;
       double f = q[k] * q[l];
       if (f != 0) {
@@ -195,7 +196,11 @@ void fmbd_mbs_energy(const fmbd_mbs *m, double *kinetic, double *potential, doub
     mv3(Ac, o.w, v1);
     mv3(o.A, o.S1qd, AS);
     double Tq = 0;
-    for (int k = 0; k < nm && !b->fe; k++) {
+    for (int k = 0; k < nm && !b->fe; k++) {  // diagonal Mff: the same sum without its zeros
+      if (b->mdiag) {
+        Tq += qd[k] * b->Mff[k + (size_t)nm * k] * qd[k];
+        continue;
+      }
       for (int l = 0; l < nm; l++) Tq += qd[k] * b->Mff[k + (size_t)nm * l] * qd[l];
     }
     if (b->fe) Tq = o.Tq, U += o.U;
