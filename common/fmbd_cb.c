@@ -678,6 +678,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
     }
+#ifdef __GLIBC__
+    malloc_trim(0);  // the eigensolver's freed work arrays, before the projections allocate
+#endif
     mem_log("after the Lanczos run");
     if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb));
     mem_log("after the constraint modes and projections");

@@ -1019,6 +1019,8 @@ int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A) {
   int rc = FMBD_OK;
   char p[1100];
   int64_t nnz = fmbd_csr_nnz(A), np1 = A->nrows + 1, shape[2] = {A->nrows, A->ncols};
+  // files hold symmetric matrices in full (docs/FORMAT.md), never fmbd_csr_keep_lower's form
+  FMBD_GCHECK(!A->lower, FMBD_ERR_INTERNAL, "lower-triangle storage written as a CSR group");
   FMBD_GCALL(unlink_existing(f, path));
   FMBD_GCALL(fmbd_h5_make_group(f, path));
   FMBD_GCALL(join(p, sizeof p, path, "data"));
