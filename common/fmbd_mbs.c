@@ -77,6 +77,7 @@ static void body_free(mbody *b) {
   fmbd_free(b->S1), fmbd_free(b->XS), fmbd_free(b->SS), fmbd_free(b->Mff), fmbd_free(b->Kff);
   fmbd_free(b->Dff), fmbd_free(b->XSx), fmbd_free(b->SSx), fmbd_free(b->q0), fmbd_free(b->qd0);
   fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
+  fmbd_free(b->XX);
   mbs_fe_free(&b->fe);
 }
 
@@ -326,8 +327,9 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     b->Hk = fmbd_calloc(9 * n1, sizeof(double));
     b->Mwf = fmbd_calloc(3 * n1, sizeof(double));
     b->cor = fmbd_calloc(3 * n1, sizeof(double));
+    b->XX = fmbd_malloc(sizeof(double) * 9 * n1);
     FMBD_CHECK(b->S1 && b->XS && b->SS && b->Mff && b->Kff && b->Dff && b->XSx && b->SSx && b->q0 &&
-                   b->qd0 && b->P && b->Hk && b->Mwf && b->cor,
+                   b->qd0 && b->P && b->Hk && b->Mwf && b->cor && b->XX,
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);
@@ -339,6 +341,7 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
       memset(b->SS, 0, sizeof(double) * 9 * n1 * n1);
     else
       memcpy(b->SS, d->SS, sizeof(double) * 9 * n1 * n1);
+    mbs_body_consts(b);
     for (size_t i = 0; i < n1; i++) {
       for (size_t k = 0; k < n1; k++) {
         b->Mff[i + n1 * k] = 0.5 * (d->Mff[i + n1 * k] + d->Mff[k + n1 * i]);

@@ -172,6 +172,25 @@ void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const 
   }
 }
 
+// the constants of a modal body's inertia at load (after XS and b->partial are set; XX
+// allocated 9 nm): XX_k = XS_k + XS_k' (the linear part of J, for mbs_body_eval and the queries),
+// and with partial coupling (P = SS q = 0) H_k = XS_k' + P_k and Mwf, which mbs_body_eval then no
+// longer forms; each with the operations of mbs_body_eval's full loop, P_k's zeros included
+void mbs_body_consts(mbody *b) {
+  const double zero = 0;  // P_k of a partial body
+  for (int k = 0; k < b->nm; k++) {
+    const double *X = b->XS + 9 * k;
+    double *XX = b->XX + 9 * k, *Hk = b->Hk + 9 * k, *Mw = b->Mwf + 3 * k;
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        XX[a + 3 * bb] = X[a + 3 * bb] + X[bb + 3 * a];
+        if (b->partial) XX[a + 3 * bb] += zero, Hk[a + 3 * bb] = X[bb + 3 * a] + zero;
+      }
+    }
+    if (b->partial) Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
+  }
+}
+
 // mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
 // + Dq' in the modal rows), and optionally the block B = T'(cm Mb + cc Cb)T + ck Kx (n x n,
 // column-major), T = diag(1, 2G, 1) mapping x' to [R'; wb; q'].
@@ -197,18 +216,32 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   memcpy(cl, b->c0, sizeof cl);
   memcpy(Jl, b->J0, sizeof Jl);
   double s1qd[3] = {0, 0, 0};
-  if (nm > 0) {
-    double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
-    if (!b->partial) matvec(9 * nm, nm, b->SS, q, 1.0, P);  // partial: SS = 0, P stays zero
+  if (nm > 0 && b->partial) {
+    // partial coupling: H_k, Mwf constant (mbs_body_consts) and J symmetric term by term (J0 is,
+    // and each term is q_k XX_k, XX_k = XS_k + XS_k' + 0 as the full loop below adds P_k = 0):
+    // its upper triangle mirrored, the same bits as the full loop and its symmetrisation
     for (int k = 0; k < nm; k++) {
-      const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
+      const double *XX = b->XX + 9 * k, *Hk = b->Hk + 9 * k;
+      for (int a = 0; a < 3; a++) {
+        cl[a] += b->S1[a + 3 * k] * q[k];
+        s1qd[a] += b->S1[a + 3 * k] * qd[k];
+        for (int bb = a; bb < 3; bb++) Jl[3 * a + bb] += q[k] * XX[a + 3 * bb];
+      }
+      for (int i = 0; i < 9; i++) H[i] += qd[k] * Hk[i];
+    }
+    Jl[3] = Jl[1], Jl[6] = Jl[2], Jl[7] = Jl[5];
+  } else if (nm > 0) {
+    double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
+    matvec(9 * nm, nm, b->SS, q, 1.0, P);
+    for (int k = 0; k < nm; k++) {
+      const double *X = b->XS + 9 * k, *XX = b->XX + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
       for (int a = 0; a < 3; a++) {
         cl[a] += b->S1[a + 3 * k] * q[k];
         s1qd[a] += b->S1[a + 3 * k] * qd[k];
         for (int bb = 0; bb < 3; bb++) {
           // J_ab += q_k (XS_abk + XS_bak) + q_k P_k,ab; H_k,ab = XS_bak + P_k,ab
-          Jl[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[a + 3 * bb]);
+          Jl[3 * a + bb] += q[k] * (XX[a + 3 * bb] + Pk[a + 3 * bb]);
           Hk[a + 3 * bb] = X[bb + 3 * a] + Pk[a + 3 * bb];
         }
       }
@@ -248,12 +281,16 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       MB(3 + a, 3 + bb) = I[3 * a + bb];
     }
   }
+  // the coupling columns 6.. (rows 0..5); their mirror, the rows 6.. of the columns 0..5
+  // (written with a stride), only for the block: the residual's Mb acc reads the columns
   for (int k = 0; k < nm; k++) {
     double as[3];
     mv3(A, b->S1 + 3 * k, as);
-    for (int a = 0; a < 3; a++) {
-      MB(a, 6 + k) = MB(6 + k, a) = as[a];
-      MB(3 + a, 6 + k) = MB(6 + k, 3 + a) = b->Mwf[a + 3 * k];
+    for (int a = 0; a < 3; a++) MB(a, 6 + k) = as[a], MB(3 + a, 6 + k) = b->Mwf[a + 3 * k];
+  }
+  if (B) {
+    for (int k = 0; k < nm; k++) {
+      for (int a = 0; a < 6; a++) MB(6 + k, a) = MB(a, 6 + k);
     }
   }
   if (B && ff) {
@@ -275,7 +312,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       for (int bb = 0; bb < 3; bb++) wHw += w[a] * Hk[a + 3 * bb] * w[bb];
     }
     double v = wHw - ww * (Hk[0] + Hk[4] + Hk[8]);
-    v += 2 * dot3(w, cor + 3 * k);
+    if (!b->partial) v += 2 * dot3(w, cor + 3 * k);
     if (b->kdiag) {
       v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
     } else {
@@ -295,7 +332,26 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   // rb += Mb acc_b
   if (xdd) {
     double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
-    matvec_add(n6, 6, Mb, n6, acc6, 1.0, rb);
+    matvec_add(6, 6, Mb, n6, acc6, 1.0, rb);
+    // the rows 6.. of that product (Mb's rows 6.. of the columns 0..5 are its columns 6.., rows
+    // 0..5), with matvec_add(n6, 6, ...)'s operations: a row of its pairs adds the four
+    // columns' products term by term, an odd last row (or no vector extension) their sum
+#if defined(__GNUC__)
+    const int npair = n6 - n6 % 2;
+#else
+    const int npair = 0;
+#endif
+    for (int k = 0; k < nm; k++) {
+      const double *z = &MB(0, 6 + k);
+      double y = rb[6 + k];
+      if (6 + k < npair)
+        y = y + acc6[0] * z[0] + acc6[1] * z[1] + acc6[2] * z[2] + acc6[3] * z[3];
+      else
+        y += acc6[0] * z[0] + acc6[1] * z[1] + acc6[2] * z[2] + acc6[3] * z[3];
+      y += acc6[4] * z[4];
+      y += acc6[5] * z[5];
+      rb[6 + k] = y;
+    }
     // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
     // same operations as on the whole columns)
     matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);

@@ -156,6 +156,7 @@ typedef struct mbody {
   double *P;     // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
+  double *XX;    // 9 nm: XS_k + XS_k' (mbs_body_consts; + 0 with partial coupling)
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
   bool mdiag;    // Mff diagonal (M-orthonormal modes, the usual modal body): O(nm) Mff products
@@ -358,6 +359,8 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
                    bool ff);
 // the modal-modal part of body ib's block written into Ax (after mbs_body_eval without ff)
 void mbs_body_ff(fmbd_mbs *m, int ib);
+// a modal body's constant inertia terms at load (b->XX; H_k, Mwf with partial coupling)
+void mbs_body_consts(mbody *b);
 // parts shared by modal and FE bodies (fmbd_mbs_body.c; see there)
 void mbs_frame_kin(mbody *b, const double *p, const double *pd, const double *pdd, double *w,
                    double *wd);
