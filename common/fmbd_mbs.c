@@ -77,7 +77,7 @@ static void body_free(mbody *b) {
   fmbd_free(b->S1), fmbd_free(b->XS), fmbd_free(b->SS), fmbd_free(b->Mff), fmbd_free(b->Kff);
   fmbd_free(b->Dff), fmbd_free(b->XSx), fmbd_free(b->SSx), fmbd_free(b->q0), fmbd_free(b->qd0);
   fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
-  fmbd_free(b->XX);
+  fmbd_free(b->XX), fmbd_free(b->pk);
   mbs_fe_free(&b->fe);
 }
 
@@ -341,7 +341,7 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
       memset(b->SS, 0, sizeof(double) * 9 * n1 * n1);
     else
       memcpy(b->SS, d->SS, sizeof(double) * 9 * n1 * n1);
-    mbs_body_consts(b);
+    FMBD_CALL(mbs_body_consts(b));
     for (size_t i = 0; i < n1; i++) {
       for (size_t k = 0; k < n1; k++) {
         b->Mff[i + n1 * k] = 0.5 * (d->Mff[i + n1 * k] + d->Mff[k + n1 * i]);

@@ -175,10 +175,12 @@ void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const 
 // the constants of a modal body's inertia at load (after XS and b->partial are set; XX
 // allocated 9 nm): XX_k = XS_k + XS_k' (the linear part of J, for mbs_body_eval and the queries),
 // and with partial coupling (P = SS q = 0) H_k = XS_k' + P_k and Mwf, which mbs_body_eval then no
-// longer forms; each with the operations of mbs_body_eval's full loop, P_k's zeros included
-void mbs_body_consts(mbody *b) {
+// longer forms (each with the operations of mbs_body_eval's full loop, P_k's zeros included), and
+// b->pk, the arrays of its residual by products over the modes (mbs_body_eval, PK_*)
+int mbs_body_consts(mbody *b) {
   const double zero = 0;  // P_k of a partial body
-  for (int k = 0; k < b->nm; k++) {
+  const int nm = b->nm;
+  for (int k = 0; k < nm; k++) {
     const double *X = b->XS + 9 * k;
     double *XX = b->XX + 9 * k, *Hk = b->Hk + 9 * k, *Mw = b->Mwf + 3 * k;
     for (int a = 0; a < 3; a++) {
@@ -189,6 +191,31 @@ void mbs_body_consts(mbody *b) {
     }
     if (b->partial) Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
   }
+  if (!b->partial || nm == 0) return FMBD_OK;
+  FMBD_CHECK(b->pk = fmbd_malloc(sizeof(double) * PK_SIZE * (size_t)nm), FMBD_ERR_NOMEM,
+             "out of memory");
+  double *E1 = b->pk, *E2 = E1 + 9 * (size_t)nm, *E3 = E2 + 12 * (size_t)nm,
+         *G = E3 + 6 * (size_t)nm;
+  for (int k = 0; k < nm; k++) {
+    const double *S1 = b->S1 + 3 * k, *XX = b->XX + 9 * k, *Hk = b->Hk + 9 * k,
+                 *Mw = b->Mwf + 3 * k;
+    double *e1 = E1 + 9 * k, *e2 = E2 + 12 * k, *e3 = E3 + 6 * k;
+    for (int a = 0; a < 3; a++) e1[a] = e2[a] = e3[a] = S1[a], e3[3 + a] = Mw[a];
+    // J's upper triangle (0,0) (0,1) (0,2) (1,1) (1,2) (2,2) from XX[a + 3 b]
+    e1[3] = XX[0], e1[4] = XX[3], e1[5] = XX[6], e1[6] = XX[4], e1[7] = XX[7], e1[8] = XX[8];
+    for (int i = 0; i < 9; i++) e2[3 + i] = Hk[i];
+    // the modal row: w' (H_k - tr H_k 1) w on [w0^2, w1^2, w2^2, w0 w1, w0 w2, w1 w2],
+    // S1_k . A'(R'' - g), Mwf_k . wd
+    const double tr = Hk[0] + Hk[4] + Hk[8];
+    const double g6[6] = {Hk[0] - tr,    Hk[4] - tr,    Hk[8] - tr,
+                          Hk[1] + Hk[3], Hk[2] + Hk[6], Hk[5] + Hk[7]};
+    for (int i = 0; i < 6; i++) G[k + (size_t)nm * i] = g6[i];
+    for (int a = 0; a < 3; a++) {
+      G[k + (size_t)nm * (6 + a)] = S1[a];
+      G[k + (size_t)nm * (9 + a)] = Mw[a];
+    }
+  }
+  return FMBD_OK;
 }
 
 // mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
@@ -216,7 +243,20 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   memcpy(cl, b->c0, sizeof cl);
   memcpy(Jl, b->J0, sizeof Jl);
   double s1qd[3] = {0, 0, 0};
-  if (nm > 0 && b->partial) {
+  // a partial body with diagonal Mff and Kff (the usual one): its residual by products over the
+  // modes with the constant arrays b->pk (mbs_body_consts): other round-off than the loops below
+  const bool fast = b->pk && b->mdiag && b->kdiag;
+  const double *E1 = b->pk, *E2 = E1 + 9 * (size_t)nm, *E3 = E2 + 12 * (size_t)nm,
+               *PG = E3 + 6 * (size_t)nm;
+  if (fast) {
+    double u1[9], u2[12];
+    matvec(9, nm, E1, q, 1.0, u1);
+    matvec(12, nm, E2, qd, 1.0, u2);
+    for (int a = 0; a < 3; a++) cl[a] += u1[a], s1qd[a] = u2[a];
+    Jl[0] += u1[3], Jl[1] += u1[4], Jl[2] += u1[5], Jl[4] += u1[6], Jl[5] += u1[7], Jl[8] += u1[8];
+    Jl[3] = Jl[1], Jl[6] = Jl[2], Jl[7] = Jl[5];
+    for (int i = 0; i < 9; i++) H[i] = u2[3 + i];
+  } else if (nm > 0 && b->partial) {
     // partial coupling: H_k, Mwf constant (mbs_body_consts) and J symmetric term by term (J0 is,
     // and each term is q_k XX_k, XX_k = XS_k + XS_k' + 0 as the full loop below adds P_k = 0):
     // its upper triangle mirrored, the same bits as the full loop and its symmetrisation
@@ -283,7 +323,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   }
   // the coupling columns 6.. (rows 0..5); their mirror, the rows 6.. of the columns 0..5
   // (written with a stride), only for the block: the residual's Mb acc reads the columns
-  for (int k = 0; k < nm; k++) {
+  for (int k = 0; k < nm && (B || !fast); k++) {
     double as[3];
     mv3(A, b->S1 + 3 * k, as);
     for (int a = 0; a < 3; a++) MB(a, 6 + k) = as[a], MB(3 + a, 6 + k) = b->Mwf[a + 3 * k];
@@ -305,7 +345,9 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   if (nm > 0 && !b->partial) {  // partial: SSx = 0, cor stays zero
     matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
   }
-  for (int k = 0; k < nm; k++) {
+  for (int k = 0; k < nm && fast; k++)  // the inertia terms added below (PG)
+    rb[6 + k] = b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+  for (int k = 0; k < nm && !fast; k++) {
     const double *Hk = b->Hk + 9 * k;
     double wHw = 0;
     for (int a = 0; a < 3; a++) {
@@ -327,10 +369,26 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double cg[3];
   cross3(c, gl, cg);
   for (int a = 0; a < 3; a++) rb[a] -= b->m * m->g[a], rb[3 + a] -= cg[a];
-  for (int k = 0; k < nm; k++) rb[6 + k] -= dot3(b->S1 + 3 * k, gl);
+  for (int k = 0; k < nm && !fast; k++) rb[6 + k] -= dot3(b->S1 + 3 * k, gl);
   mbs_body_loads(m, ib, t, A, q, rb, rb + 6);
+  if (fast) {  // rb_k += w' (H_k - tr H_k) w + S1_k . A'(R'' - g) + Mwf_k . wd (+ Mff_kk q''_k)
+    double z[12] = {w[0] * w[0], w[0 + 1] * w[1], w[2] * w[2],
+                    w[0] * w[1], w[0] * w[2],     w[1] * w[2]};
+    double ag[3];
+    for (int a = 0; a < 3; a++) ag[a] = (xdd ? xdd[a] : 0) - m->g[a];
+    mtv3(A, ag, z + 6);
+    z[9] = wd[0], z[10] = wd[1], z[11] = wd[2];
+    matvec_add(nm, 12, PG, nm, z, 1.0, rb + 6);
+  }
   // rb += Mb acc_b
-  if (xdd) {
+  if (xdd && fast) {  // the rigid rows: Mb's 6 x 6 block, A S1 q'' and Mwf q''
+    double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]}, u3[6], au[3];
+    matvec_add(6, 6, Mb, n6, acc6, 1.0, rb);
+    matvec(6, nm, E3, qdd, 1.0, u3);
+    mv3(A, u3, au);
+    for (int a = 0; a < 3; a++) rb[a] += au[a], rb[3 + a] += u3[3 + a];
+    for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
+  } else if (xdd) {
     double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
     matvec_add(6, 6, Mb, n6, acc6, 1.0, rb);
     // the rows 6.. of that product (Mb's rows 6.. of the columns 0..5 are its columns 6.., rows

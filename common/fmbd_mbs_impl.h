@@ -157,6 +157,7 @@ typedef struct mbody {
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
   double *XX;    // 9 nm: XS_k + XS_k' (mbs_body_consts; + 0 with partial coupling)
+  double *pk;    // partial coupling: PK_SIZE x nm constant arrays (mbs_body_consts), else NULL
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
   bool mdiag;    // Mff diagonal (M-orthonormal modes, the usual modal body): O(nm) Mff products
@@ -360,7 +361,10 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
 // the modal-modal part of body ib's block written into Ax (after mbs_body_eval without ff)
 void mbs_body_ff(fmbd_mbs *m, int ib);
 // a modal body's constant inertia terms at load (b->XX; H_k, Mwf with partial coupling)
-void mbs_body_consts(mbody *b);
+int mbs_body_consts(mbody *b);
+// b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
+// (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
+#define PK_SIZE (9 + 12 + 6 + 12)
 // parts shared by modal and FE bodies (fmbd_mbs_body.c; see there)
 void mbs_frame_kin(mbody *b, const double *p, const double *pd, const double *pdd, double *w,
                    double *wd);

@@ -253,44 +253,50 @@ int main(void) {
   int rc = make_bodies(&D, &G, &mdev);
   EXPECT(rc == 0 && mdev < 1e-13, "M-orthonormal modes: rc %d, |X'MX - I| = %.3g", rc, mdev);
   if (rc) TEST_EXIT();
-  // --- parts 1 and 2: hung, D (diagonal) and G (general basis) ---
+  // --- parts 1 and 2: hung, D (diagonal) and G (general basis); with full and with partial
+  // coupling (2b: D's residual then by products over the modes with b->pk, G's by the loops) ---
   const double h = 1e-3, L = 1.0;  // L: the scale of the positions (the cloud is 0.4 m wide)
-  model md, mg;
-  rc = build(&D, true, false, h, 0.9, &md);
-  rc = rc ? rc : build(&G, true, false, h, 0.9, &mg);
-  EXPECT(rc == 0, "build: %s", fmbd_err_get()->msg);
-  if (rc) TEST_EXIT();
-  const mbody *bd = &md.m->b[md.body], *bg = &mg.m->b[mg.body];
-  EXPECT(bd->mdiag && bd->kdiag && !bg->mdiag && !bg->kdiag && bd->elim && bg->elim,
-         "paths: D mdiag %d kdiag %d, G mdiag %d kdiag %d, eliminated %d %d", bd->mdiag, bd->kdiag,
-         bg->mdiag, bg->kdiag, bd->elim, bg->elim);
-  const int nst = 200;
-  double dmax = 0;
-  for (int n = 0; n < nst && !rc; n++) {
-    rc = fmbd_mbs_step(md.m, NULL);
-    rc = rc ? rc : fmbd_mbs_step(mg.m, NULL);
-    if (n == 4 && !rc) check_solve(&md);
-    double xd[3], xg[3];
-    fmbd_mbs_point_position(md.m, md.tip, xd);
-    fmbd_mbs_point_position(mg.m, mg.tip, xg);
-    dmax = fmax(dmax, dist3(xd, xg));
+  for (int pc = 0; pc < 2 && !rc; pc++) {
+    model md, mg;
+    rc = build(&D, true, pc == 1, h, 0.9, &md);
+    rc = rc ? rc : build(&G, true, pc == 1, h, 0.9, &mg);
+    EXPECT(rc == 0, "build: %s", fmbd_err_get()->msg);
+    if (rc) TEST_EXIT();
+    const mbody *bd = &md.m->b[md.body], *bg = &mg.m->b[mg.body];
+    EXPECT(bd->mdiag && bd->kdiag && !bg->mdiag && !bg->kdiag && bd->elim && bg->elim,
+           "paths: D mdiag %d kdiag %d, G mdiag %d kdiag %d, eliminated %d %d", bd->mdiag,
+           bd->kdiag, bg->mdiag, bg->kdiag, bd->elim, bg->elim);
+    EXPECT(!bd->pk == !pc && !bg->pk == !pc, "partial coupling %d: constant arrays %d %d", pc,
+           bd->pk != NULL, bg->pk != NULL);
+    const int nst = 200;
+    double dmax = 0;
+    for (int n = 0; n < nst && !rc; n++) {
+      rc = fmbd_mbs_step(md.m, NULL);
+      rc = rc ? rc : fmbd_mbs_step(mg.m, NULL);
+      if (n == 4 && !rc) check_solve(&md);
+      double xd[3], xg[3];
+      fmbd_mbs_point_position(md.m, md.tip, xd);
+      fmbd_mbs_point_position(mg.m, mg.tip, xg);
+      dmax = fmax(dmax, dist3(xd, xg));
+    }
+    EXPECT(rc == 0, "steps: %s", fmbd_err_get()->msg);
+    fmbd_mbs_stats sd, sg;
+    fmbd_mbs_get_stats(md.m, &sd);
+    fmbd_mbs_get_stats(mg.m, &sg);
+    const double bound = 2 * nst * NEWTON_TOL * L;
+    EXPECT(dmax <= bound, "diagonal vs general basis: the tip %.3g m apart (bound %.3g)", dmax,
+           bound);
+    EXPECT(fabs((double)sd.newton_iterations - (double)sg.newton_iterations) <=
+               0.05 * (double)sg.newton_iterations,
+           "Newton iterations %lld (diagonal) and %lld (general)", (long long)sd.newton_iterations,
+           (long long)sg.newton_iterations);
+    printf(
+        "t512: %s coupling, diagonal vs general basis over %d steps: %.2e m (bound %.2e), "
+        "iterations %lld / %lld\n",
+        pc ? "partial" : "full", nst, dmax, bound, (long long)sd.newton_iterations,
+        (long long)sg.newton_iterations);
+    fmbd_mbs_destroy(&md.m), fmbd_mbs_destroy(&mg.m);
   }
-  EXPECT(rc == 0, "steps: %s", fmbd_err_get()->msg);
-  fmbd_mbs_stats sd, sg;
-  fmbd_mbs_get_stats(md.m, &sd);
-  fmbd_mbs_get_stats(mg.m, &sg);
-  const double bound = 2 * nst * NEWTON_TOL * L;
-  EXPECT(dmax <= bound, "diagonal vs general basis: the tip %.3g m apart (bound %.3g)", dmax,
-         bound);
-  EXPECT(fabs((double)sd.newton_iterations - (double)sg.newton_iterations) <=
-             0.05 * (double)sg.newton_iterations,
-         "Newton iterations %lld (diagonal) and %lld (general)", (long long)sd.newton_iterations,
-         (long long)sg.newton_iterations);
-  printf(
-      "t512: diagonal vs general basis over %d steps: %.2e m (bound %.2e), iterations %lld / "
-      "%lld\n",
-      nst, dmax, bound, (long long)sd.newton_iterations, (long long)sg.newton_iterations);
-  fmbd_mbs_destroy(&md.m), fmbd_mbs_destroy(&mg.m);
   // --- part 3: partial against full, free spinning body D ---
   model mf, mp;
   rc = build(&D, false, false, h, 0.9, &mf);
