@@ -173,7 +173,7 @@ void mbs_body_loads(const fmbd_mbs *m, int ib, double t, const double *A, const 
 }
 
 // the constants of a modal body's inertia at load (after XS and b->partial are set; XX
-// allocated 9 nm): XX_k = XS_k + XS_k' (the linear part of J, for mbs_body_eval and the queries),
+// allocated 9 nm): XX_k = XS_k + XS_k' (the linear part of J, for a partial body's loop),
 // and with partial coupling (P = SS q = 0) H_k = XS_k' + P_k and Mwf, which mbs_body_eval then no
 // longer forms (each with the operations of mbs_body_eval's full loop, P_k's zeros included), and
 // b->pk, the arrays of its residual by products over the modes (mbs_body_eval, PK_*)
@@ -274,14 +274,14 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
     matvec(9 * nm, nm, b->SS, q, 1.0, P);
     for (int k = 0; k < nm; k++) {
-      const double *X = b->XS + 9 * k, *XX = b->XX + 9 * k, *Pk = P + 9 * k;
+      const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
       for (int a = 0; a < 3; a++) {
         cl[a] += b->S1[a + 3 * k] * q[k];
         s1qd[a] += b->S1[a + 3 * k] * qd[k];
         for (int bb = 0; bb < 3; bb++) {
           // J_ab += q_k (XS_abk + XS_bak) + q_k P_k,ab; H_k,ab = XS_bak + P_k,ab
-          Jl[3 * a + bb] += q[k] * (XX[a + 3 * bb] + Pk[a + 3 * bb]);
+          Jl[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[a + 3 * bb]);
           Hk[a + 3 * bb] = X[bb + 3 * a] + Pk[a + 3 * bb];
         }
       }
@@ -321,16 +321,12 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       MB(3 + a, 3 + bb) = I[3 * a + bb];
     }
   }
-  // the coupling columns 6.. (rows 0..5); their mirror, the rows 6.. of the columns 0..5
-  // (written with a stride), only for the block: the residual's Mb acc reads the columns
-  for (int k = 0; k < nm && (B || !fast); k++) {
+  for (int k = 0; k < nm && (B || !fast); k++) {  // fast: the residual does not read them
     double as[3];
     mv3(A, b->S1 + 3 * k, as);
-    for (int a = 0; a < 3; a++) MB(a, 6 + k) = as[a], MB(3 + a, 6 + k) = b->Mwf[a + 3 * k];
-  }
-  if (B) {
-    for (int k = 0; k < nm; k++) {
-      for (int a = 0; a < 6; a++) MB(6 + k, a) = MB(a, 6 + k);
+    for (int a = 0; a < 3; a++) {
+      MB(a, 6 + k) = MB(6 + k, a) = as[a];
+      MB(3 + a, 6 + k) = MB(6 + k, 3 + a) = b->Mwf[a + 3 * k];
     }
   }
   if (B && ff) {
@@ -372,8 +368,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   for (int k = 0; k < nm && !fast; k++) rb[6 + k] -= dot3(b->S1 + 3 * k, gl);
   mbs_body_loads(m, ib, t, A, q, rb, rb + 6);
   if (fast) {  // rb_k += w' (H_k - tr H_k) w + S1_k . A'(R'' - g) + Mwf_k . wd (+ Mff_kk q''_k)
-    double z[12] = {w[0] * w[0], w[0 + 1] * w[1], w[2] * w[2],
-                    w[0] * w[1], w[0] * w[2],     w[1] * w[2]};
+    double z[12] = {w[0] * w[0], w[1] * w[1], w[2] * w[2], w[0] * w[1], w[0] * w[2], w[1] * w[2]};
     double ag[3];
     for (int a = 0; a < 3; a++) ag[a] = (xdd ? xdd[a] : 0) - m->g[a];
     mtv3(A, ag, z + 6);
@@ -390,26 +385,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
   } else if (xdd) {
     double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
-    matvec_add(6, 6, Mb, n6, acc6, 1.0, rb);
-    // the rows 6.. of that product (Mb's rows 6.. of the columns 0..5 are its columns 6.., rows
-    // 0..5), with matvec_add(n6, 6, ...)'s operations: a row of its pairs adds the four
-    // columns' products term by term, an odd last row (or no vector extension) their sum
-#if defined(__GNUC__)
-    const int npair = n6 - n6 % 2;
-#else
-    const int npair = 0;
-#endif
-    for (int k = 0; k < nm; k++) {
-      const double *z = &MB(0, 6 + k);
-      double y = rb[6 + k];
-      if (6 + k < npair)
-        y = y + acc6[0] * z[0] + acc6[1] * z[1] + acc6[2] * z[2] + acc6[3] * z[3];
-      else
-        y += acc6[0] * z[0] + acc6[1] * z[1] + acc6[2] * z[2] + acc6[3] * z[3];
-      y += acc6[4] * z[4];
-      y += acc6[5] * z[5];
-      rb[6 + k] = y;
-    }
+    matvec_add(n6, 6, Mb, n6, acc6, 1.0, rb);
     // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
     // same operations as on the whole columns)
     matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);

@@ -156,7 +156,7 @@ typedef struct mbody {
   double *P;     // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
-  double *XX;    // 9 nm: XS_k + XS_k' (mbs_body_consts; + 0 with partial coupling)
+  double *XX;    // 9 nm: XS_k + XS_k' (+ 0 if partial; mbs_body_consts): a partial body's J
   double *pk;    // partial coupling: PK_SIZE x nm constant arrays (mbs_body_consts), else NULL
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
