@@ -52,6 +52,11 @@ static void matvec_add(int m, int n, const double *restrict A, int lda, const do
     for (int i = 0; i < m; i++) y[i] += xj * a[i];
   }
 }
+// the same, for the other files of the multibody core (fmbd_mbs_impl.h)
+void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
+                    double *y) {
+  matvec_add(m, n, A, lda, x, alpha, y);
+}
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {
   for (int i = 0; i < m; i++) y[i] = 0;

@@ -362,6 +362,11 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
 void mbs_body_ff(fmbd_mbs *m, int ib);
 // a modal body's constant inertia terms at load (b->XX; H_k, Mwf with partial coupling)
 int mbs_body_consts(mbody *b);
+// y += alpha A x, A m x n column-major (leading dimension lda), for the small dense products of
+// the multibody core (fmbd_mbs_body.c: vectorised, four columns at a time); A and x must not
+// overlap y
+void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
+                    double *y);
 // b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
 // (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
 #define PK_SIZE (9 + 12 + 6 + 12)

@@ -323,7 +323,11 @@ int mbs_schur_factor(fmbd_mbs *m) {
       cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasTrans, CblasNonUnit, nm, nc, 1.0,
                   sb->L, nm, sb->W, nm);
     }
-    fmbd_dense_gemm('N', 'N', nc, nc, nm, 1.0, sb->V, nc, sb->W, nm, 0.0, sb->VW, nc);
+    for (int j = 0; j < nc; j++) {  // VW = A_RF W, column by column
+      double *vw = sb->VW + (size_t)nc * j;
+      for (int i = 0; i < nc; i++) vw[i] = 0;
+      mbs_matvec_add(nc, nm, sb->V, nc, sb->W + (size_t)nm * j, 1.0, vw);
+    }
   }
   memset(s->Sx, 0, sizeof(double) * (size_t)s->nnzS);
   for (int64_t e = 0; e < s->nrr; e++) s->Sx[s->rrS[e]] += m->Ax[s->rrA[e]];
@@ -350,7 +354,8 @@ int mbs_schur_solve(fmbd_mbs *m, double *rhs) {
       cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, nm, sb->L, nm, sb->y, 1);
     }
     if (nc == 0) continue;
-    cblas_dgemv(CblasColMajor, CblasNoTrans, nc, nm, 1.0, sb->V, nc, sb->y, 1, 0.0, sb->t, 1);
+    for (int j = 0; j < nc; j++) sb->t[j] = 0;  // (small products: no BLAS call, bench/README)
+    mbs_matvec_add(nc, nm, sb->V, nc, sb->y, 1.0, sb->t);
     for (int j = 0; j < nc; j++) s->r[sb->cs[j]] -= sb->t[j];
   }
   FMBD_CALL(fmbd_klu_solve(s->klu, s->r));
@@ -358,8 +363,7 @@ int mbs_schur_solve(fmbd_mbs *m, double *rhs) {
     sbody *sb = &s->sb[k];
     const int nm = sb->nm, nc = sb->nc;
     for (int j = 0; j < nc; j++) sb->t[j] = s->r[sb->cs[j]];
-    if (nc > 0)
-      cblas_dgemv(CblasColMajor, CblasNoTrans, nm, nc, -1.0, sb->W, nm, sb->t, 1, 1.0, sb->y, 1);
+    if (nc > 0) mbs_matvec_add(nm, nc, sb->W, nm, sb->t, -1.0, sb->y);
     memcpy(rhs + sb->qoff, sb->y, sizeof(double) * (size_t)nm);
   }
   for (int64_t e = 0; e < s->nR; e++) rhs[s->gidx[e]] = s->r[e];
