@@ -298,6 +298,64 @@ static void release_ms(fmbd_csr **Ms, const fmbd_csr *Ks) {
   fmbd_csr_destroy(Ms);
 }
 
+// Arrays parked in an unlinked temporary file (tmpfile) while a stage that does not read them
+// runs, and freed: Ms's values during the LL' (the factor is of Ks alone), Ks's from the LL'
+// until the Sturm check (the residual check takes K x from the factor: fmbd_eig.h), the four
+// ns x nb projection blocks during the Sturm check. Each stage's peak then holds those bytes
+// less (bench/README.md "fe2cb's memory"); the file lives in the page cache or on disk, not
+// in the process. No file (tmpfile fails, e.g. a read-only /tmp): the arrays stay in memory,
+// *f NULL. k arrays of m doubles each, none NULL (else nothing is parked).
+static void park(int k, double **const a[], size_t m, FILE **f) {
+  *f = NULL;
+  if (m == 0) return;
+  for (int i = 0; i < k; i++)
+    if (!*a[i]) return;
+  FILE *t = tmpfile();
+  if (!t) return;
+  for (int i = 0; i < k; i++) {
+    if (fwrite(*a[i], sizeof(double), m, t) != m) {
+      fclose(t);
+      return;
+    }
+  }
+  if (fflush(t) != 0) {
+    fclose(t);
+    return;
+  }
+  for (int i = 0; i < k; i++) {
+    fmbd_free(*a[i]);
+    *a[i] = NULL;
+  }
+  *f = t;
+}
+
+// the arrays parked by park (the same k, a[] and m) back into memory; closes the file
+static int unpark(int k, double **const a[], size_t m, FILE **f) {
+  if (!*f) return FMBD_OK;
+  FILE *t = *f;
+  *f = NULL;
+  bool ok = fseek(t, 0, SEEK_SET) == 0, mem = true;
+  for (int i = 0; i < k && ok && mem; i++) {
+    *a[i] = fmbd_malloc(m * sizeof(double));
+    mem = *a[i] != NULL;
+    ok = mem && fread(*a[i], sizeof(double), m, t) == m;
+  }
+  fclose(t);
+  FMBD_CHECK(mem, FMBD_ERR_NOMEM, "out of memory");
+  FMBD_CHECK(ok, FMBD_ERR_IO, "cannot read back the arrays parked in a temporary file");
+  return FMBD_OK;
+}
+
+// a matrix's values (park)
+static void park_values(fmbd_csr *A, FILE **f) {
+  double **const a[1] = {&A->data};
+  park(1, a, (size_t)fmbd_csr_nnz(A), f);
+}
+static int unpark_values(fmbd_csr *A, FILE **f) {
+  double **const a[1] = {&A->data};
+  return unpark(1, a, (size_t)fmbd_csr_nnz(A), f);
+}
+
 // C (nb x m, ldc) += S' X  for a sparse S (ns x nb) and dense X (ns x m, ld ns)
 static void csr_tmult(const fmbd_csr *S, int64_t m, const double *X, int64_t ns, double *C,
                       int64_t ldc) {
@@ -570,6 +628,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   fmbd_eig_result er = {0};
   char *mark = NULL;
   int64_t *perm = NULL;
+  FILE *parked_ms = NULL, *parked_ks = NULL, *parked_blocks = NULL;  // park
   *out = NULL;
   int64_t n = K->nrows;
   FMBD_CHECK(o.nmodes >= 0, FMBD_ERR_VALUE, "negative number of modes");
@@ -606,6 +665,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   int64_t ns = n - nb;
   FMBD_GCHECK(ns > 0, FMBD_ERR_VALUE, "every dof of the body is a boundary dof: nothing to reduce");
   cb->ns = ns;
+  double **const blocks[4] = {&cb->Psi, &cb->A, &cb->KsinvA, &cb->KsinvMsKsinvA};  // park
   FMBD_GALLOC(cb->interior = fmbd_malloc((size_t)ns * sizeof(int64_t)));
   FMBD_GALLOC(cb->boundary = fmbd_malloc((size_t)(nb ? nb : 1) * sizeof(int64_t)));
   for (int64_t i = 0, a = 0, b = 0; i < n; i++) {
@@ -641,9 +701,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   // --- the factor of Ks, once ---
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   mem_log("after the analysis");
+  park_values(Ms, &parked_ms);  // the LL' is of Ks alone
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
   fmbd_chol_release_matrix(F);  // factored once: the matrix copy is not needed for solves
+  FMBD_GCALL(unpark_values(Ms, &parked_ms));
   mem_log("after the factorisation");
   {
     fmbd_chol_stats st;
@@ -673,6 +735,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
     fmbd_cb_opts o2 = o;
     o2.eig.sturm = false;
+    // Ks's values are not read until the Sturm check when fmbd_eig_solve can take K x from F
+    // (its sparse path: fmbd_eig.h)
+    if (ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)) park_values(Ks, &parked_ks);
     FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
@@ -691,6 +756,8 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
 #endif
+      FMBD_GCALL(unpark_values(Ks, &parked_ks));
+      park(4, blocks, (size_t)(ns * cb->nb), &parked_blocks);  // not read by the Sturm check
       mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
       if (fmbd_progress_enabled())
@@ -709,6 +776,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
         FMBD_GCALL(modes(Ks, Ms, F, &o, nev, lmax, false, &er));
       }
+      FMBD_GCALL(unpark(4, blocks, (size_t)(ns * cb->nb), &parked_blocks));
       mem_log("after the Sturm check");
     }
     take_eig_time(cb, &er);
@@ -765,6 +833,9 @@ done:
   fmbd_eig_result_free(&er);
   fmbd_free(mark);
   fmbd_free(perm);
+  if (parked_ms) fclose(parked_ms);
+  if (parked_ks) fclose(parked_ks);
+  if (parked_blocks) fclose(parked_blocks);
   return rc;
 }
 

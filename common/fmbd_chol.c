@@ -715,6 +715,96 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
   return rc;
 }
 
+// Y = P' L L' P X: t = L' (P X) by supernodes (t(cols) = L11' x(cols) + L21' x(rows below)),
+// then y = L t (y(cols) += L11 t(cols), y(rows below) += L21 t(cols)), then y to the original
+// numbering. Only the lower triangle of each diagonal block is read (dtrmm): CHOLMOD stores the
+// upper halves too but does not define them.
+int fmbd_chol_mult(const fmbd_chol *F, int64_t nrhs, const double *X, int64_t ldx, double *Y,
+                   int64_t ldy) {
+  int rc = FMBD_OK;
+  double *xp = NULL, *t = NULL, *g = NULL;
+  FMBD_CHECK(F && F->L && F->L->is_super && F->L->is_ll && F->st.n_factor > 0 &&
+                 F->failed_row < 0 && F->kind == FMBD_CHOL_LLT,
+             FMBD_ERR_INTERNAL, "product without a valid supernodal LL' factor");
+  const cholmod_factor *L = F->L;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *ls = L->s, *perm = L->Perm;
+  const double *lx = L->x;
+  int64_t n = F->n, nsup = (int64_t)L->nsuper, maxrow = 1;
+  for (int64_t s = 0; s < nsup; s++)
+    if (pi[s + 1] - pi[s] > maxrow) maxrow = pi[s + 1] - pi[s];
+  size_t w = (size_t)(nrhs > 0 ? nrhs : 1);
+  FMBD_GALLOC(xp = fmbd_malloc((size_t)(n ? n : 1) * w * sizeof(double)));
+  FMBD_GALLOC(t = fmbd_malloc((size_t)(n ? n : 1) * w * sizeof(double)));
+  FMBD_GALLOC(g = fmbd_malloc((size_t)maxrow * w * sizeof(double)));
+  for (int64_t j = 0; j < nrhs; j++)
+    for (int64_t k = 0; k < n; k++) xp[k + j * n] = X[(perm ? perm[k] : k) + j * ldx];
+  // t = L' xp
+  for (int64_t s = 0; s < nsup; s++) {
+    int64_t c0 = super[s], nc = super[s + 1] - c0, nr = pi[s + 1] - pi[s], off = nr - nc;
+    const double *B = lx + px[s];
+    const SuiteSparse_long *rows = ls + pi[s];
+    for (int64_t j = 0; j < nrhs; j++) {
+      memcpy(t + c0 + j * n, xp + c0 + j * n, (size_t)nc * sizeof(double));
+      for (int64_t r = 0; r < off; r++) g[r + j * off] = xp[rows[nc + r] + j * n];
+    }
+    cblas_dtrmm(CblasColMajor, CblasLeft, CblasLower, CblasTrans, CblasNonUnit, (int)nc, (int)nrhs,
+                1.0, B, (int)nr, t + c0, (int)n);
+    if (off > 0)
+      cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, (int)nc, (int)nrhs, (int)off, 1.0,
+                  B + nc, (int)nr, g, (int)off, 1.0, t + c0, (int)n);
+  }
+  // xp <- L t
+  memset(xp, 0, (size_t)n * w * sizeof(double));
+  for (int64_t s = 0; s < nsup; s++) {
+    int64_t c0 = super[s], nc = super[s + 1] - c0, nr = pi[s + 1] - pi[s], off = nr - nc;
+    const double *B = lx + px[s];
+    const SuiteSparse_long *rows = ls + pi[s];
+    if (off > 0) {
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)off, (int)nrhs, (int)nc, 1.0,
+                  B + nc, (int)nr, t + c0, (int)n, 0.0, g, (int)off);
+      for (int64_t j = 0; j < nrhs; j++)
+        for (int64_t r = 0; r < off; r++) xp[rows[nc + r] + j * n] += g[r + j * off];
+    }
+    cblas_dtrmm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, (int)nc,
+                (int)nrhs, 1.0, B, (int)nr, t + c0, (int)n);
+    for (int64_t j = 0; j < nrhs; j++)
+      for (int64_t c = 0; c < nc; c++) xp[c0 + c + j * n] += t[c0 + c + j * n];
+  }
+  for (int64_t j = 0; j < nrhs; j++)
+    for (int64_t k = 0; k < n; k++) Y[(perm ? perm[k] : k) + j * ldy] = xp[k + j * n];
+done:
+  fmbd_free(xp);
+  fmbd_free(t);
+  fmbd_free(g);
+  return rc;
+}
+
+int fmbd_chol_diag(const fmbd_chol *F, double *d) {
+  FMBD_CHECK(F && F->L && F->L->is_super && F->L->is_ll && F->st.n_factor > 0 &&
+                 F->failed_row < 0 && F->kind == FMBD_CHOL_LLT,
+             FMBD_ERR_INTERNAL, "diagonal without a valid supernodal LL' factor");
+  const cholmod_factor *L = F->L;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *ls = L->s, *perm = L->Perm;
+  const double *lx = L->x;
+  int64_t n = F->n;
+  double *dp = d;  // permuted numbering first, then moved in place below
+  for (int64_t k = 0; k < n; k++) dp[k] = 0.0;
+  for (int64_t s = 0; s < (int64_t)L->nsuper; s++) {
+    int64_t nc = super[s + 1] - super[s], nr = pi[s + 1] - pi[s];
+    const double *B = lx + px[s];
+    for (int64_t c = 0; c < nc; c++)
+      for (int64_t r = c; r < nr; r++) dp[ls[pi[s] + r]] += B[r + c * nr] * B[r + c * nr];
+  }
+  if (perm) {
+    double *tmp = fmbd_malloc((size_t)(n ? n : 1) * sizeof(double));
+    FMBD_CHECK(tmp, FMBD_ERR_NOMEM, "out of memory");
+    memcpy(tmp, dp, (size_t)n * sizeof(double));
+    for (int64_t k = 0; k < n; k++) d[perm[k]] = tmp[k];
+    fmbd_free(tmp);
+  }
+  return FMBD_OK;
+}
+
 void fmbd_chol_release_matrix(fmbd_chol *F) {
   if (!F) return;
   F->released = 1;

@@ -110,7 +110,10 @@ double fmbd_eig_spectrum_scale(const fmbd_csr *K, const fmbd_csr *M);
 /// @param[in] K, M  borrowed, ndof x ndof, symmetric (full storage; not checked here)
 /// @param[in] F     borrowed, may be NULL: a factor analysed for K (and M) and factored at a
 ///                  shift below every eigenvalue (e.g. fmbd_chol_create_llt(K): sigma 0); used
-///                  instead of a new factorisation unless free_body asks for a negative shift
+///                  instead of a new factorisation unless free_body asks for a negative shift.
+///                  With F (an LL' factor), o->sturm false, not free_body and n > dense_max,
+///                  K's values may be released (K->data NULL: fe2cb's peak memory): the
+///                  residual check then takes K x from F (fmbd_chol_mult)
 /// @param[in] o     borrowed; NULL = defaults (then nev = 20)
 /// @param[out] res  caller frees with fmbd_eig_result_free (also on failure)
 /// @return FMBD_OK; FMBD_ERR_VALUE (nev >= n, bad options); FMBD_ERR_SINGULAR (K singular
