@@ -735,6 +735,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
     fmbd_cb_opts o2 = o;
     o2.eig.sturm = false;
+    // below 60 pairs the Lanczos run takes blocks of 4 (fmbd_eig.c), so the widest solves are
+    // the Ritz vectors' back solve (nev + a few columns) and the projections (nb): by 8
+    // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
+    // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
+    if (nev < 60) fmbd_chol_set_solve_width(F, 8);
     // Ks's values are not read until the Sturm check when fmbd_eig_solve can take K x from F
     // (its sparse path: fmbd_eig.h)
     if (ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)) park_values(Ks, &parked_ks);
@@ -743,6 +748,8 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
     }
+    // the Ritz vectors' wide back solve left CHOLMOD's workspaces n x (pairs) large
+    fmbd_chol_release_workspace(F);
 #ifdef __GLIBC__
     malloc_trim(0);  // the eigensolver's freed work arrays, before the projections allocate
 #endif
