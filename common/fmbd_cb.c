@@ -300,7 +300,7 @@ static void release_ms(fmbd_csr **Ms, const fmbd_csr *Ks) {
 
 // Arrays parked in an unlinked temporary file (tmpfile) while a stage that does not read them
 // runs, and freed: Ms's values during the LL' (the factor is of Ks alone), Ks's from the LL'
-// until the Sturm check (the residual check takes K x from the factor: fmbd_eig.h), the four
+// until the Sturm check (back for the residual check only: ks_back_fn), the four
 // ns x nb projection blocks during the Sturm check. Each stage's peak then holds those bytes
 // less (bench/README.md "fe2cb's memory"); the file lives in the page cache or on disk, not
 // in the process. No file (tmpfile fails, e.g. a read-only /tmp): the arrays stay in memory,
@@ -329,18 +329,19 @@ static void park(int k, double **const a[], size_t m, FILE **f) {
   *f = t;
 }
 
-// the arrays parked by park (the same k, a[] and m) back into memory; closes the file
-static int unpark(int k, double **const a[], size_t m, FILE **f) {
+// the arrays parked by park (the same k, a[] and m) back into memory; closes the file unless
+// keep (then they can be dropped again without writing: drop_parked)
+static int unpark(int k, double **const a[], size_t m, FILE **f, bool keep) {
   if (!*f) return FMBD_OK;
   FILE *t = *f;
-  *f = NULL;
+  if (!keep) *f = NULL;
   bool ok = fseek(t, 0, SEEK_SET) == 0, mem = true;
   for (int i = 0; i < k && ok && mem; i++) {
     *a[i] = fmbd_malloc(m * sizeof(double));
     mem = *a[i] != NULL;
     ok = mem && fread(*a[i], sizeof(double), m, t) == m;
   }
-  fclose(t);
+  if (!keep) fclose(t);
   FMBD_CHECK(mem, FMBD_ERR_NOMEM, "out of memory");
   FMBD_CHECK(ok, FMBD_ERR_IO, "cannot read back the arrays parked in a temporary file");
   return FMBD_OK;
@@ -351,9 +352,28 @@ static void park_values(fmbd_csr *A, FILE **f) {
   double **const a[1] = {&A->data};
   park(1, a, (size_t)fmbd_csr_nnz(A), f);
 }
-static int unpark_values(fmbd_csr *A, FILE **f) {
+static int unpark_values(fmbd_csr *A, FILE **f, bool keep) {
   double **const a[1] = {&A->data};
-  return unpark(1, a, (size_t)fmbd_csr_nnz(A), f);
+  return unpark(1, a, (size_t)fmbd_csr_nnz(A), f, keep);
+}
+
+// fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that they
+// are dropped again after the eigensolver (its Ritz vectors and the projections' blocks alive
+// beside the factor)
+// without a second write. First the Ritz vectors' back solve's wide CHOLMOD workspaces and the
+// iterations' freed arrays go back to the system, so that Ks's values take their place.
+typedef struct {
+  fmbd_csr *Ks;
+  FILE **f;
+  fmbd_chol *F;
+} ks_back;
+static int ks_back_fn(void *ctx) {
+  ks_back *b = ctx;
+  fmbd_chol_release_workspace(b->F);
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+  return unpark_values(b->Ks, b->f, true);
 }
 
 // C (nb x m, ldc) += S' X  for a sparse S (ns x nb) and dense X (ns x m, ld ns)
@@ -705,7 +725,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
   fmbd_chol_release_matrix(F);  // factored once: the matrix copy is not needed for solves
-  FMBD_GCALL(unpark_values(Ms, &parked_ms));
+  FMBD_GCALL(unpark_values(Ms, &parked_ms, false));
   mem_log("after the factorisation");
   {
     fmbd_chol_stats st;
@@ -740,10 +760,19 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
     // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
     if (nev < 60) fmbd_chol_set_solve_width(F, 8);
-    // Ks's values are not read until the Sturm check when fmbd_eig_solve can take K x from F
-    // (its sparse path: fmbd_eig.h)
+    // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
+    // residual check) nor by the projections: parked until the Sturm check
+    ks_back kb = {Ks, &parked_ks, F};
     if (ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)) park_values(Ks, &parked_ks);
+    if (parked_ks) {
+      o2.eig.need_k = ks_back_fn;
+      o2.eig.need_k_ctx = &kb;
+    }
     FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
+    if (parked_ks) {  // the file still holds them
+      fmbd_free(Ks->data);
+      Ks->data = NULL;
+    }
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
@@ -763,7 +792,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
 #endif
-      FMBD_GCALL(unpark_values(Ks, &parked_ks));
+      FMBD_GCALL(unpark_values(Ks, &parked_ks, false));
       park(4, blocks, (size_t)(ns * cb->nb), &parked_blocks);  // not read by the Sturm check
       mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
@@ -783,7 +812,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
         FMBD_GCALL(modes(Ks, Ms, F, &o, nev, lmax, false, &er));
       }
-      FMBD_GCALL(unpark(4, blocks, (size_t)(ns * cb->nb), &parked_blocks));
+      FMBD_GCALL(unpark(4, blocks, (size_t)(ns * cb->nb), &parked_blocks, false));
       mem_log("after the Sturm check");
     }
     take_eig_time(cb, &er);

@@ -95,17 +95,6 @@ void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
 /// reuse): before a stage whose solves are narrower (fe2cb's projections after the Lanczos
 /// run's wide back solve; peak memory). The next solve allocates them again.
 void fmbd_chol_release_workspace(fmbd_chol *F);
-/// @brief Y = (A - sigma B) X from the LL' factor alone, as P' L (L' (P X)) (two passes over the
-/// supernodal factor, BLAS-3 per supernode): the product when the caller has released A's values
-/// while the factor is alive (fe2cb's peak memory, bench/README.md "fe2cb's memory"). Agrees with
-/// the sparse product to the factor's backward error (a few eps ||A|| ||X||). nrhs columns of X
-/// (leading dimension ldx) into Y (ldy); X is not changed.
-/// @return FMBD_OK, FMBD_ERR_NOMEM, FMBD_ERR_INTERNAL (no valid supernodal LL' factor)
-int fmbd_chol_mult(const fmbd_chol *F, int64_t nrhs, const double *X, int64_t ldx, double *Y,
-                   int64_t ldy);
-/// @brief d = diag(A - sigma B) from the LL' factor (the squared norms of L's rows, in the
-/// original numbering); n entries, caller allocates.
-int fmbd_chol_diag(const fmbd_chol *F, double *d);
 
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
 /// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long

@@ -72,10 +72,8 @@ double fmbd_eig_residual(const fmbd_csr *K, const fmbd_csr *M, double lambda, co
 // blocks of 8 columns: fmbd_csr_matmat reads K and M once per block instead of once per
 // vector (the check is memory-bound: 300 modes of the 51 k-dof rod spent 3 s in it one vector
 // at a time). Same sums in the same order as fmbd_eig_residual: the same results.
-// K's values released by the caller (K->data NULL, F given; fe2cb's peak memory): K X from
-// the factor, P' L L' P X + sigma M X (fmbd_chol_mult; agrees to round-off).
-static int eig_residuals(const fmbd_csr *K, const fmbd_csr *M, const fmbd_chol *F, int64_t nv,
-                         const double *lam, const double *X, double sigma, double *rs) {
+static int eig_residuals(const fmbd_csr *K, const fmbd_csr *M, int64_t nv, const double *lam,
+                         const double *X, double sigma, double *rs) {
   enum { NB = 8 };
   int64_t n = K->nrows;
   double *kx = fmbd_malloc((size_t)n * 2 * NB * sizeof(double));
@@ -83,17 +81,8 @@ static int eig_residuals(const fmbd_csr *K, const fmbd_csr *M, const fmbd_chol *
   double *mx = kx + n * NB;
   for (int64_t j0 = 0; j0 < nv; j0 += NB) {
     int64_t nb = nv - j0 < NB ? nv - j0 : NB;
+    fmbd_csr_matmat(K, nb, X + j0 * n, n, kx, n);
     fmbd_csr_matmat(M, nb, X + j0 * n, n, mx, n);
-    if (K->data) {
-      fmbd_csr_matmat(K, nb, X + j0 * n, n, kx, n);
-    } else {
-      int rc = fmbd_chol_mult(F, nb, X + j0 * n, n, kx, n);
-      if (rc) {
-        fmbd_free(kx);
-        return rc;
-      }
-      for (int64_t i = 0; sigma != 0.0 && i < n * nb; i++) kx[i] += sigma * mx[i];
-    }
     for (int64_t j = 0; j < nb; j++) {
       rs[j0 + j] =
           resid_of(n, kx + j * n, mx + j * n, lam[j0 + j], fmax(fabs(sigma), fabs(lam[j0 + j])));
@@ -801,9 +790,9 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
              "ARPACK tol must be positive (docs/TOOLCHAIN.md gotcha 11)");
   FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
 
-  FMBD_CHECK(
-      K->data || (F && !o.sturm && !o.free_body && n > o.dense_max && (bound || o.nev + 2 < n)),
-      FMBD_ERR_INTERNAL, "K's values released, but the path needs them (eig_residuals)");
+  FMBD_CHECK(K->data || (o.need_k && F && !o.sturm && !o.free_body && n > o.dense_max &&
+                         (bound || o.nev + 2 < n)),
+             FMBD_ERR_INTERNAL, "K's values released, but the path reads them before need_k");
   // --- small problems: dense LAPACK, complete by construction ---------------------------------
   if (n <= o.dense_max || (!bound && o.nev + 2 >= n)) {
     double t0 = fmbd_wall_s();
@@ -904,14 +893,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   }
 
   // --- Lanczos passes with checks ------------------------------------------------------------
-  double top = K->data ? fmbd_eig_spectrum_scale(K, M) : 0.0;
-  if (!K->data) {  // K's values released (eig_residuals): its diagonal from the factor
-    FMBD_GCALL(fmbd_chol_diag(op, work));
-    for (int64_t i = 0; i < n; i++) {
-      double m = fmbd_csr_get(M, i, i), k = work[i] + res->sigma * m;
-      if (m > 0.0 && k / m > top) top = k / m;
-    }
-  }
+  double top = -1.0;  // fmbd_eig_spectrum_scale, at the first residual check (need_k)
   int64_t want = bound ? 0 : o.nev;
   int64_t nreq = bound ? o.nev : o.nev + (o.nev / 10 > 3 ? o.nev / 10 : 3);
   int64_t ncv_extra = 0;
@@ -980,7 +962,13 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     double worst = 0.0;
     double *rs = NULL;
     FMBD_GALLOC(rs = fmbd_malloc((size_t)(keep ? keep : 1) * sizeof(double)));
-    FMBD_GCALL(eig_residuals(K, M, op, keep, r.lam, r.X, res->sigma, rs));
+    if (!K->data) {
+      rc = o.need_k(o.need_k_ctx);
+      if (rc) fmbd_free(rs);
+      FMBD_GCALL(rc);
+    }
+    if (top < 0.0) top = fmbd_eig_spectrum_scale(K, M);
+    FMBD_GCALL(eig_residuals(K, M, keep, r.lam, r.X, res->sigma, rs));
     for (int64_t j = 0; j < keep; j++) {
       // attainable accuracy: a backward-stable solve leaves a residual of order
       // eps ||K|| ||x|| ~ eps lambda_top / lambda relative to ||K x|| (slender beams: 1e-7)

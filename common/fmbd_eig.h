@@ -73,6 +73,12 @@ typedef struct fmbd_eig_opts {
                       ///< measured (and logged) at log level debug (-vv)
   fmbd_eig_progress_fn progress;  ///< may be NULL (default)
   void *progress_ctx;
+  /// K's values released by the caller (K->data NULL) while the Lanczos run does not read them
+  /// (fe2cb's peak memory, bench/README.md "fe2cb's memory"): called once before the residual
+  /// check, must put them back into K. Only with F given, sturm false, not free_body and the
+  /// sparse path (n > dense_max). NULL (default): K's values are always there
+  int (*need_k)(void *ctx);
+  void *need_k_ctx;
 } fmbd_eig_opts;
 
 /// @brief The defaults documented above.
@@ -110,10 +116,7 @@ double fmbd_eig_spectrum_scale(const fmbd_csr *K, const fmbd_csr *M);
 /// @param[in] K, M  borrowed, ndof x ndof, symmetric (full storage; not checked here)
 /// @param[in] F     borrowed, may be NULL: a factor analysed for K (and M) and factored at a
 ///                  shift below every eigenvalue (e.g. fmbd_chol_create_llt(K): sigma 0); used
-///                  instead of a new factorisation unless free_body asks for a negative shift.
-///                  With F (an LL' factor), o->sturm false, not free_body and n > dense_max,
-///                  K's values may be released (K->data NULL: fe2cb's peak memory): the
-///                  residual check then takes K x from F (fmbd_chol_mult)
+///                  instead of a new factorisation unless free_body asks for a negative shift
 /// @param[in] o     borrowed; NULL = defaults (then nev = 20)
 /// @param[out] res  caller frees with fmbd_eig_result_free (also on failure)
 /// @return FMBD_OK; FMBD_ERR_VALUE (nev >= n, bad options); FMBD_ERR_SINGULAR (K singular

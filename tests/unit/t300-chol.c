@@ -111,35 +111,6 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
   for (int64_t i = 0; i < n * nc; i++) ew = fmax(ew, fabs(Y[i] - Z[i])), yw = fmax(yw, fabs(Y[i]));
   EXPECT(ew <= 1e-13 * yw && s2.n_solves == s1.n_solves + nc, "solve by 3 columns differs by %.3g",
          ew / yw);
-  // Y = (K - sigma M) X from the factor alone (fmbd_chol_mult, fe2cb's residual check when
-  // Ks's values are released) and its diagonal (fmbd_chol_diag), at sigma 0 (F2, lower
-  // storage) and at a shift below the first eigenvalue, against the sparse products. They
-  // differ by the factor's backward error, gamma_(k+1) |L| |L'| with k the longest column of L
-  // (a few hundred here: ~1e-13 relative), plus the product's own rounding of that order:
-  // 1e-12 of 27 |K|_max |X|_max (27 terms per row) leaves a margin of about ten.
-  fmbd_chol *F3 = NULL;
-  double sg = 0.5 * ex[0];
-  EXPECT(fmbd_chol_analyze(K, M, FMBD_CHOL_LLT, &F3) == 0 && fmbd_chol_factor(F3, sg) == 0,
-         "shifted LL'");
-  double *D = fmbd_malloc((size_t)n * sizeof(double));
-  for (int t = 0; t < 2; t++) {
-    fmbd_chol *Fm = t ? F3 : F2;
-    double s = t ? sg : 0.0, tol = 1e-12 * 27.0 * fmbd_csr_max_abs(K), e = 0.0, ed = 0.0;
-    EXPECT(fmbd_chol_mult(Fm, nc, X, n, Y, n) == 0 && fmbd_chol_diag(Fm, D) == 0, "mult, diag");
-    fmbd_csr_matmat(K, nc, X, n, Z, n);
-    double *W = fmbd_malloc((size_t)(n * nc) * sizeof(double));
-    fmbd_csr_matmat(M, nc, X, n, W, n);
-    for (int64_t i = 0; i < n * nc; i++) e = fmax(e, fabs(Y[i] - (Z[i] - s * W[i])));
-    for (int64_t i = 0; i < n; i++)
-      ed = fmax(ed, fabs(D[i] - (fmbd_csr_get(K, i, i) - s * fmbd_csr_get(M, i, i))));
-    EXPECT(e <= tol && ed <= tol,
-           "product from the factor (shift %g) differs by %.3g, its "
-           "diagonal by %.3g (bound %.3g)",
-           s, e, ed, tol);
-    fmbd_free(W);
-  }
-  fmbd_free(D);
-  fmbd_chol_destroy(&F3);
   fmbd_chol_destroy(&F1);
   fmbd_chol_destroy(&F2);
   // Sturm counts: exact, from the lower storage (assembled before the supernodal loop)

@@ -95,11 +95,12 @@ int main(void) {
   double ek = t0_err(cb, Kd, n, cb->Kr), em = t0_err(cb, Md, n, cb->Mr);
   EXPECT(ek < 1e-12 && em < 1e-12, "closed form: K %.2e M %.2e", ek, em);
   // the sparse path (dense_max below ns: Lanczos with the LL' factor, then the Sturm check),
-  // where fe2cb parks Ms's values during the LL', Ks's through the Lanczos run (its residual
-  // check takes K x from the factor) and the projection blocks during the Sturm check: the
-  // same constraint modes and projections bit for bit (same factor, same operations), the
-  // same eigenvalues to the Lanczos accuracy (ARPACK tol 1e-10 on the shift-inverted
-  // eigenvalues: relative 1e-9 leaves a margin), residuals small, the Sturm count complete
+  // where fe2cb parks Ms's values during the LL', Ks's through the Lanczos run (back for the
+  // residual check through fmbd_eig_opts.need_k, dropped again for the projections) and the
+  // projection blocks during the Sturm check: the same constraint modes and projections bit
+  // for bit (same factor, same operations), the same eigenvalues to the Lanczos accuracy
+  // (ARPACK tol 1e-10 on the shift-inverted eigenvalues: relative 1e-9 leaves a margin),
+  // residuals small, the Sturm count complete
   {
     fmbd_cb_opts o2 = o;
     o2.eig.dense_max = 10;
