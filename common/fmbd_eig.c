@@ -217,9 +217,9 @@ done:
 // orthogonalisation and no stored M V. Each expansion applies C to a block of p vectors: two
 // half solves with p right-hand sides (BLAS-3 in the supernodal factor) and one sparse product
 // with M, instead of p single-vector solves (memory-bound); the reorthogonalisation is
-// matrix-matrix: two passes of block classical Gram-Schmidt against the whole basis, each
-// followed by Cholesky-QR inside the block (BCGS2), with modified Gram-Schmidt as the fallback
-// for an ill-conditioned block.
+// matrix-matrix: block classical Gram-Schmidt, a local pass and one pass against the whole
+// basis, a second only where Kahan-Parlett's test finds cancellation (bk_orth), Cholesky-QR
+// inside the block, with modified Gram-Schmidt as the fallback for an ill-conditioned block.
 // Relation kept: C V_m = V_m H_m + Q B, with [V_m Q] orthonormal, H_m = V_m' C V_m symmetric,
 // B (p x m). Rayleigh-Ritz when the basis is full: H_m = S Theta S'; the residual of the Ritz
 // pair (theta_i, V_m s_i) is ||B s_i||_2 (ARPACK's estimate), converged when <= tol theta_i
