@@ -5,10 +5,12 @@
 // matrices follows from T0 = [Phi Psi; 0 I] with Ks Phi = Ms Phi Lambda, Phi' Ms Phi = I and
 // Ks Psi = -Kc: T0' K T0 = [Lambda, Phi'(Ks Psi + Kc); ., Psi' Ks Psi + 2 sym(Psi' Kc) + Kb]
 // = [Lambda 0; 0 Kb + Kc' Psi], and T0' M T0 = [I, Phi'(Ms Psi + Mc); ., Mb_].
+#define _DEFAULT_SOURCE  // mkstemp, fdopen, unlink (scratch_file)
 #include "fmbd_cb.h"
 
 #include <math.h>
 #include <stdio.h>
+#include <unistd.h>
 #ifdef __GLIBC__
 #include <malloc.h>  // malloc_trim: give freed factor memory back before the next large phase
 #endif
@@ -298,19 +300,36 @@ static void release_ms(fmbd_csr **Ms, const fmbd_csr *Ks) {
   fmbd_csr_destroy(Ms);
 }
 
-// Arrays parked in an unlinked temporary file (tmpfile) while a stage that does not read them
+// An unlinked scratch file in $TMPDIR, else tmpfile(3)'s /tmp (a tmpfs /tmp would keep the
+// bytes in memory: TMPDIR can point elsewhere); NULL if neither can be made
+static FILE *scratch_file(void) {
+  const char *d = getenv("TMPDIR");
+  char path[4096];
+  if (d && *d && snprintf(path, sizeof path, "%s/fmbd-park-XXXXXX", d) < (int)sizeof path) {
+    int fd = mkstemp(path);
+    if (fd >= 0) {
+      unlink(path);
+      FILE *f = fdopen(fd, "w+b");
+      if (f) return f;
+      close(fd);
+    }
+  }
+  return tmpfile();
+}
+
+// Arrays parked in an unlinked temporary file (scratch_file) while a stage that does not read them
 // runs, and freed: Ms's values during the LL' (the factor is of Ks alone), Ks's from the LL'
 // until the Sturm check (back for the residual check only: ks_back_fn), the four
 // ns x nb projection blocks during the Sturm check. Each stage's peak then holds those bytes
 // less (bench/README.md "fe2cb's memory"); the file lives in the page cache or on disk, not
-// in the process. No file (tmpfile fails, e.g. a read-only /tmp): the arrays stay in memory,
+// in the process. No file (neither $TMPDIR nor /tmp writable): the arrays stay in memory,
 // *f NULL. k arrays of m doubles each, none NULL (else nothing is parked).
 static void park(int k, double **const a[], size_t m, FILE **f) {
   *f = NULL;
   if (m == 0) return;
   for (int i = 0; i < k; i++)
     if (!*a[i]) return;
-  FILE *t = tmpfile();
+  FILE *t = scratch_file();
   if (!t) return;
   for (int i = 0; i < k; i++) {
     if (fwrite(*a[i], sizeof(double), m, t) != m) {
