@@ -5,10 +5,12 @@
 // matrices follows from T0 = [Phi Psi; 0 I] with Ks Phi = Ms Phi Lambda, Phi' Ms Phi = I and
 // Ks Psi = -Kc: T0' K T0 = [Lambda, Phi'(Ks Psi + Kc); ., Psi' Ks Psi + 2 sym(Psi' Kc) + Kb]
 // = [Lambda 0; 0 Kb + Kc' Psi], and T0' M T0 = [I, Phi'(Ms Psi + Mc); ., Mb_].
+#define _DEFAULT_SOURCE  // mkstemp, fdopen, unlink (scratch_file)
 #include "fmbd_cb.h"
 
 #include <math.h>
 #include <stdio.h>
+#include <unistd.h>
 #ifdef __GLIBC__
 #include <malloc.h>  // malloc_trim: give freed factor memory back before the next large phase
 #endif
@@ -298,6 +300,101 @@ static void release_ms(fmbd_csr **Ms, const fmbd_csr *Ks) {
   fmbd_csr_destroy(Ms);
 }
 
+// An unlinked scratch file in $TMPDIR, else tmpfile(3)'s /tmp (a tmpfs /tmp would keep the
+// bytes in memory: TMPDIR can point elsewhere); NULL if neither can be made
+static FILE *scratch_file(void) {
+  const char *d = getenv("TMPDIR");
+  char path[4096];
+  if (d && *d && snprintf(path, sizeof path, "%s/fmbd-park-XXXXXX", d) < (int)sizeof path) {
+    int fd = mkstemp(path);
+    if (fd >= 0) {
+      unlink(path);
+      FILE *f = fdopen(fd, "w+b");
+      if (f) return f;
+      close(fd);
+    }
+  }
+  return tmpfile();
+}
+
+// Arrays parked in an unlinked temporary file (scratch_file) while a stage that does not read them
+// runs, and freed: Ms's values during the LL' (the factor is of Ks alone), Ks's from the LL'
+// until the Sturm check (back for the residual check only: ks_back_fn), the four
+// ns x nb projection blocks during the Sturm check. Each stage's peak then holds those bytes
+// less (bench/README.md "fe2cb's memory"); the file lives in the page cache or on disk, not
+// in the process. No file (neither $TMPDIR nor /tmp writable): the arrays stay in memory,
+// *f NULL. k arrays of m doubles each, none NULL (else nothing is parked).
+static void park(int k, double **const a[], size_t m, FILE **f) {
+  *f = NULL;
+  if (m == 0) return;
+  for (int i = 0; i < k; i++)
+    if (!*a[i]) return;
+  FILE *t = scratch_file();
+  if (!t) return;
+  for (int i = 0; i < k; i++) {
+    if (fwrite(*a[i], sizeof(double), m, t) != m) {
+      fclose(t);
+      return;
+    }
+  }
+  if (fflush(t) != 0) {
+    fclose(t);
+    return;
+  }
+  for (int i = 0; i < k; i++) {
+    fmbd_free(*a[i]);
+    *a[i] = NULL;
+  }
+  *f = t;
+}
+
+// the arrays parked by park (the same k, a[] and m) back into memory; closes the file unless
+// keep (then they can be dropped again without writing: drop_parked)
+static int unpark(int k, double **const a[], size_t m, FILE **f, bool keep) {
+  if (!*f) return FMBD_OK;
+  FILE *t = *f;
+  if (!keep) *f = NULL;
+  bool ok = fseek(t, 0, SEEK_SET) == 0, mem = true;
+  for (int i = 0; i < k && ok && mem; i++) {
+    *a[i] = fmbd_malloc(m * sizeof(double));
+    mem = *a[i] != NULL;
+    ok = mem && fread(*a[i], sizeof(double), m, t) == m;
+  }
+  if (!keep) fclose(t);
+  FMBD_CHECK(mem, FMBD_ERR_NOMEM, "out of memory");
+  FMBD_CHECK(ok, FMBD_ERR_IO, "cannot read back the arrays parked in a temporary file");
+  return FMBD_OK;
+}
+
+// a matrix's values (park)
+static void park_values(fmbd_csr *A, FILE **f) {
+  double **const a[1] = {&A->data};
+  park(1, a, (size_t)fmbd_csr_nnz(A), f);
+}
+static int unpark_values(fmbd_csr *A, FILE **f, bool keep) {
+  double **const a[1] = {&A->data};
+  return unpark(1, a, (size_t)fmbd_csr_nnz(A), f, keep);
+}
+
+// fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that they
+// are dropped again after the eigensolver (its Ritz vectors and the projections' blocks alive
+// beside the factor)
+// without a second write. First the Ritz vectors' back solve's wide CHOLMOD workspaces and the
+// iterations' freed arrays go back to the system, so that Ks's values take their place.
+typedef struct {
+  fmbd_csr *Ks;
+  FILE **f;
+  fmbd_chol *F;
+} ks_back;
+static int ks_back_fn(void *ctx) {
+  ks_back *b = ctx;
+  fmbd_chol_release_workspace(b->F);
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+  return unpark_values(b->Ks, b->f, true);
+}
+
 // C (nb x m, ldc) += S' X  for a sparse S (ns x nb) and dense X (ns x m, ld ns)
 static void csr_tmult(const fmbd_csr *S, int64_t m, const double *X, int64_t ns, double *C,
                       int64_t ldc) {
@@ -570,6 +667,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   fmbd_eig_result er = {0};
   char *mark = NULL;
   int64_t *perm = NULL;
+  FILE *parked_ms = NULL, *parked_ks = NULL, *parked_blocks = NULL;  // park
   *out = NULL;
   int64_t n = K->nrows;
   FMBD_CHECK(o.nmodes >= 0, FMBD_ERR_VALUE, "negative number of modes");
@@ -606,6 +704,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   int64_t ns = n - nb;
   FMBD_GCHECK(ns > 0, FMBD_ERR_VALUE, "every dof of the body is a boundary dof: nothing to reduce");
   cb->ns = ns;
+  double **const blocks[4] = {&cb->Psi, &cb->A, &cb->KsinvA, &cb->KsinvMsKsinvA};  // park
   FMBD_GALLOC(cb->interior = fmbd_malloc((size_t)ns * sizeof(int64_t)));
   FMBD_GALLOC(cb->boundary = fmbd_malloc((size_t)(nb ? nb : 1) * sizeof(int64_t)));
   for (int64_t i = 0, a = 0, b = 0; i < n; i++) {
@@ -641,9 +740,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   // --- the factor of Ks, once ---
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   mem_log("after the analysis");
+  park_values(Ms, &parked_ms);  // the LL' is of Ks alone
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
   fmbd_chol_release_matrix(F);  // factored once: the matrix copy is not needed for solves
+  FMBD_GCALL(unpark_values(Ms, &parked_ms, false));
   mem_log("after the factorisation");
   {
     fmbd_chol_stats st;
@@ -673,11 +774,30 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
     fmbd_cb_opts o2 = o;
     o2.eig.sturm = false;
+    // below 60 pairs the Lanczos run takes blocks of 4 (fmbd_eig.c), so the widest solves are
+    // the Ritz vectors' back solve (nev + a few columns) and the projections (nb): by 8
+    // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
+    // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
+    if (nev < 60) fmbd_chol_set_solve_width(F, 8);
+    // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
+    // residual check) nor by the projections: parked until the Sturm check
+    ks_back kb = {Ks, &parked_ks, F};
+    if (ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)) park_values(Ks, &parked_ks);
+    if (parked_ks) {
+      o2.eig.need_k = ks_back_fn;
+      o2.eig.need_k_ctx = &kb;
+    }
     FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
+    if (parked_ks) {  // the file still holds them
+      fmbd_free(Ks->data);
+      Ks->data = NULL;
+    }
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
     }
+    // the Ritz vectors' wide back solve left CHOLMOD's workspaces n x (pairs) large
+    fmbd_chol_release_workspace(F);
 #ifdef __GLIBC__
     malloc_trim(0);  // the eigensolver's freed work arrays, before the projections allocate
 #endif
@@ -691,6 +811,8 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
 #endif
+      FMBD_GCALL(unpark_values(Ks, &parked_ks, false));
+      park(4, blocks, (size_t)(ns * cb->nb), &parked_blocks);  // not read by the Sturm check
       mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
       if (fmbd_progress_enabled())
@@ -709,6 +831,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
         FMBD_GCALL(modes(Ks, Ms, F, &o, nev, lmax, false, &er));
       }
+      FMBD_GCALL(unpark(4, blocks, (size_t)(ns * cb->nb), &parked_blocks, false));
       mem_log("after the Sturm check");
     }
     take_eig_time(cb, &er);
@@ -765,6 +888,9 @@ done:
   fmbd_eig_result_free(&er);
   fmbd_free(mark);
   fmbd_free(perm);
+  if (parked_ms) fclose(parked_ms);
+  if (parked_ks) fclose(parked_ks);
+  if (parked_blocks) fclose(parked_blocks);
   return rc;
 }
 

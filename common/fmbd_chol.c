@@ -28,6 +28,7 @@ struct fmbd_chol {
   int64_t *posA, *posB;  // position in S of each upper entry of A / B (CSR order)
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
+  int64_t solve_width;       // columns per cholmod_l_solve2 call (0: 64)
   double sigma;
   double pivot_rtol;
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
@@ -669,7 +670,8 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
              (long long)F->n);
   double t0 = fmbd_wall_s();
-  const int64_t block = 64;  // bounded workspace: at most n x 64 extra doubles
+  // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
+  const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
   for (int64_t c0 = 0; c0 < nrhs; c0 += block) {
     int64_t nc = nrhs - c0 < block ? nrhs - c0 : block;
     for (int k = 0; k < nsys; k++) {
@@ -713,6 +715,17 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
   // a forward and a backward half make one solve
   if (rc == FMBD_OK && which == FMBD_CHOL_FWD) F->st.n_solves += nrhs;
   return rc;
+}
+
+void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
+  if (F) F->solve_width = w > 0 ? w : 0;
+}
+
+void fmbd_chol_release_workspace(fmbd_chol *F) {
+  if (!F || !F->started) return;
+  cholmod_l_free_dense(&F->X, &F->c);
+  cholmod_l_free_dense(&F->Y, &F->c);
+  cholmod_l_free_dense(&F->E, &F->c);
 }
 
 void fmbd_chol_release_matrix(fmbd_chol *F) {

@@ -87,6 +87,15 @@ enum { FMBD_CHOL_FWD = 1, FMBD_CHOL_BWD = 2 };
 /// A forward half counts as one solve in the statistics.
 int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64_t ldx);
 
+/// @brief Solve at most w right-hand sides per CHOLMOD call (0: the default, 64). CHOLMOD keeps
+/// two n x w workspaces; narrower calls read the factor more often. Each column's solution may
+/// change at round-off with w (the BLAS kernels' blocking).
+void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
+/// @brief Free CHOLMOD's solve workspaces (n x nrhs of the largest solve so far, kept for
+/// reuse): before a stage whose solves are narrower (fe2cb's projections after the Lanczos
+/// run's wide back solve; peak memory). The next solve allocates them again.
+void fmbd_chol_release_workspace(fmbd_chol *F);
+
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
 /// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long
 /// solve phase by the size of the upper triangle.

@@ -790,6 +790,9 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
              "ARPACK tol must be positive (docs/TOOLCHAIN.md gotcha 11)");
   FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
 
+  FMBD_CHECK(K->data || (o.need_k && F && !o.sturm && !o.free_body && n > o.dense_max &&
+                         (bound || o.nev + 2 < n)),
+             FMBD_ERR_INTERNAL, "K's values released, but the path reads them before need_k");
   // --- small problems: dense LAPACK, complete by construction ---------------------------------
   if (n <= o.dense_max || (!bound && o.nev + 2 >= n)) {
     double t0 = fmbd_wall_s();
@@ -890,7 +893,7 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   }
 
   // --- Lanczos passes with checks ------------------------------------------------------------
-  double top = fmbd_eig_spectrum_scale(K, M);
+  double top = -1.0;  // fmbd_eig_spectrum_scale, at the first residual check (need_k)
   int64_t want = bound ? 0 : o.nev;
   int64_t nreq = bound ? o.nev : o.nev + (o.nev / 10 > 3 ? o.nev / 10 : 3);
   int64_t ncv_extra = 0;
@@ -959,6 +962,12 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     double worst = 0.0;
     double *rs = NULL;
     FMBD_GALLOC(rs = fmbd_malloc((size_t)(keep ? keep : 1) * sizeof(double)));
+    if (!K->data) {
+      rc = o.need_k(o.need_k_ctx);
+      if (rc) fmbd_free(rs);
+      FMBD_GCALL(rc);
+    }
+    if (top < 0.0) top = fmbd_eig_spectrum_scale(K, M);
     FMBD_GCALL(eig_residuals(K, M, keep, r.lam, r.X, res->sigma, rs));
     for (int64_t j = 0; j < keep; j++) {
       // attainable accuracy: a backward-stable solve leaves a residual of order

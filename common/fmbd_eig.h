@@ -73,6 +73,12 @@ typedef struct fmbd_eig_opts {
                       ///< measured (and logged) at log level debug (-vv)
   fmbd_eig_progress_fn progress;  ///< may be NULL (default)
   void *progress_ctx;
+  /// K's values released by the caller (K->data NULL) while the Lanczos run does not read them
+  /// (fe2cb's peak memory, bench/README.md "fe2cb's memory"): called once before the residual
+  /// check, must put them back into K. Only with F given, sturm false, not free_body and the
+  /// sparse path (n > dense_max). NULL (default): K's values are always there
+  int (*need_k)(void *ctx);
+  void *need_k_ctx;
 } fmbd_eig_opts;
 
 /// @brief The defaults documented above.

@@ -97,6 +97,20 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
   memcpy(Z, X, (size_t)(n * nc) * sizeof(double));
   EXPECT(fmbd_chol_solve(F1, nc, Y, n) == 0 && fmbd_chol_solve(F2, nc, Z, n) == 0, "solves");
   EXPECT(memcmp(Y, Z, (size_t)(n * nc) * sizeof(double)) == 0, "LL' solves of the two storages");
+  // solves by 3 columns (fmbd_chol_set_solve_width) after the workspaces were freed: the same
+  // solutions to round-off (the BLAS kernels block differently; the backward error of either is
+  // a few eps: 1e-13 relative to |X| leaves a wide margin), the same count
+  fmbd_chol_stats s1, s2;
+  fmbd_chol_get_stats(F2, &s1);
+  fmbd_chol_release_workspace(F2);
+  fmbd_chol_set_solve_width(F2, 3);
+  memcpy(Z, X, (size_t)(n * nc) * sizeof(double));
+  EXPECT(fmbd_chol_solve(F2, nc, Z, n) == 0, "solve by 3 columns");
+  fmbd_chol_get_stats(F2, &s2);
+  double ew = 0.0, yw = 0.0;
+  for (int64_t i = 0; i < n * nc; i++) ew = fmax(ew, fabs(Y[i] - Z[i])), yw = fmax(yw, fabs(Y[i]));
+  EXPECT(ew <= 1e-13 * yw && s2.n_solves == s1.n_solves + nc, "solve by 3 columns differs by %.3g",
+         ew / yw);
   fmbd_chol_destroy(&F1);
   fmbd_chol_destroy(&F2);
   // Sturm counts: exact, from the lower storage (assembled before the supernodal loop)

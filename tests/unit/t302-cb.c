@@ -94,6 +94,34 @@ int main(void) {
   // closed form equals T0' K T0 and T0' M T0 formed densely (round-off: 1e-12)
   double ek = t0_err(cb, Kd, n, cb->Kr), em = t0_err(cb, Md, n, cb->Mr);
   EXPECT(ek < 1e-12 && em < 1e-12, "closed form: K %.2e M %.2e", ek, em);
+  // the sparse path (dense_max below ns: Lanczos with the LL' factor, then the Sturm check),
+  // where fe2cb parks Ms's values during the LL', Ks's through the Lanczos run (back for the
+  // residual check through fmbd_eig_opts.need_k, dropped again for the projections) and the
+  // projection blocks during the Sturm check: the same constraint modes and projections bit
+  // for bit (same factor, same operations), the same eigenvalues to the Lanczos accuracy
+  // (ARPACK tol 1e-10 on the shift-inverted eigenvalues: relative 1e-9 leaves a margin),
+  // residuals small, the Sturm count complete
+  {
+    fmbd_cb_opts o2 = o;
+    o2.eig.dense_max = 10;
+    fmbd_cb *cs = NULL;
+    rc = fmbd_cb_reduce(K, M, NULL, 3, bnd, &o2, &cs);
+    EXPECT(rc == 0 && cs && cs->nd == 5, "sparse-path reduce: rc %d (%s)", rc, fmbd_err_get()->msg);
+    if (cs) {
+      size_t bytes = (size_t)(cs->ns * cs->nb) * sizeof(double);
+      EXPECT(!memcmp(cs->Psi, cb->Psi, bytes) && !memcmp(cs->A, cb->A, bytes) &&
+                 !memcmp(cs->KsinvA, cb->KsinvA, bytes) &&
+                 !memcmp(cs->KsinvMsKsinvA, cb->KsinvMsKsinvA, bytes),
+             "sparse path: constraint modes and projections differ");
+      double e = 0.0;
+      for (int64_t k = 0; k < 5; k++) e = fmax(e, fabs(cs->kappa[k] / cb->kappa[k] - 1.0));
+      EXPECT(e < 1e-9, "sparse path: eigenvalues differ by %.2e", e);
+      EXPECT(cs->sturm_count == 5 && cs->max_residual < 1e-6,
+             "sparse path: Sturm count %lld, residual %.2e", (long long)cs->sturm_count,
+             cs->max_residual);
+      fmbd_cb_destroy(&cs);
+    }
+  }
   // one rigid mode of the free chain, flagged
   EXPECT(cb->n_rigid == 1 && cb->rigid[0] == 1 && cb->rigid[1] == 0, "rigid: %lld",
          (long long)cb->n_rigid);
