@@ -90,6 +90,29 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
     for (int64_t i = 0; i < n * nc; i++) e = fmax(e, fabs(Y[i] - Z[i]));
     EXPECT(e <= 27.0 * 2.2e-16 * amax, "lower-stored product %d differs by %.3g", t, e);
   }
+  // every width of fmbd_csr_matmat's passes (16 and 8 columns, remainders, single columns) gives
+  // the bits of one fmbd_csr_matvec per column in the same storage: each sum is added in the
+  // same order whatever the number of columns a pass carries
+  {
+    const int64_t widths[] = {1, 4, 8, 11, 16, 27, 35};
+    double *X2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
+    double *Y2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
+    double *Z2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
+    for (int64_t i = 0; i < n * 35; i++) X2[i] = sin(0.37 * (double)i + 0.1);
+    for (int t = 0; t < 4; t++) {
+      const fmbd_csr *A = t < 2 ? full[t] : low[t - 2];
+      for (size_t wi = 0; wi < sizeof widths / sizeof widths[0]; wi++) {
+        int64_t w = widths[wi];
+        fmbd_csr_matmat(A, w, X2, n, Y2, n);
+        for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(A, X2 + k * n, Z2 + k * n);
+        EXPECT(memcmp(Y2, Z2, (size_t)(n * w) * sizeof(double)) == 0,
+               "matmat of %lld columns (matrix %d) against matvec per column", (long long)w, t);
+      }
+    }
+    fmbd_free(X2);
+    fmbd_free(Y2);
+    fmbd_free(Z2);
+  }
   // LL' solve: the factor reads the lower triangle in both storages: the same solution
   fmbd_chol *F1 = NULL, *F2 = NULL;
   EXPECT(fmbd_chol_create_llt(K, &F1) == 0 && fmbd_chol_create_llt(Kl, &F2) == 0, "LL'");
