@@ -67,7 +67,16 @@ int fmbd_fe_write(fmbd_h5 *f, const fmbd_fe_body *b) {
   dims[1] = 2;
   FMBD_CALL(fmbd_h5_write_i64(f, "/dofs", 2, dims, b->dofs));
   if (b->K) FMBD_CALL(fmbd_h5_write_csr(f, "/K", b->K));
-  if (b->M) FMBD_CALL(fmbd_h5_write_csr(f, "/M", b->M));
+  // M on K's pattern (mesh2fe assembles both on one): its indices and indptr written once, as
+  // hard links to K's (docs/FORMAT.md), so readers inflate them once
+  if (b->M && b->K && !b->M->lower && b->M->nrows == b->K->nrows && b->M->ncols == b->K->ncols &&
+      fmbd_csr_nnz(b->M) == fmbd_csr_nnz(b->K) &&
+      (b->M->indices == b->K->indices ||
+       (!memcmp(b->M->indptr, b->K->indptr, (size_t)(b->K->nrows + 1) * sizeof(int64_t)) &&
+        !memcmp(b->M->indices, b->K->indices, (size_t)fmbd_csr_nnz(b->K) * sizeof(int64_t)))))
+    FMBD_CALL(fmbd_h5_write_csr_like(f, "/M", b->M, "/K"));
+  else if (b->M)
+    FMBD_CALL(fmbd_h5_write_csr(f, "/M", b->M));
   FMBD_CALL(fmbd_h5_write_csr(f, "/expand", b->expand));
   // --- /interfaces, /clamped ---
   FMBD_CALL(fmbd_h5_make_group(f, "/interfaces"));
@@ -228,7 +237,7 @@ static int fe_read(fmbd_h5 *f, bool matrices, fmbd_fe_body **out) {
     }
   }
   if (matrices && fmbd_h5_exists(f, "/M")) {
-    FMBD_GCALL(fmbd_h5_read_csr(f, "/M", &b->M));
+    FMBD_GCALL(fmbd_h5_read_csr_like(f, "/M", b->K, "/K", &b->M));
     if (b->M->nrows != b->ndof || b->M->ncols != b->ndof) {
       RFAIL("/M", "shape (%lld, %lld), expected (%lld, %lld) from /dofs", (long long)b->M->nrows,
             (long long)b->M->ncols, (long long)b->ndof, (long long)b->ndof);

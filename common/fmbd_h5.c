@@ -1037,6 +1037,38 @@ done:
   return rc;
 }
 
+int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, const char *like) {
+  int rc = FMBD_OK;
+  char p[1100], q[1100];
+  int64_t nnz = fmbd_csr_nnz(A), shape[2] = {A->nrows, A->ncols}, ls[2] = {-1, -1};
+  hid_t lcpl = -1;
+  FMBD_GCHECK(!A->lower, FMBD_ERR_INTERNAL, "lower-triangle storage written as a CSR group");
+  // the caller compared A's pattern with the one written at `like`; the shape guards misuse
+  FMBD_GCALL(fmbd_h5_read_attr_i64(f, like, "shape", 2, ls));
+  FMBD_GCHECK(ls[0] == shape[0] && ls[1] == shape[1], FMBD_ERR_INTERNAL,
+              "write_csr_like: shape differs from %s's", like);
+  FMBD_GCALL(unlink_existing(f, path));
+  FMBD_GCALL(fmbd_h5_make_group(f, path));
+  FMBD_GCALL(join(p, sizeof p, path, "data"));
+  FMBD_GCALL(fmbd_h5_write_f64(f, p, 1, &nnz, A->data));
+  FMBD_H5(lcpl = H5Pcreate(H5P_LINK_CREATE), FMBD_ERR_IO, "cannot create a link property list");
+  H5Pset_char_encoding(lcpl, H5T_CSET_UTF8);
+  const char *member[2] = {"indices", "indptr"};
+  for (int k = 0; k < 2; k++) {
+    FMBD_GCALL(join(p, sizeof p, path, member[k]));
+    FMBD_GCALL(join(q, sizeof q, like, member[k]));
+    FMBD_H5(H5Lcreate_hard(f->fid, q, f->fid, p, lcpl, H5P_DEFAULT), FMBD_ERR_IO,
+            "cannot link %s to %s", p, q);
+  }
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-type", "csr_matrix"));
+  FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-version", "0.1.0"));
+  FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "shape", 2, shape));
+done:
+  close_id(&lcpl, H5Pclose);
+  if (rc) ctx(f, path);
+  return rc;
+}
+
 // Read a 1-D integer or float dataset of exactly n elements into buf (type mtype).
 static int read_exact(fmbd_h5 *f, const char *path, hid_t mtype, int64_t n, void *buf) {
   int rc = FMBD_OK;
@@ -1054,7 +1086,21 @@ done:
   return rc;
 }
 
+// the two paths name one object of the file (hard links to it)
+static bool same_object(fmbd_h5 *f, const char *a, const char *b) {
+  H5O_info_t ia, ib;
+  if (H5Oget_info_by_name(f->fid, a, &ia, H5P_DEFAULT) < 0 ||
+      H5Oget_info_by_name(f->fid, b, &ib, H5P_DEFAULT) < 0)
+    return false;
+  return ia.fileno == ib.fileno && ia.addr == ib.addr;
+}
+
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
+  return fmbd_h5_read_csr_like(f, path, NULL, NULL, out);
+}
+
+int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const char *like,
+                          fmbd_csr **out) {
   int rc = FMBD_OK;
   char p[1100];
   char *enc = NULL;
@@ -1098,17 +1144,34 @@ int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
                 (long long)shape[0], (long long)shape[1]);
   }
   FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
-  FMBD_GCALL(join(p, sizeof p, path, "indptr"));
-  at = p;
-  FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
-  at = path;
-  FMBD_GCHECK(A->indptr[shape[0]] == nnz, FMBD_ERR_FORMAT,
-              "indptr ends at %lld but data has %lld entries", (long long)A->indptr[shape[0]],
-              (long long)nnz);
-  FMBD_GCALL(join(p, sizeof p, path, "indices"));
-  at = p;
-  FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, nnz, A->indices));
-  at = path;
+  bool shared = false;  // indices and indptr are B's datasets: copied, not read again
+  if (B && like && !B->lower && B->nrows == shape[0] && B->ncols == shape[1] &&
+      fmbd_csr_nnz(B) == nnz) {
+    char q[1100];
+    shared = true;
+    const char *member[2] = {"indices", "indptr"};
+    for (int k = 0; k < 2 && shared; k++) {
+      FMBD_GCALL(join(p, sizeof p, path, member[k]));
+      FMBD_GCALL(join(q, sizeof q, like, member[k]));
+      shared = same_object(f, p, q);
+    }
+  }
+  if (shared) {
+    memcpy(A->indptr, B->indptr, (size_t)(shape[0] + 1) * sizeof(int64_t));
+    memcpy(A->indices, B->indices, (size_t)nnz * sizeof(int64_t));
+  } else {
+    FMBD_GCALL(join(p, sizeof p, path, "indptr"));
+    at = p;
+    FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
+    at = path;
+    FMBD_GCHECK(A->indptr[shape[0]] == nnz, FMBD_ERR_FORMAT,
+                "indptr ends at %lld but data has %lld entries", (long long)A->indptr[shape[0]],
+                (long long)nnz);
+    FMBD_GCALL(join(p, sizeof p, path, "indices"));
+    at = p;
+    FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, nnz, A->indices));
+    at = path;
+  }
   FMBD_GCALL(join(p, sizeof p, path, "data"));
   at = p;
   FMBD_GCALL(read_exact(f, p, H5T_NATIVE_DOUBLE, nnz, A->data));

@@ -111,8 +111,18 @@ int fmbd_h5_copy(fmbd_h5 *src, const char *path, fmbd_h5 *dst);
 int fmbd_h5_delete(fmbd_h5 *f, const char *path);
 /// @brief Write a CSR group at path (replacing an existing one).
 int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A);
+/// @brief The same, A having the pattern of the CSR group already written at `like` (checked:
+/// equal shape, indptr and indices, else FMBD_ERR_INTERNAL): only `data` is written, and
+/// `indices` and `indptr` are hard links to like's datasets (one object in the file; readers
+/// that know nothing of it see ordinary datasets; docs/FORMAT.md).
+int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, const char *like);
 /// @brief Read and validate (fmbd_csr_check) a CSR group. @param[out] out caller destroys
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
+/// @brief The same, with B the CSR group already read from `like` (may be NULL): where path's
+/// `indices` and `indptr` are the very datasets of like's (hard links, fmbd_h5_write_csr_like)
+/// they are copied from B instead of read (no second inflation); otherwise as fmbd_h5_read_csr.
+int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const char *like,
+                          fmbd_csr **out);
 /// @brief Read rows r0 .. r1-1 of a CSR group (HDF5 hyperslabs: the indptr slice, then the
 /// indices and data slices it points to), so a process of a distributed program holds only its
 /// row block (docs/SCALE.md). *out is (r1 - r0) x ncols with indptr from 0 and the column

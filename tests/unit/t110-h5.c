@@ -228,12 +228,41 @@ static void test_csr(void) {
   A->indices[3] = 2;
   EXPECT(fmbd_h5_write_csr(f, "/mats/A", A) == FMBD_OK, "rewrite");
   EXPECT(fmbd_h5_write_f64(f, "/bad2/data", 1, (int64_t[]){6}, v) == FMBD_OK, "bad2");
+  // a matrix on A's pattern: its indices and indptr hard links to A's (fmbd_h5_write_csr_like),
+  // and the same matrix written whole; a shape that is not A's is refused
+  const double vc[6] = {7, 8, 9, 10, 11, 12};
+  memcpy(A->data, vc, sizeof vc);
+  EXPECT(fmbd_h5_write_csr_like(f, "/mats/C", A, "/mats/A") == FMBD_OK, "write like");
+  EXPECT(fmbd_h5_write_csr(f, "/mats/D", A) == FMBD_OK, "write D");
+  EXPECT(fmbd_h5_write_csr_like(f, "/mats/F", E, "/mats/A") == FMBD_ERR_INTERNAL,
+         "write like with another shape");
+  memcpy(A->data, v, sizeof v);
   EXPECT(fmbd_h5_commit(&f, 0, 0) == FMBD_OK, "commit");
   EXPECT(fmbd_h5_open(name, &f) == FMBD_OK, "open");
   EXPECT(fmbd_h5_read_csr(f, "/mats/A", &B) == FMBD_OK, "read");
   EXPECT(B && B->nrows == 4 && B->ncols == 5 && !memcmp(B->indptr, ip, sizeof ip) &&
              !memcmp(B->indices, ix, sizeof ix) && !memcmp(B->data, v, sizeof v),
          "csr round trip");
+  {
+    // /mats/C shares A's datasets: read "like" B it copies B's pattern instead of reading the
+    // file's (shown by a B whose pattern was changed in memory after reading: C takes it), and
+    // read alone it is an ordinary CSR group; /mats/D, the same values but its own datasets, is
+    // read from the file either way
+    fmbd_csr *C = NULL, *D = NULL;
+    EXPECT(fmbd_h5_read_csr(f, "/mats/C", &C) == FMBD_OK && !memcmp(C->indptr, ip, sizeof ip) &&
+               !memcmp(C->indices, ix, sizeof ix) && !memcmp(C->data, vc, sizeof vc),
+           "linked csr read alone");
+    fmbd_csr_destroy(&C);
+    B->indices[0] = 1;  // row 0: 1, 4 (still increasing)
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", &C) == FMBD_OK && C->indices[0] == 1 &&
+               !memcmp(C->data, vc, sizeof vc),
+           "linked csr read like A: the pattern copied");
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/D", B, "/mats/A", &D) == FMBD_OK && D->indices[0] == 0 &&
+               !memcmp(D->indices, ix, sizeof ix) && !memcmp(D->data, vc, sizeof vc),
+           "separate csr read like A: read from the file");
+    fmbd_csr_destroy(&C);
+    fmbd_csr_destroy(&D);
+  }
   fmbd_csr_destroy(&B);
   // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0
   for (int64_t r0 = 0; r0 <= 4; r0++) {
