@@ -32,7 +32,9 @@ struct fmbd_h5 {
   char *name;        ///< as given ("-" for stdin/stdout)
   char *part;        ///< "<name>.part" while writing to a named file; NULL otherwise
   bool writing;      ///< created by fmbd_h5_create
-  bool to_stdout;    ///< writing an in-memory image for standard output
+  bool to_stdout;    ///< writing an in-memory image for standard output, or (to_device) for
+                     ///< a named output that is not a regular file
+  bool to_device;    ///< the image goes to `name` (/dev/null, a FIFO): opened, written, no rename
   char sha[65];      ///< SHA-256 of the bytes read (read handles), "" otherwise
   int ninputs, cap;  ///< the `inputs` attribute, written at commit
   char **input_name, **input_sha;
@@ -500,8 +502,16 @@ int fmbd_h5_create(const char *name, const char *format, const char *format_vers
   // closing the file closes objects left open (a series not closed by the caller)
   FMBD_H5(H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG), FMBD_ERR_EXTERNAL,
           "H5Pset_fclose_degree failed");
-  if (!strcmp(name, "-")) {
+  // an existing output that is not a regular file (/dev/null, a FIFO, a terminal) is written
+  // in place at commit, never replaced by a renamed .part (which would turn /dev/null into a
+  // regular file for every other program)
+  struct stat st;
+  bool device = strcmp(name, "-") && stat(name, &st) == 0 && !S_ISREG(st.st_mode);
+  FMBD_GCHECK(!(device && S_ISDIR(st.st_mode)), FMBD_ERR_IO, "cannot create %s: Is a directory",
+              name);
+  if (!strcmp(name, "-") || device) {
     f->to_stdout = true;
+    f->to_device = device;
     FMBD_H5(H5Pset_fapl_core(fapl, 1 << 20, 0), FMBD_ERR_EXTERNAL, "H5Pset_fapl_core failed");
     FMBD_H5(f->fid = H5Fcreate("fmbd-stdout-image", H5F_ACC_TRUNC, H5P_DEFAULT, fapl), FMBD_ERR_IO,
             "cannot create the in-memory file");
@@ -631,9 +641,18 @@ int fmbd_h5_commit(fmbd_h5 **pf, double wall_s, double cpu_s) {
     herr_t e = H5Fclose(f->fid);
     f->fid = -1;
     FMBD_H5(e, FMBD_ERR_IO, "cannot close the in-memory file");
-    size_t put = fwrite(image, 1, (size_t)size, stdout);
-    int bad = put != (size_t)size || fflush(stdout) != 0;
-    FMBD_GCHECK(!bad, FMBD_ERR_IO, "cannot write to standard output: %s", strerror(errno));
+    if (f->to_device) {
+      FILE *fp = fopen(f->name, "wb");
+      FMBD_GCHECK(fp, FMBD_ERR_IO, "cannot open %s: %s", f->name, strerror(errno));
+      size_t put = fwrite(image, 1, (size_t)size, fp);
+      int bad = put != (size_t)size;
+      bad |= fclose(fp) != 0;
+      FMBD_GCHECK(!bad, FMBD_ERR_IO, "cannot write to %s: %s", f->name, strerror(errno));
+    } else {
+      size_t put = fwrite(image, 1, (size_t)size, stdout);
+      int bad = put != (size_t)size || fflush(stdout) != 0;
+      FMBD_GCHECK(!bad, FMBD_ERR_IO, "cannot write to standard output: %s", strerror(errno));
+    }
   } else {
     herr_t e = H5Fclose(f->fid);
     f->fid = -1;

@@ -82,4 +82,17 @@ h5roundtrip made.h5 /x -o - --fail > piped.h5 2>/dev/null
 FMBD_LOG=debug h5roundtrip made.h5 /nope -o o9.h5 2>err.txt
 grep -q 'debug: raised at common/fmbd_h5.c:[0-9]* in ' err.txt || err "no source location under debug: $(cat err.txt)"
 
+# an output that exists and is not a regular file is written in place, never replaced by a
+# renamed .part (-o /dev/null once turned /dev/null into a regular file): a FIFO read by cat
+mkfifo fifo.h5
+timeout 30 cat fifo.h5 > fromfifo.h5 &  # bounded: a program that never opens the FIFO
+catpid=$!
+h5roundtrip made.h5 /x -o fifo.h5 2>err.txt || err "-o a FIFO: $(cat err.txt)"
+wait $catpid
+[ -p fifo.h5 ] && [ ! -e fifo.h5.part ] || err "-o a FIFO: the FIFO was replaced or a .part left"
+"$PYTHON" -c "import h5py, numpy as np, sys; f = h5py.File('fromfifo.h5', 'r'); sys.exit(0 if np.array_equal(f['x'][()], np.arange(30000.0)) else 1)" ||
+  err "-o a FIFO: what came through is not the file"
+mkdir adir
+expect_fail 1 '^h5roundtrip: error: .*adir: cannot create adir: Is a directory' "" h5roundtrip made.h5 /x -o adir
+
 exit $fail

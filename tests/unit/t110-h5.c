@@ -504,16 +504,17 @@ static void test_atomic(void) {
   const char *bad = "/proc/version/x.h5";  // parent is not a directory (also as root)
   EXPECT(fmbd_h5_create(bad, "fmbd-test", "1.0", &f) == FMBD_ERR_IO && !f, "unwritable");
   expect_ctx(bad, "", "unwritable");
-  // the target is a directory: the rename at commit fails, the .part is removed
+  // the target is a directory: refused when the file is created (before any work), nothing
+  // made, the directory and its contents untouched
   const char *dir = tmp("adir.h5");
   mkdir(dir, 0755);
   char sub[1300];
   snprintf(sub, sizeof sub, "%s/keep", dir);
-  fclose(fopen(sub, "w"));  // a non-empty directory: rename(2) cannot replace it
-  EXPECT(fmbd_h5_create(dir, "fmbd-test", "1.0", &f) == FMBD_OK, "create");
-  EXPECT(fmbd_h5_commit(&f, 0, 0) == FMBD_ERR_IO && !f, "rename onto a directory");
-  expect_ctx(dir, "", "rename");
-  EXPECT(!part_exists(dir), "no .part left after a failed commit");
+  fclose(fopen(sub, "w"));
+  fmbd_err_clear();
+  EXPECT(fmbd_h5_create(dir, "fmbd-test", "1.0", &f) == FMBD_ERR_IO && !f, "directory refused");
+  expect_ctx(dir, "", "directory");
+  EXPECT(!part_exists(dir) && access(sub, F_OK) == 0, "no .part, the directory kept");
   unlink(sub);
   rmdir(dir);
 }
