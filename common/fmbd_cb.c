@@ -377,10 +377,10 @@ static int unpark_values(fmbd_csr *A, FILE **f, bool keep) {
 }
 
 // fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that they
-// are dropped again after the eigensolver (its Ritz vectors and the projections' blocks alive
-// beside the factor)
-// without a second write. First the Ritz vectors' back solve's wide CHOLMOD workspaces and the
-// iterations' freed arrays go back to the system, so that Ks's values take their place.
+// can be dropped again after the eigensolver (when its Ritz vectors and the projections'
+// blocks are alive beside the factor) without a second write. First the Ritz vectors' back
+// solve's wide CHOLMOD workspaces and the iterations' freed arrays go back to the system, so
+// that Ks's values take their place.
 typedef struct {
   fmbd_csr *Ks;
   FILE **f;

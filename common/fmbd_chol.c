@@ -565,7 +565,7 @@ static double pivot(const cholmod_factor *L, int64_t k) {
   return L->is_ll ? d * d : d;
 }
 
-static int fmbd_chol_check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg);
+static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg);
 
 int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   FMBD_CHECK(F->B || sigma == 0.0, FMBD_ERR_VALUE, "shift %g without a second matrix", sigma);
@@ -609,14 +609,14 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   F->st.n_factor++;
   F->st.flops = F->c.fl;
   F->st.nnz_l = F->c.lnz;
-  int rc = fmbd_chol_check_pivots(F, ok, sigma, dg);
+  int rc = check_pivots(F, ok, sigma, dg);
   fmbd_free(dg);
   return rc;
 }
 
 // the outcome of a CHOLMOD factorisation: its status, the inertia of the simplicial LDL', the
 // singularity test of the LL' (dg: the diagonal of A - sigma B in pivot order)
-static int fmbd_chol_check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
+static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
   if (!ok || F->c.status < 0) return cholmod_fail(F, "factorize");
   const SuiteSparse_long *perm = F->L->Perm;
   if (F->c.status == CHOLMOD_NOT_POSDEF) {

@@ -788,11 +788,10 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
   if (o.nev < 1) o.nev = 20;
   FMBD_CHECK(o.tol > 0.0, FMBD_ERR_VALUE,
              "ARPACK tol must be positive (docs/TOOLCHAIN.md gotcha 11)");
-  FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
-
   FMBD_CHECK(K->data || (o.need_k && F && !o.sturm && !o.free_body && n > o.dense_max &&
                          (bound || o.nev + 2 < n)),
              FMBD_ERR_INTERNAL, "K's values released, but the path reads them before need_k");
+  FMBD_GALLOC(work = fmbd_malloc(2 * (size_t)n * sizeof(double)));
   // --- small problems: dense LAPACK, complete by construction ---------------------------------
   if (n <= o.dense_max || (!bound && o.nev + 2 >= n)) {
     double t0 = fmbd_wall_s();
@@ -962,11 +961,9 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
     double worst = 0.0;
     double *rs = NULL;
     FMBD_GALLOC(rs = fmbd_malloc((size_t)(keep ? keep : 1) * sizeof(double)));
-    if (!K->data) {
-      rc = o.need_k(o.need_k_ctx);
-      if (rc) fmbd_free(rs);
-      FMBD_GCALL(rc);
-    }
+    fmbd_free(res->resid);
+    res->resid = rs;  // owned by the result from here (a failure below frees it with it)
+    if (!K->data) FMBD_GCALL(o.need_k(o.need_k_ctx));
     if (top < 0.0) top = fmbd_eig_spectrum_scale(K, M);
     FMBD_GCALL(eig_residuals(K, M, keep, r.lam, r.X, res->sigma, rs));
     for (int64_t j = 0; j < keep; j++) {
@@ -977,8 +974,6 @@ int fmbd_eig_solve(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *F, const fmb
       if (rs[j] > worst) worst = rs[j];
     }
     res->t_check_s += fmbd_wall_s() - t2;
-    fmbd_free(res->resid);
-    res->resid = rs;
     if (bad >= 0) {
       if (++failed > o.max_passes) {
         FMBD_GFAIL(FMBD_ERR_CONVERGE,
