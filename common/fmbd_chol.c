@@ -1,5 +1,6 @@
 // common/fmbd_chol.c: sparse symmetric factorisations through CHOLMOD (64-bit cholmod_l_*)
 // SPDX-License-Identifier: MIT
+#define _DEFAULT_SOURCE  // madvise (release_zero_pages)
 #include "fmbd_chol.h"
 
 #include <cblas.h>
@@ -11,6 +12,8 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
@@ -41,6 +44,19 @@ struct fmbd_chol {
   fmbd_chol_stats st;
 };
 
+// fmbd_chol_set_input_hook: called once a factorisation's input is formed
+static _Thread_local fmbd_chol_input_fn g_input_fn = NULL;
+static _Thread_local void *g_input_ctx = NULL;
+
+void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx) {
+  g_input_fn = fn;
+  g_input_ctx = fn ? ctx : NULL;
+}
+
+static void input_formed(void) {
+  if (g_input_fn) g_input_fn(g_input_ctx);
+}
+
 // CHOLMOD reports errors through a handler; keep the last message for ours.
 static char g_cholmod_msg[256];
 static void on_cholmod_error(int status, const char *file, int line, const char *message) {
@@ -58,6 +74,26 @@ static void route_suitesparse_memory(void) {
   SuiteSparse_config.realloc_func = fmbd_realloc;
   SuiteSparse_config.free_func = fmbd_free;
   SuiteSparse_config.printf_func = NULL;
+}
+
+// CHOLMOD's supernodal numeric factorisation runs its scatter and copy loops in OpenMP regions
+// with num_threads(CHOLMOD_OMP_NUM_THREADS), 4 as Debian's libcholmod3 is compiled
+// (cholmod_core.h), whatever OMP_NUM_THREADS says: on one thread (OMP_NUM_THREADS=1) and on
+// this project's 2-core machines the 3 extra threads spun and slept on futexes, about 2.7 of
+// the 8 CPU seconds of the 188 k dofs LL' (perf, bench/README.md "fe2cb's memory, third
+// round"). With OpenMP's dynamic adjustment on, libgomp caps a region's threads at
+// OMP_NUM_THREADS (the cores if unset) less the load average; the loops write disjoint
+// entries, so the factor is the same. Set per calling thread (dyn-var is a per-task ICV), found
+// at run time like OpenBLAS's thread count (fmbd_blas_set_threads); nothing without libgomp.
+static void cap_openmp_threads(void) {
+  static int looked = 0;
+  static void (*set_dynamic)(int) = NULL;
+  if (!looked) {
+    looked = 1;
+    void *self = dlopen(NULL, RTLD_LAZY);
+    if (self) *(void **)&set_dynamic = dlsym(self, "omp_set_dynamic");
+  }
+  if (set_dynamic) set_dynamic(1);
 }
 
 static const char *ordering_name(int o) {
@@ -242,6 +278,46 @@ done:
   return rc;
 }
 
+// --- the unused upper triangles of a supernodal factor's diagonal blocks ---------------------
+// A supernodal factor stores each supernode's nsrow x nscol block in full, column-major, but
+// its strictly upper triangle (rows above the diagonal in the first nscol rows) is never
+// read: CHOLMOD's supernodal numeric factorisation zeroes the block, assembles and updates
+// the lower part only, factors the diagonal block with dpotrf('L'), and its solves read the
+// lower part (SuiteSparse CHOLMOD/Supernodal/t_cholmod_super_numeric.c, t_cholmod_super_solve.c);
+// our LDL' does the same. At 188 k dofs these triangles are most of the 1.50e8 - 1.24e8
+// values beyond L's entries (208 MB). The whole memory pages inside column c's upper part
+// (c values) that hold only zeros are given back to the system (Linux madvise MADV_DONTNEED
+// on private anonymous memory: a page touched again is a fresh zero page, so the values are
+// the same whether or not a page was given back); a page with any nonzero is kept. Returns
+// the bytes given back (0 where madvise is unavailable or fails).
+static double release_zero_pages(const cholmod_factor *L, double *x) {
+  double freed = 0.0;
+#ifdef MADV_DONTNEED
+  long pg = sysconf(_SC_PAGESIZE);
+  if (pg <= 0 || !L->is_super || !x) return 0.0;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px;
+  size_t per = (size_t)pg / sizeof(double);
+  for (int64_t s = 0; s < (int64_t)L->nsuper; s++) {
+    int64_t nscol = super[s + 1] - super[s], nsrow = pi[s + 1] - pi[s];
+    if (nscol <= (int64_t)per) continue;  // no column holds a whole page above its diagonal
+    for (int64_t c = (int64_t)per; c < nscol; c++) {
+      double *col = x + px[s] + c * nsrow;
+      uintptr_t lo = ((uintptr_t)col + (uintptr_t)pg - 1) & ~(uintptr_t)(pg - 1);
+      uintptr_t hi = (uintptr_t)(col + c) & ~(uintptr_t)(pg - 1);
+      if (hi <= lo) continue;
+      const double *a = (const double *)lo, *e = (const double *)hi;
+      bool zero = true;
+      for (; a < e && zero; a++) zero = *a == 0.0;
+      if (zero && madvise((void *)lo, hi - lo, MADV_DONTNEED) == 0) freed += (double)(hi - lo);
+    }
+  }
+#else
+  (void)L;
+  (void)x;
+#endif
+  return freed;
+}
+
 // --- supernodal LDL' without pivoting ---------------------------------------------------------
 // Left-looking over CHOLMOD's supernodes (Ng and Peyton 1993; the structure of CHOLMOD's
 // t_cholmod_super_numeric.c, written here for D): for each supernode s, assemble its columns of
@@ -367,7 +443,10 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
   bool prefill = A->lower || (B && B->lower);
-  if (prefill) FMBD_CALL(ldl_prefill(F, sigma));
+  if (prefill) {
+    FMBD_CALL(ldl_prefill(F, sigma));
+    input_formed();  // the loop below reads only the factor
+  }
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
@@ -470,6 +549,7 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
   FMBD_CHECK(kind == FMBD_CHOL_LLT || kind == FMBD_CHOL_LDLT || kind == FMBD_CHOL_LDLT_SIMPLICIAL,
              FMBD_ERR_VALUE, "bad kind %d", kind);
   route_suitesparse_memory();
+  cap_openmp_threads();
   FMBD_GALLOC(F = fmbd_calloc(1, sizeof *F));
   F->kind = kind;
   F->n = A->nrows;
@@ -596,8 +676,14 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
       return rc;
     }
     double beta[2] = {0.0, 0.0};
+    input_formed();  // super_numeric reads T only
     ok = cholmod_l_super_numeric(T, NULL, beta, F->L, &F->c);
     cholmod_l_free_sparse(&T, &F->c);
+    if (ok && F->c.status == CHOLMOD_OK) {
+      double freed = release_zero_pages(F->L, F->L->x);
+      fmbd_log(FMBD_LOG_DEBUG, "LL': %.0f MB of the diagonal blocks' upper triangles given back",
+               freed / 1048576.0);
+    }
 #ifdef __GLIBC__
     malloc_trim(0);  // T and CHOLMOD's update workspace, freed, back to the system
 #endif

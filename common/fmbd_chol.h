@@ -96,6 +96,15 @@ void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
 /// run's wide back solve; peak memory). The next solve allocates them again.
 void fmbd_chol_release_workspace(fmbd_chol *F);
 
+/// @brief A function that the numeric factorisations of the calling thread (fmbd_chol_factor
+/// of LLT, and of LDLT when A or B is stored as a lower triangle) call once they have formed
+/// their input from A and B and before they factor it; from then until fmbd_chol_factor
+/// returns they read neither matrix, so the caller may drop their arrays (fe2cb writes them to
+/// a scratch file: peak memory, bench/README.md). Thread-local (the Sturm check makes its
+/// factor inside fmbd_eig.c); fn NULL clears it.
+typedef void (*fmbd_chol_input_fn)(void *ctx);
+void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx);
+
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
 /// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long
 /// solve phase by the size of the upper triangle.
