@@ -358,11 +358,15 @@ static void park_f64(parking *pk, double **a, size_t count) {
   park_arr(pk, a, NULL, count);
 }
 
-// the parked arrays back into memory; keep: the file and its list are kept, so that drop can
-// free them again without a second write
+// the parked arrays back into memory (those not already there); keep: the file and its list
+// are kept, so that drop can free them again without a second write
 static int unpark(parking *pk, bool keep) {
   bool ok = pk->n == 0 || fseek(pk->f, 0, SEEK_SET) == 0, mem = true;
   for (int k = 0; k < pk->n && ok && mem; k++) {
+    if (pk->a[k].d ? *pk->a[k].d != NULL : *pk->a[k].i != NULL) {
+      ok = fseek(pk->f, (long)(pk->a[k].count * 8), SEEK_CUR) == 0;
+      continue;
+    }
     void *p = fmbd_malloc(pk->a[k].count * 8);
     mem = p != NULL;
     if (pk->a[k].d)
@@ -398,21 +402,18 @@ static void parking_close(parking *pk) {
   memset(pk, 0, sizeof *pk);
 }
 
-// fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that they
-// can be dropped again after the eigensolver (when its Ritz vectors and the projections'
-// blocks are alive beside the factor) without a second write. First the Ritz vectors' back
-// solve's wide CHOLMOD workspaces and the iterations' freed arrays go back to the system, so
-// that Ks's values take their place.
+// fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that the
+// Sturm check's LDL' can drop them again without a second write.
 typedef struct {
   parking *pk;
   fmbd_chol *F;
 } ks_back;
 static int ks_back_fn(void *ctx) {
   ks_back *b = ctx;
-  fmbd_chol_release_workspace(b->F);
-#ifdef __GLIBC__
-  malloc_trim(0);
-#endif
+  // the factor is not read after the Lanczos run (the projections came first, the Sturm check
+  // makes its own): its values go, in place of which Ks's come back; should the eigensolver
+  // solve again (a residual above its bound: one more run), fmbd_chol factors Ks again first
+  FMBD_CALL(fmbd_chol_drop_numeric(b->F));
   return unpark(b->pk, true);
 }
 
@@ -438,7 +439,10 @@ static void inputs_away_fn(void *ctx) {
   else
     park_arr(w->idx, NULL, &w->Ks->indices, nnz);
   if (shared && !w->Ks->indices) w->Ms->indices = NULL;
-  if (w->Ms->data) park_f64(w->msvals, &w->Ms->data, (size_t)fmbd_csr_nnz(w->Ms));
+  if (w->Ms->data && w->msvals->n)
+    drop(w->msvals);
+  else if (w->Ms->data)
+    park_f64(w->msvals, &w->Ms->data, (size_t)fmbd_csr_nnz(w->Ms));
 }
 
 // C (nb x m, ldc) += S' X  for a sparse S (ns x nb) and dense X (ns x m, ld ns)
@@ -507,12 +511,12 @@ static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
 }
 
 // constraint modes Psi = -Ks^-1 Kc, the projections A = Ms Psi + Mc, Ks^-1 A, Ks^-1 Ms Ks^-1 A
-// and the boundary blocks of the reduced matrices, with the factor F of Ks. Called after the
-// Lanczos run: its basis is freed by then, so the four ns x nb blocks are not alive beside it
-// (peak memory, bench/README.md "fe2cb's memory"); the same operations on the same factor as
-// before, so the same numbers. pk (may be NULL): each block is parked there once the steps
-// that read it are done (Psi, A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, in that order), so that at most
-// two are in memory beside the factor; the caller unparks them.
+// and the boundary blocks of the reduced matrices, with the factor F of Ks. pk (may be NULL):
+// each block is parked there once the steps that read it are done (Psi, A, Ks^-1 A,
+// Ks^-1 Ms Ks^-1 A, in that order), so that at most two are in memory beside the factor and
+// none beside the Lanczos basis, which comes after (peak memory, bench/README.md "fe2cb's
+// memory"); the caller unparks them. The same operations on the same factor, in whichever
+// order, so the same numbers.
 static int constraint_modes(fmbd_cb *cb, fmbd_chol *F, const fmbd_csr *Ms, const fmbd_csr *Kc,
                             const fmbd_csr *Mc, const fmbd_csr *Kb, const fmbd_csr *Mb,
                             parking *pk) {
@@ -811,7 +815,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   // the index array back (kept in the file: dropped again without a write at the Sturm check)
   FMBD_GCALL(unpark(&pk_idx, true));
   if (shared) Ms->indices = Ks->indices;
-  FMBD_GCALL(unpark(&pk_ms, false));
+  FMBD_GCALL(unpark(&pk_ms, true));  // kept too
   mem_log("after the factorisation");
   {
     fmbd_chol_stats st;
@@ -833,9 +837,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->nr = 0;
   }
 
-  // --- fixed-interface modes (Lanczos with the same factor; the constraint modes and
-  // projections after it, with the same factor; the Sturm check after the factor is freed,
-  // since its LDL' factor is as large) ---
+  // --- fixed-interface modes (the constraint modes and projections first, each block parked
+  // as it is finished; then Lanczos with the same factor, whose values are dropped at the
+  // residual check; the Sturm check after the factor is freed, since its LDL' factor is as
+  // large) ---
   if (o.fmax_hz > 0.0 || o.nmodes > 0) {
     double lmax = o.fmax_hz > 0.0 ? pow(2.0 * M_PI * o.fmax_hz, 2) : 0.0;
     int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
@@ -846,6 +851,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
     // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
     if (nev < 60) fmbd_chol_set_solve_width(F, 8);
+    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb, &pk_blocks));
+    fmbd_chol_release_workspace(F);
+    mem_log("after the constraint modes and projections");
     // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
     // residual check) nor by the projections: parked since the LL' until the Sturm check; the
     // dense path and an iteration over almost all of Ks's spectrum read them
@@ -856,8 +864,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       o2.eig.need_k = ks_back_fn;
       o2.eig.need_k_ctx = &kb;
     }
+    // Ks's values stay in memory from the residual check on: the factor's values are gone by
+    // then (ks_back_fn), and the Sturm check reads them
     FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
-    drop(&pk_ks);  // the file still holds them
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
@@ -865,13 +874,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // the Ritz vectors' wide back solve left CHOLMOD's workspaces n x (pairs) large
     fmbd_chol_release_workspace(F);
 #ifdef __GLIBC__
-    malloc_trim(0);  // the eigensolver's freed work arrays, before the projections allocate
+    malloc_trim(0);  // the eigensolver's freed work arrays
 #endif
     mem_log("after the Lanczos run");
     // the Ritz vectors are read again only after the Sturm check (Phi' A, the output)
     park_f64(&pk_x, &er.X, (size_t)(ns * er.nev));
-    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb, &pk_blocks));
-    mem_log("after the constraint modes and projections");
     if (o.eig.sturm && !er.dense) {
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
@@ -881,7 +888,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
 #endif
       // Ks's values back (the file kept); the LDL' puts Ks - s Ms into its factor first, then
       // Ks's and Ms's arrays go to the file until it returns (inputs_away_fn)
-      FMBD_GCALL(unpark(&pk_ks, true));
+      if (!Ks->data) FMBD_GCALL(unpark(&pk_ks, true));
       mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
       if (fmbd_progress_enabled())

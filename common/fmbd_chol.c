@@ -19,6 +19,9 @@
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 
+// orderings of matrices of this order and more: METIS alone (fmbd_chol_analyze_perm)
+enum { METIS_ONLY_N = 50000 };
+
 struct fmbd_chol {
   int kind;
   int64_t n;
@@ -26,6 +29,7 @@ struct fmbd_chol {
   cholmod_common c;
   int started;
   int released;          // fmbd_chol_release_matrix called: no refactorisation
+  int dropped;           // fmbd_chol_drop_numeric called: the next solve factors again
   cholmod_sparse *S;     // upper triangle (stype = +1) of the union pattern, CSC: the analysis
                          // (and the values of the simplicial LDL'); LLT and LDLT free it after
   int64_t *posA, *posB;  // position in S of each upper entry of A / B (CSR order)
@@ -35,7 +39,8 @@ struct fmbd_chol {
   double sigma;
   double pivot_rtol;
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
-  double *Lx;  // L->xsize values: D on the diagonal, unit-L below
+  double *Lx;    // L->xsize values: D on the diagonal, unit-L below
+  bool lx_zero;  // Lx as calloc gave it (not yet touched: zero pages, not resident)
   int64_t *iperm, *col2super, *map, *head, *next, *lpos;
   double *wC, *wW;  // update workspaces
   int64_t sizeC, sizeW;
@@ -332,7 +337,10 @@ static int super_ldl_setup(fmbd_chol *F) {
   FMBD_GCHECK(L->is_super, FMBD_ERR_INTERNAL, "CHOLMOD analysis is not supernodal");
   int64_t n = F->n, ns = (int64_t)L->nsuper;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *perm = L->Perm;
-  FMBD_GALLOC(F->Lx = fmbd_malloc((L->xsize ? L->xsize : 1) * sizeof(double)));
+  // zeroed by calloc: the pages that the factorisation never writes (most of the diagonal
+  // blocks' upper triangles) are never made resident
+  FMBD_GALLOC(F->Lx = fmbd_calloc(L->xsize ? L->xsize : 1, sizeof(double)));
+  F->lx_zero = true;
   FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->col2super = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->map = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
@@ -358,8 +366,24 @@ done:
   return rc;
 }
 
+// C (m x n, ldc) = alpha A B' + beta C (A m x k, B n x k, column-major), m >= n, where only
+// the lower trapezoid (rows i >= column j) is wanted: by column blocks of 128, each product
+// starting at its block's diagonal, so the part above the diagonal is not computed beyond the
+// blocks' corners (half the flops of a square update, bench/README.md "third round")
+static void gemm_lower(int64_t m, int64_t n, int64_t k, double alpha, const double *A, int64_t lda,
+                       const double *B, int64_t ldb, double beta, double *C, int64_t ldc) {
+  const int64_t cb = 128;
+  for (int64_t c0 = 0; c0 < n; c0 += cb) {
+    int64_t w = n - c0 < cb ? n - c0 : cb;
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)(m - c0), (int)w, (int)k, alpha,
+                A + c0, (int)lda, B + c0, (int)ldb, beta, C + c0 + c0 * ldc, (int)ldc);
+  }
+}
+
 // blocked unpivoted LDL' of the n x n lower triangle of A (leading dimension lda); D on the
-// diagonal, unit L below it. Returns the index of a zero or NaN pivot, or -1.
+// diagonal, unit L below it; nothing above the diagonal is read, and only the corners of the
+// trailing updates' column blocks are written there. Returns the index of a zero or NaN
+// pivot, or -1.
 static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *neg) {
   const int64_t nb = 64;
   for (int64_t j0 = 0; j0 < n; j0 += nb) {
@@ -381,15 +405,14 @@ static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *
     }
     int64_t n2 = n - j0 - jb;
     if (n2 > 0) {
-      // trailing block -= L21 D1 L21' (full square product; only the lower triangle is used)
+      // trailing block -= L21 D1 L21' (its lower triangle)
       double *L21 = A + (j0 + jb) + j0 * lda;
       for (int64_t k = 0; k < jb; k++) {
         double dk = A[(j0 + k) + (j0 + k) * lda];
         for (int64_t i = 0; i < n2; i++) W[i + k * n2] = L21[i + k * lda] * dk;
       }
       double *A22 = A + (j0 + jb) + (j0 + jb) * lda;
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)n2, (int)n2, (int)jb, -1.0, W,
-                  (int)n2, L21, (int)lda, 1.0, A22, (int)lda);
+      gemm_lower(n2, n2, jb, -1.0, W, n2, L21, lda, 1.0, A22, lda);
     }
   }
   return -1;
@@ -405,7 +428,15 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
   cholmod_factor *L = F->L;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
   const fmbd_csr *mat[2] = {F->A, sigma != 0.0 ? F->B : NULL};
-  memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  // B on A's index arrays (fe2cb's Ms on Ks's): one search serves both entries, which then
+  // get the same operations in the same order as in two passes (each position holds one
+  // entry of each)
+  const fmbd_csr *Bs = mat[1];
+  bool both =
+      Bs && Bs->indptr == F->A->indptr && Bs->indices == F->A->indices && Bs->lower == F->A->lower;
+  if (both) mat[1] = NULL;
+  if (!F->lx_zero) memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  F->lx_zero = false;
   for (int m = 0; m < 2; m++) {
     const fmbd_csr *A = mat[m];
     if (!A) continue;
@@ -424,10 +455,12 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
         FMBD_CHECK(Ls[lo] == r, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the LDL' pattern",
                    (long long)r, (long long)c);
         double *x = F->Lx + px[sn] + (c - super[sn]) * (pi[sn + 1] - pi[sn]) + (lo - pi[sn]);
-        if (m == 0)
+        if (m == 0) {
           *x += A->data[p];
-        else
+          if (both) *x -= sigma * Bs->data[p];
+        } else {
           *x -= sigma * A->data[p];
+        }
       }
     }
   }
@@ -447,6 +480,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
     FMBD_CALL(ldl_prefill(F, sigma));
     input_formed();  // the loop below reads only the factor
   }
+  F->lx_zero = false;
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
@@ -486,8 +520,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
         double dc = Ldx[c + c * ndrow];
         for (int64_t r = 0; r < nr1; r++) W[r + c * nr1] = Ldx[r1 + r + c * ndrow] * dc;
       }
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)nr2, (int)nr1, (int)ndcol, 1.0,
-                  Ldx + r1, (int)ndrow, W, (int)nr1, 0.0, C, (int)nr2);
+      gemm_lower(nr2, nr1, ndcol, 1.0, Ldx + r1, ndrow, W, nr1, 0.0, C, nr2);
       for (int64_t jj = 0; jj < nr1; jj++) {
         double *col = Lsx + (Ls[p1 + jj] - k1) * nsrow;
         for (int64_t ii = jj; ii < nr2; ii++) col[map[Ls[p1 + ii]]] -= C[ii + jj * nr2];
@@ -585,6 +618,14 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
     F->c.postorder = 1;
     F->L = cholmod_l_analyze_p(F->S, (SuiteSparse_long *)perm, NULL, 0, &F->c);
   } else {
+    if (F->n >= METIS_ONLY_N) {
+      // CHOLMOD's default tries AMD first and METIS only when AMD's fill is high; on the FE
+      // bodies above this size METIS always won (51 k and 188 k dofs: 1.24e8 entries in L and
+      // 1.89e11 flops against AMD's 1.60e8 and 3.0e11 at 188 k), so the AMD pass is skipped:
+      // the same ordering, 0.4 s less at 188 k (bench/README.md "fe2cb's memory, third round")
+      F->c.nmethods = 1;
+      F->c.method[0].ordering = CHOLMOD_METIS;
+    }
     F->L = cholmod_l_analyze(F->S, &F->c);
   }
   F->st.t_analyze_s = fmbd_wall_s() - t0;
@@ -661,7 +702,10 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
     F->st.n_factor++;
     return rc;
   }
-  FMBD_CHECK(!F->released, FMBD_ERR_INTERNAL, "factor after fmbd_chol_release_matrix");
+  // the LL' assembles its input from A and B (assemble_llt): only the simplicial LDL' needs
+  // the copy that fmbd_chol_release_matrix frees
+  FMBD_CHECK(!F->released || F->kind == FMBD_CHOL_LLT, FMBD_ERR_INTERNAL,
+             "factor after fmbd_chol_release_matrix");
   cholmod_sparse *T = NULL;
   double *dg = NULL;
   int ok;
@@ -751,6 +795,14 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 
 // X <- the solves sys[0], then sys[1], ... (CHOLMOD_A, or CHOLMOD_P/L/Lt/Pt) applied in turn
 static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, double *X, int64_t ldx) {
+  if (F->dropped) {
+    // fmbd_chol_drop_numeric: factored again first (A's and B's arrays must be back)
+    FMBD_CHECK(F->A->data && F->A->indices && (!F->B || (F->B->data && F->B->indices)),
+               FMBD_ERR_INTERNAL, "solve after fmbd_chol_drop_numeric without the matrix");
+    fmbd_log(FMBD_LOG_DEBUG, "LL': factored again after its values were dropped");
+    F->dropped = 0;
+    FMBD_CALL(fmbd_chol_factor(F, F->sigma));
+  }
   FMBD_CHECK(F->L && F->st.n_factor > 0 && F->failed_row < 0 && F->kind != FMBD_CHOL_LDLT,
              FMBD_ERR_INTERNAL, "solve without a valid factor (or with the inertia-only LDL')");
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
@@ -812,6 +864,23 @@ void fmbd_chol_release_workspace(fmbd_chol *F) {
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
+}
+
+int fmbd_chol_drop_numeric(fmbd_chol *F) {
+  FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
+             FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
+  if (F->dropped) return FMBD_OK;
+  cholmod_l_free_dense(&F->X, &F->c);
+  cholmod_l_free_dense(&F->Y, &F->c);
+  cholmod_l_free_dense(&F->E, &F->c);
+  // back to the symbolic supernodal factor (cholmod_change_factor: L->x freed)
+  if (!cholmod_l_change_factor(CHOLMOD_PATTERN, 1, 1, 1, 1, F->L, &F->c))
+    return cholmod_fail(F, "change_factor");
+  F->dropped = 1;
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+  return FMBD_OK;
 }
 
 void fmbd_chol_release_matrix(fmbd_chol *F) {

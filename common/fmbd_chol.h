@@ -106,9 +106,16 @@ typedef void (*fmbd_chol_input_fn)(void *ctx);
 void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx);
 
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
-/// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long
-/// solve phase by the size of the upper triangle.
+/// solves still work, fmbd_chol_factor does not any more (except for LLT, which assembles its
+/// input from A and B). Lowers the peak memory of a long solve phase by the size of the upper
+/// triangle.
 void fmbd_chol_release_matrix(fmbd_chol *F);
+
+/// @brief Free the numeric values of an LLT factor (the analysis stays): for a stage that
+/// will most likely not solve again (fe2cb's residual check after the Lanczos run: the factor
+/// is 1.1 GB of the 188 k dofs body's peak). A later solve first factors A (- sigma B) again,
+/// so their arrays must then be in memory.
+int fmbd_chol_drop_numeric(fmbd_chol *F);
 
 /// @brief Number of negative pivots of the last LDLT factorisation (-1 for LLT or before a
 /// factorisation). With B positive definite: the number of eigenvalues below sigma.
