@@ -850,9 +850,12 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // the Ritz vectors' back solve (nev + a few columns) and the projections (nb): by 8
     // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
     // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
-    if (nev < 60) fmbd_chol_set_solve_width(F, 8);
+    // the projections' solves of nb columns in one pass over the factor while no basis is
+    // alive (CHOLMOD's two n x nb workspaces: 36 MB at 188 k dofs and 12 boundary dofs)
+    if (nev < 60) fmbd_chol_set_solve_width(F, nb > 8 && nb <= 16 ? nb : 8);
     if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb, &pk_blocks));
     fmbd_chol_release_workspace(F);
+    if (nev < 60) fmbd_chol_set_solve_width(F, 8);
     mem_log("after the constraint modes and projections");
     // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
     // residual check) nor by the projections: parked since the LL' until the Sturm check; the
