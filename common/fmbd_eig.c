@@ -585,6 +585,7 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
   out->solves = solves;
   out->restarts = restarts;
   int64_t nout = nl + nconv;
+  double te = fmbd_wall_s();
   if (nout > 0) {
     int64_t ma = m - nl;
     FMBD_GALLOC(out->lam = fmbd_malloc((size_t)(nout + 1) * sizeof(double)));
@@ -603,8 +604,11 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t ncv,
     FMBD_GCHECK(X, FMBD_ERR_NOMEM, "out of memory");
     V = NULL;
     out->X = X;
+    double tb = fmbd_wall_s();
     FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nout, out->X, n));
     out->nconv = nout;
+    fmbd_log(FMBD_LOG_DEBUG, "eig: %lld Ritz vectors %.3g s (of it the back solve %.3g s)",
+             (long long)nout, fmbd_wall_s() - te, fmbd_wall_s() - tb);
   }
 done:
   if (rc != 0) run_out_free(out);
