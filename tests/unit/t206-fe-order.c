@@ -124,8 +124,8 @@ static void check_sets(const char *what, const fmbd_mesh *mesh, const fmbd_fe_op
     EXPECT(fmbd_fe_assemble(mesh, o, &b) == FMBD_OK, "%s: %s", what, fmbd_err_get()->msg);
     EXPECT(fmbd_fe_asm_test.sets_used >= (int32_t)((mesh->nnodes + sizes[i] - 1) / sizes[i]),
            "%s: %d sets of %lld nodes", what, fmbd_fe_asm_test.sets_used, (long long)sizes[i]);
-    EXPECT(b && same_body(ref, b), "%s: sets of %lld nodes: not bit for bit the plain loop's",
-           what, (long long)sizes[i]);
+    EXPECT(b && same_body(ref, b), "%s: sets of %lld nodes: not bit for bit the plain loop's", what,
+           (long long)sizes[i]);
     fmbd_fe_body_destroy(&b);
   }
   fmbd_fe_asm_test.set_nodes = 0;
