@@ -105,7 +105,7 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
   double *arrs[] = {m->x,      m->xd,    m->xdd,  m->a,    m->lam,   m->xn,    m->xdn,    m->xddn,
                     m->an,     m->lamn,  m->xddp, m->res,  m->rhs,   m->scale, m->nscale, m->ascale,
                     m->floor_, m->wk,    m->bres, m->bblk, m->bwork, m->Ax,    m->rscale, m->lamp,
-                    m->xddpp,  m->lampp, m->itx,  m->ity,  m->tx};
+                    m->xddpp,  m->lampp, m->itx,  m->ity,  m->tx,    m->dyp};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
   fmbd_free(m->dpos);
   if (m->bpos) {

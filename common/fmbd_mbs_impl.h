@@ -259,6 +259,8 @@ struct fmbd_mbs {
   double *itx;    // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
   double *ity;    // 1 / Newton tolerance of each kept multiplier's increment (fmbd_mbs_step.c)
   double *tx;     // Newton tolerance of each coordinate in this attempt (1 / itx)
+  double *dyp;    // the multipliers' increments of the last Newton iteration
+  bool jw_ok;     // the equations' jw formed from the last evaluated matrix
   int64_t *dpos;  // position of each coordinate's diagonal entry in Ax (-1: not formed there)
   double *xddpp, *lampp;  // x'', lam two steps before (the predictor)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;

@@ -83,25 +83,40 @@ static bool dead_point(fmbd_mbs *m, double h, const char *how) {
 // round-off floor), so the multipliers converge to the accuracy the coordinates' accelerations
 // are asked for, and their round-off floor is that of the coordinates (the 1e3 eps |x| floor
 // times beta' A_ii). A_ii / |J_ki| of the last evaluated matrix (the factored one: q->jw,
-// formed with each matrix), tx_i of this attempt; coordinates
-// whose diagonal is not formed in Ax (an eliminated body's modal block) are not used, and a row
-// without any is not tested (ity 0).
-static void mult_tol(fmbd_mbs *m, double bp, bool matrix) {
+// formed once per matrix), tx_i of this attempt; coordinates whose diagonal is not formed in Ax
+// (an eliminated body's modal block) are not used, and a row without any is not tested (ity
+// 0). Formed only where the early stop is in reach (attempt): forming them at every attempt
+// cost as much as the iterations they saved on the 100-link chain.
+static void mult_tol(fmbd_mbs *m, double bp) {
   for (int64_t e = 0; e < m->neq; e++) {
     meq *q = &m->eq[e];
     if (!q->kept) continue;
-    if (matrix) {  // A_ii / |J_ki| of this matrix, infinite where unusable
+    if (!m->jw_ok) {  // A_ii / |J_ki| of this matrix, infinite where unusable
       for (int i = 0; i < q->nj; i++) {
         int64_t p = m->dpos[q->cols[i]];
         double a = fabs(q->jac[i]);
         q->jw[i] = p >= 0 && a > 0 ? fabs(m->Ax[p]) / a : INFINITY;
       }
     }
-    double t = INFINITY;
-    for (int i = 0; i < q->nj; i++) t = fmin(t, q->jw[i] * m->tx[q->cols[i]]);
-    t = fmax(t, 1e3 * DBL_EPSILON * fabs(m->lam[q->row]) / bp);
+    double t = INFINITY, fl = 1e3 * DBL_EPSILON * fabs(m->lam[q->row]) / bp;
+    for (int i = 0; i < q->nj; i++) {
+      double v = q->jw[i] * m->tx[q->cols[i]];
+      if (v < t) t = v;
+    }
+    if (fl > t) t = fl;
     m->ity[q->row] = t > 0 && t < INFINITY ? 1 / t : 0;
   }
+  m->jw_ok = true;
+}
+
+// the largest multiplier increment dy_k in units of its tolerance (mult_tol)
+static double mult_norm(fmbd_mbs *m, const double *dy) {
+  double r = 0;
+  for (int64_t k = 0; k < m->m; k++) {
+    double v = fabs(dy[k]) * m->ity[k];
+    if (!(v <= r)) r = v, m->worst_dy = k;
+  }
+  return r;
 }
 
 // One attempt of a step of size h from the saved state. Returns FMBD_OK with *conv and *err
@@ -150,9 +165,9 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     m->lam[k] = w0 * m->lamn[k] + w1 * m->lamp[k] + w2 * m->lampp[k];
   if (m->h_fact <= 0 || fabs(h / m->h_fact - 1) > 0.25) m->need_factor = true;
   if (force_fresh) m->need_factor = true;
-  if (!m->need_factor) mult_tol(m, bp, false);  // else after the matrix's evaluation below
   bool fresh = false;
-  double prev = 0, prevl = 0;
+  double prev = 0;
+  bool ity_ok = false;  // m->ity formed for this attempt
   // clock readings between the phases (wall; fmbd_mbs_get_stats makes them CPU time)
   double clk = fmbd_wall_s(), clk1;
   const bool debug = fmbd_log_level() >= FMBD_LOG_DEBUG;
@@ -165,7 +180,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       const meq *q = &m->eq[e];
       if (q->kept) m->rhs[n + q->row] = -q->phi;
     }
-    if (matrix) mult_tol(m, bp, true);
+    if (matrix) m->jw_ok = false;
     clk1 = fmbd_wall_s();
     m->tm_phase[2] += clk1 - clk;
     if (matrix) {
@@ -197,7 +212,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     m->tm_phase[1] += clk - clk1;
     m->st.newton_iterations++;
     // the largest increment in units of the tolerance (itx, the predictor's loop)
-    double nrm = 0, nrl = 0;
+    double nrm = 0;
     const double *itx = m->itx;
     for (int64_t i = 0; i < n; i++) {
       double dx = m->rhs[i];
@@ -207,29 +222,13 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       double v = fabs(dx) * itx[i];
       if (!(v <= nrm)) nrm = v, m->worst_dx = i;
     }
-    for (int64_t k = 0; k < m->m; k++) {
-      double dy = m->rhs[n + k];
-      m->lam[k] += bp * dy;
-      double v = fabs(dy) * m->ity[k];
-      if (!(v <= nrl)) nrl = v, m->worst_dy = k;
-    }
-    if (!isfinite(nrm) || !isfinite(nrl)) break;
-    // contraction rates of the coordinates' and of the multipliers' increments
-    double theta = it > 0 ? nrm / prev : 0, thl = it > 0 ? nrl / prevl : 0;
-    if (debug) {
-      char dxw[300];
-      mbs_coord_describe(m, m->worst_dx, dxw, sizeof dxw);
-      fmbd_log(FMBD_LOG_DEBUG,
-               "t = %.9g h = %.3g Newton %d%s: |dx|/tol %.3g theta %.3g (%s); |dlambda|/tol %.3g "
-               "theta %.3g (kept equation %lld)",
-               m->t, h, it, matrix ? " (new matrix)" : "", nrm, theta, dxw, nrl, thl,
-               (long long)m->worst_dy);
-    }
-    // Converged (the test on the coordinates): |dx| within tolerance in the first iteration
+    for (int64_t k = 0; k < m->m; k++) m->lam[k] += bp * m->rhs[n + k];
+    if (!isfinite(nrm)) break;
+    // CONVERGED (the test on the coordinates): |dx| within tolerance in the first iteration
     // by a margin of 1e3 (theta unknown), or |dx| within tolerance with the estimated
     // remaining error theta/(1 - theta) |dx| (Hairer & Wanner II, sec. IV.8) within it too, or
-    // |dx| within tolerance and theta >= 1 (round-off stagnation). Also converged (the early
-    // stop) when the contraction is established, theta <= 0.1 from the third iteration on
+    // |dx| within tolerance and theta >= 1 (round-off stagnation). Also converged (the EARLY
+    // STOP) when the contraction is established, theta <= 0.1 from the third iteration on
     // (the first ratio |dx_1| / |dx_0| also holds the predictor's error in what the matrix
     // leaves out, below; stopping on it broke the h^2 momentum drift of t503's spinning
     // truss), and the remaining errors of both the coordinates and the multipliers are
@@ -242,10 +241,28 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     // slowly, the early stop is not taken and the test on the coordinates decides as before.
     // Asking the multipliers in every stop gave the torque to 6.5e-6 N m but could not
     // converge near the dead point (bench/README.md, "Fewer Newton iterations")
-    double est = theta / (1 - theta) * nrm, estl = thl / (1 - thl) * nrl;
+    double theta = it > 0 ? nrm / prev : 0, est = theta / (1 - theta) * nrm;
     bool xok = nrm <= 1e-3 || (it > 0 && nrm <= 1 && (theta >= 1 || est <= 1));
-    bool lok = nrl <= 1e-3 || (it > 0 && (nrl <= 1 || thl <= 0.1) && estl <= 1);
-    bool early = it > 1 && theta <= 0.1 && est <= 1 && lok;
+    bool early = false;
+    double nrl = -1, thl = -1;
+    if ((!xok && it > 1 && theta <= 0.1 && est <= 1) || (debug && it > 0)) {
+      if (!ity_ok) mult_tol(m, bp), ity_ok = true;
+      double prevl = mult_norm(m, m->dyp);
+      nrl = mult_norm(m, m->rhs + n);
+      thl = nrl / prevl;
+      double estl = thl / (1 - thl) * nrl;
+      bool lok = nrl <= 1e-3 || ((nrl <= 1 || thl <= 0.1) && estl <= 1);
+      early = !xok && it > 1 && theta <= 0.1 && est <= 1 && lok;
+    }
+    if (debug) {
+      char dxw[300];
+      mbs_coord_describe(m, m->worst_dx, dxw, sizeof dxw);
+      fmbd_log(FMBD_LOG_DEBUG,
+               "t = %.9g h = %.3g Newton %d%s: |dx|/tol %.3g theta %.3g (%s); |dlambda|/tol %.3g "
+               "theta %.3g (kept equation %lld)%s",
+               m->t, h, it, matrix ? " (new matrix)" : "", nrm, theta, dxw, nrl, thl,
+               (long long)m->worst_dy, early ? " (early stop)" : "");
+    }
     if (xok || early) {
       *conv = true;
       break;
@@ -266,7 +283,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     // 60 % more steps without the first-ratio refresh)
     if (!matrix && theta > THETA_REFACTOR && (it > 1 || !m->set.fixed || theta >= 1))
       m->need_factor = true;
-    prevl = nrl;
+    memcpy(m->dyp, m->rhs + n, sizeof(double) * (size_t)m->m);
     prev = nrm;
   }
   m->tm_phase[2] += fmbd_wall_s() - clk;

@@ -221,6 +221,7 @@ int mbs_build_pattern(fmbd_mbs *m) {
   FMBD_GALLOC(m->dpos = fmbd_malloc(sizeof(int64_t) * (size_t)(m->n ? m->n : 1)));
   FMBD_GALLOC(m->ity = fmbd_calloc((size_t)m->m + 1, sizeof(double)));
   FMBD_GALLOC(m->tx = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
+  FMBD_GALLOC(m->dyp = fmbd_calloc((size_t)m->m + 1, sizeof(double)));
   for (int64_t c = 0; c < m->n; c++) {
     m->dpos[c] = -1;
     for (int64_t k = Ap[c]; k < Ap[c + 1]; k++) {
