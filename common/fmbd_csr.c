@@ -178,9 +178,11 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
 
 // Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride w): one pass over A
 // for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
-// (same results, bit for bit). Inlined with w = NB constant for the full blocks.
+// (same results, bit for bit). Full blocks of NB = 8 columns go through fixed-width kernels
+// (rows8_full, rows8_lower below); a remainder of 2-7 columns of a full-storage A through
+// rows_full.
 enum { NB = 8 };
-static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
+static void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
   for (int64_t i = 0; i < A->nrows; i++) {
     double s[NB] = {0};
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
@@ -192,29 +194,57 @@ static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double 
   }
 }
 
-// the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
-// yt (row-major, stride w)
-static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
-                              int64_t ldy) {
-  memset(yt, 0, (size_t)A->nrows * (size_t)w * sizeof(double));
+// The kernels of the 8-column passes: 8 sums as one vector of the compiler's (GCC and clang
+// vector extensions: 4 SSE2 registers in the baseline x86-64 build, 2 AVX2 or one AVX-512
+// register in the clones below), so that the sums stay in registers across a row (as plain
+// arrays GCC 12 kept them on the stack and went through memory at every entry). Every lane
+// does the scalar code's operations in the scalar code's order, a * x then + (no contraction
+// into FMA: -std=c11 compiles with -ffp-contract=off, and the clones inherit it), so the
+// results are the same bits on every instruction set and as fmbd_csr_matvec's (tests/unit/t300).
+// Built for the baseline and, where GCC can (x86-64 Linux, an ifunc chosen at load: one
+// portable binary), for AVX2 and AVX-512 (bench/README.md, "The sparse product's kernels").
+typedef double v8d
+    __attribute__((vector_size(8 * sizeof(double)), aligned(sizeof(double)), may_alias));
+#define LD8(p) (*(const v8d *)(p))
+#define ST8(p, v) (*(v8d *)(p) = (v))
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && \
+    !defined(FMBD_NO_CLONES)
+#define FMBD_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define FMBD_CLONES
+#endif
+
+// Y(:, 0..7) = A X, A full storage, xt = X row-major (stride 8)
+FMBD_CLONES static void rows8_full(const fmbd_csr *A, const double *xt, double *Y, int64_t ldy) {
+  const int64_t *ip = A->indptr, *ix = A->indices;
+  const double *d = A->data;
   for (int64_t i = 0; i < A->nrows; i++) {
-    double s[NB] = {0};
-    const double *xi = xt + i * w;
-    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
-      int64_t j = A->indices[p];
-      double a = A->data[p];
-      const double *x = xt + j * w;
-      for (int k = 0; k < w; k++) s[k] += a * x[k];
-      if (j != i) {
-        double *y = yt + j * w;
-        for (int k = 0; k < w; k++) y[k] += a * xi[k];
-      }
-    }
-    double *y = yt + i * w;
-    for (int k = 0; k < w; k++) y[k] += s[k];
+    v8d s = {0};
+    for (int64_t p = ip[i]; p < ip[i + 1]; p++) s += d[p] * LD8(xt + ix[p] * NB);
+    for (int k = 0; k < NB; k++) Y[i + k * ldy] = s[k];
   }
-  for (int64_t i = 0; i < A->nrows; i++) {
-    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * w + k];
+}
+
+// the same for a lower-stored symmetric A (sym_matvec's order): the transposed entries' sums in
+// yt (row-major, stride 8, zeroed here), then Y
+FMBD_CLONES static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt, double *Y,
+                                    int64_t ldy) {
+  const int64_t *ip = A->indptr, *ix = A->indices;
+  const double *d = A->data;
+  int64_t n = A->nrows;
+  memset(yt, 0, (size_t)n * NB * sizeof(double));
+  for (int64_t i = 0; i < n; i++) {
+    v8d s = {0}, xi = LD8(xt + i * NB);
+    for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
+      int64_t j = ix[p];
+      double a = d[p];
+      s += a * LD8(xt + j * NB);
+      if (j != i) ST8(yt + j * NB, LD8(yt + j * NB) + a * xi);
+    }
+    ST8(yt + i * NB, LD8(yt + i * NB) + s);
+  }
+  for (int64_t i = 0; i < n; i++) {
+    for (int k = 0; k < NB; k++) Y[i + k * ldy] = yt[i * NB + k];
   }
 }
 
@@ -250,9 +280,9 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
       for (int k = 0; k < w; k++) xt[j * w + k] = X[j + (c + k) * ldx];
     }
     if (A->lower)
-      rows_lower(A, NB, xt, yt, Y + c * ldy, ldy);
+      rows8_lower(A, xt, yt, Y + c * ldy, ldy);
     else if (w == NB)
-      rows_full(A, NB, xt, Y + c * ldy, ldy);
+      rows8_full(A, xt, Y + c * ldy, ldy);
     else
       rows_full(A, w, xt, Y + c * ldy, ldy);
   }
