@@ -850,9 +850,12 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // the Ritz vectors' back solve (nev + a few columns) and the projections (nb): by 8
     // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
     // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
-    if (nev < 60) fmbd_chol_set_solve_width(F, 8);
+    // the projections' solves of nb columns in one pass over the factor while no basis is
+    // alive (CHOLMOD's two n x nb workspaces: 36 MB at 188 k dofs and 12 boundary dofs)
+    if (nev < 60) fmbd_chol_set_solve_width(F, nb > 8 && nb <= 16 ? nb : 8);
     if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb, &pk_blocks));
     fmbd_chol_release_workspace(F);
+    if (nev < 60) fmbd_chol_set_solve_width(F, 8);
     mem_log("after the constraint modes and projections");
     // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
     // residual check) nor by the projections: parked since the LL' until the Sturm check; the
@@ -882,7 +885,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     if (o.eig.sturm && !er.dense) {
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
-      fmbd_chol_destroy(&F);
+      // the factor's values go (if the residual check has not dropped them); its analysis
+      // serves the Sturm check's LDL' (the same pattern and ordering: fmbd_chol_lend_analysis)
+      FMBD_GCALL(fmbd_chol_drop_numeric(F));
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
 #endif
@@ -894,8 +899,11 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       if (fmbd_progress_enabled())
         fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
       fmbd_chol_set_input_hook(inputs_away_fn, &away);
+      fmbd_chol_lend_analysis(F);
       rc = fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok);
+      fmbd_chol_lend_analysis(NULL);
       fmbd_chol_set_input_hook(NULL, NULL);
+      fmbd_chol_destroy(&F);
       FMBD_GCALL(rc);
       if (!ok) {
         // Ks and Ms back, the Ritz vectors dropped (solved again)
@@ -976,6 +984,7 @@ done:
   fmbd_free(mark);
   fmbd_free(perm);
   fmbd_chol_set_input_hook(NULL, NULL);
+  fmbd_chol_lend_analysis(NULL);
   parking_close(&pk_ks);
   parking_close(&pk_idx);
   parking_close(&pk_ms);

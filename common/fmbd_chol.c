@@ -559,6 +559,30 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   return FMBD_OK;
 }
 
+// fmbd_chol_lend_analysis: a supernodal LL' whose symbolic factor serves the next analyses
+static _Thread_local const fmbd_chol *g_lent = NULL;
+
+void fmbd_chol_lend_analysis(const fmbd_chol *F) {
+  g_lent = F;
+}
+
+// the lent LL' if its analysis is the one an LDLT of (A, B) with the ordering perm would make:
+// the same matrix A (object and arrays), B NULL or on A's index arrays (so the union pattern
+// is A's), perm its final permutation, and no numeric values (the copy is then symbolic)
+static const fmbd_chol *lent_analysis(const fmbd_csr *A, const fmbd_csr *B, int kind,
+                                      const int64_t *perm) {
+  const fmbd_chol *D = g_lent;
+  if (!D || kind != FMBD_CHOL_LDLT || !perm || D->kind != FMBD_CHOL_LLT || D->B || D->A != A ||
+      !D->L || !D->L->is_super || D->L->xtype != CHOLMOD_PATTERN || !D->L->Perm)
+    return NULL;
+  if (B && (B->indptr != A->indptr || B->indices != A->indices || B->lower != A->lower))
+    return NULL;
+  const SuiteSparse_long *p = D->L->Perm;
+  for (int64_t k = 0; k < D->n; k++)
+    if (p[k] != perm[k]) return NULL;
+  return D;
+}
+
 int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol **out) {
   return fmbd_chol_analyze_perm(A, B, kind, NULL, out);
 }
@@ -609,28 +633,41 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
     F->c.final_asis = 1;
   }
   g_cholmod_msg[0] = 0;
-  FMBD_GCALL(build_pattern(F));
   double t0 = fmbd_wall_s();
-  if (perm) {
-    // the caller's fill-reducing ordering (e.g. of an earlier factor of the same pattern)
-    F->c.nmethods = 1;
+  const fmbd_chol *D = lent_analysis(A, B, kind, perm);
+  if (D) {
+    // the lent LL' analysis: the same pattern and ordering give the same symbolic factor
+    F->L = cholmod_l_copy_factor(D->L, &F->c);
+    if (!F->L) FMBD_GCALL(cholmod_fail(F, "copy_factor"));
+    F->st.nnz_a = D->st.nnz_a;
+    F->c.lnz = D->c.lnz;
     F->c.method[0].ordering = CHOLMOD_GIVEN;
-    F->c.postorder = 1;
-    F->L = cholmod_l_analyze_p(F->S, (SuiteSparse_long *)perm, NULL, 0, &F->c);
+    fmbd_log(FMBD_LOG_DEBUG, "analysis: the LL' one of the same pattern and ordering (lent)");
   } else {
-    if (F->n >= METIS_ONLY_N) {
-      // CHOLMOD's default tries AMD first and METIS only when AMD's fill is high; on the FE
-      // bodies above this size METIS always won (51 k and 188 k dofs: 1.24e8 entries in L and
-      // 1.89e11 flops against AMD's 1.60e8 and 3.0e11 at 188 k), so the AMD pass is skipped:
-      // the same ordering, 0.4 s less at 188 k (bench/README.md "fe2cb's memory, third round")
+    FMBD_GCALL(build_pattern(F));
+    t0 = fmbd_wall_s();
+    if (perm) {
+      // the caller's fill-reducing ordering (e.g. of an earlier factor of the same pattern)
       F->c.nmethods = 1;
-      F->c.method[0].ordering = CHOLMOD_METIS;
+      F->c.method[0].ordering = CHOLMOD_GIVEN;
+      F->c.postorder = 1;
+      F->L = cholmod_l_analyze_p(F->S, (SuiteSparse_long *)perm, NULL, 0, &F->c);
+    } else {
+      if (F->n >= METIS_ONLY_N) {
+        // CHOLMOD's default tries AMD first and METIS only when AMD's fill is high; on the FE
+        // bodies above this size METIS always won (51 k and 188 k dofs: 1.24e8 entries in L
+        // and 1.89e11 flops against AMD's 1.60e8 and 3.0e11 at 188 k), so the AMD pass is
+        // skipped: the same ordering, 0.4 s less at 188 k (bench/README.md "fe2cb's memory,
+        // third round")
+        F->c.nmethods = 1;
+        F->c.method[0].ordering = CHOLMOD_METIS;
+      }
+      F->L = cholmod_l_analyze(F->S, &F->c);
     }
-    F->L = cholmod_l_analyze(F->S, &F->c);
   }
   F->st.t_analyze_s = fmbd_wall_s() - t0;
   if (!F->L || F->c.status < 0) FMBD_GCALL(cholmod_fail(F, "analyze"));
-  F->st.ordering = ordering_name(F->c.method[F->c.selected].ordering);
+  F->st.ordering = ordering_name(F->c.method[D ? 0 : F->c.selected].ordering);
   F->st.nnz_l = F->c.lnz;
   if (F->L->is_super) {
     fmbd_log(FMBD_LOG_DEBUG,

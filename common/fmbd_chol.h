@@ -105,6 +105,13 @@ void fmbd_chol_release_workspace(fmbd_chol *F);
 typedef void (*fmbd_chol_input_fn)(void *ctx);
 void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx);
 
+/// @brief Lend the analysis of the LLT factor F (its values dropped: fmbd_chol_drop_numeric) to
+/// the next fmbd_chol_analyze_perm calls of the calling thread: an LDLT of (A, B) with F's own
+/// A, B NULL or on A's index arrays, and F's permutation copies F's symbolic factor instead of
+/// analysing again (the same result; fe2cb's Sturm check, made inside fmbd_eig.c). F must
+/// outlive the calls; NULL ends the loan.
+void fmbd_chol_lend_analysis(const fmbd_chol *F);
+
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
 /// solves still work, fmbd_chol_factor does not any more (except for LLT, which assembles its
 /// input from A and B). Lowers the peak memory of a long solve phase by the size of the upper

@@ -82,11 +82,11 @@ static bool dead_point(fmbd_mbs *m, double h, const char *how) {
 // acceleration tolerance newton_tol ascale_i (or beta' times its position tolerance or its
 // round-off floor), so the multipliers converge to the accuracy the coordinates' accelerations
 // are asked for, and their round-off floor is that of the coordinates (the 1e3 eps |x| floor
-// times beta' A_ii). A_ii / |J_ki| of the last evaluated matrix (the factored one: q->jw,
-// formed once per matrix), tx_i of this attempt; coordinates whose diagonal is not formed in Ax
-// (an eliminated body's modal block) are not used, and a row without any is not tested (ity
-// 0). Formed only where the early stop is in reach (attempt): forming them at every attempt
-// cost as much as the iterations they saved on the 100-link chain.
+// times beta' A_ii; |lambda_k| of the step's start). A_ii / |J_ki| of the last evaluated matrix
+// (the factored one: q->jw, formed once per matrix), tx_i of this attempt; coordinates whose
+// diagonal is not formed in Ax (an eliminated body's modal block) are not used, and a row without
+// any is not tested (ity 0). Formed only where the early stop is in reach (attempt): forming them
+// at every attempt cost as much as the iterations they saved on the 100-link chain.
 static void mult_tol(fmbd_mbs *m, double bp) {
   for (int64_t e = 0; e < m->neq; e++) {
     meq *q = &m->eq[e];
@@ -98,7 +98,7 @@ static void mult_tol(fmbd_mbs *m, double bp) {
         q->jw[i] = p >= 0 && a > 0 ? fabs(m->Ax[p]) / a : INFINITY;
       }
     }
-    double t = INFINITY, fl = 1e3 * DBL_EPSILON * fabs(m->lam[q->row]) / bp;
+    double t = INFINITY, fl = 1e3 * DBL_EPSILON * fabs(m->lamn[q->row]) / bp;
     for (int i = 0; i < q->nj; i++) {
       double v = q->jw[i] * m->tx[q->cols[i]];
       if (v < t) t = v;
@@ -245,23 +245,23 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     bool xok = nrm <= 1e-3 || (it > 0 && nrm <= 1 && (theta >= 1 || est <= 1));
     bool early = false;
     double nrl = -1, thl = -1;
-    if ((!xok && it > 1 && theta <= 0.1 && est <= 1) || (debug && it > 0)) {
-      if (!ity_ok) mult_tol(m, bp), ity_ok = true;
+    if (!xok && it > 1 && theta <= 0.1 && est <= 1) {  // the early stop in reach
+      if (!ity_ok || !m->jw_ok) mult_tol(m, bp), ity_ok = true;
       double prevl = mult_norm(m, m->dyp);
       nrl = mult_norm(m, m->rhs + n);
       thl = nrl / prevl;
       double estl = thl / (1 - thl) * nrl;
       bool lok = nrl <= 1e-3 || ((nrl <= 1 || thl <= 0.1) && estl <= 1);
-      early = !xok && it > 1 && theta <= 0.1 && est <= 1 && lok;
+      early = lok;
     }
-    if (debug) {
-      char dxw[300];
+    if (debug) {  // the multipliers only where the early stop was in reach (the same decisions)
+      char dxw[300], lw[200] = "";
       mbs_coord_describe(m, m->worst_dx, dxw, sizeof dxw);
-      fmbd_log(FMBD_LOG_DEBUG,
-               "t = %.9g h = %.3g Newton %d%s: |dx|/tol %.3g theta %.3g (%s); |dlambda|/tol %.3g "
-               "theta %.3g (kept equation %lld)%s",
-               m->t, h, it, matrix ? " (new matrix)" : "", nrm, theta, dxw, nrl, thl,
-               (long long)m->worst_dy, early ? " (early stop)" : "");
+      if (nrl >= 0)
+        snprintf(lw, sizeof lw, "; |dlambda|/tol %.3g theta %.3g (kept equation %lld)%s", nrl, thl,
+                 (long long)m->worst_dy, early ? ", early stop" : "");
+      fmbd_log(FMBD_LOG_DEBUG, "t = %.9g h = %.3g Newton %d%s: |dx|/tol %.3g theta %.3g (%s)%s",
+               m->t, h, it, matrix ? " (new matrix)" : "", nrm, theta, dxw, lw);
     }
     if (xok || early) {
       *conv = true;
