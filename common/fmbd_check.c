@@ -106,7 +106,9 @@ int fmbd_check_load_fe(fmbd_check *c, bool required, const char *why) {
                cand, sha, c->cb->fe_sha256, why);
   }
   fmbd_err_context(cand, "");
-  FMBD_GCALL(fmbd_fe_read(f, &c->fe));
+  // K and M only (all that the estimate and --exact use): the SHA-256 check above makes this
+  // the very file fe2cb read and validated whole (when the cb file records fe_sha256)
+  FMBD_GCALL(fmbd_fe_read_matrices(f, &c->fe));
   if (!c->fe->K || !c->fe->M || c->fe->ndof != c->cb->ndof) {
     fmbd_err_context(cand, "/K");
     fmbd_fe_body_destroy(&c->fe);

@@ -179,6 +179,10 @@ int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out);
 /// @brief fmbd_fe_read without /K and /M (left NULL): the description, for a distributed
 /// program whose processes read their row blocks of K and M (fmbd_h5_read_csr_rows).
 int fmbd_fe_read_description(fmbd_h5 *f, fmbd_fe_body **out);
+/// @brief fmbd_fe_read of /K and /M only (both required; ndof from /K's shape; everything else
+/// left empty): for a caller that knows the file is one read whole before (cbcheck checks its
+/// SHA-256 against the one fe2cb recorded), and needs only the matrices.
+int fmbd_fe_read_matrices(fmbd_h5 *f, fmbd_fe_body **out);
 
 /// @brief Copy /mesh /dofs /material /interfaces /clamped /body /expand (everything but /K
 /// and /M) from src to dst.

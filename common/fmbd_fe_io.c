@@ -125,7 +125,29 @@ static int check_nodes(fmbd_h5 *f, const char *path, int64_t n, const int64_t *v
   return FMBD_OK;
 }
 
-static int fe_read(fmbd_h5 *f, bool matrices, fmbd_fe_body **out) {
+// what fe_read reads: everything, everything but /K and /M, or /K and /M only
+typedef enum { READ_ALL, READ_DESCRIPTION, READ_MATRICES } read_what;
+
+// /K and /M only (ndof from /K's shape): for a caller that checked the file otherwise (cbcheck:
+// its SHA-256 is the one fe2cb recorded, so fe2cb read and validated this very file whole)
+static int fe_read_matrices(fmbd_h5 *f, fmbd_fe_body *b) {
+  int rc = FMBD_OK;
+  FMBD_GCALL(fmbd_h5_read_csr(f, "/K", &b->K));
+  if (b->K->nrows != b->K->ncols) {
+    RFAIL("/K", "shape (%lld, %lld) is not square", (long long)b->K->nrows, (long long)b->K->ncols);
+  }
+  b->ndof = b->K->nrows;
+  FMBD_GCALL(fmbd_h5_read_csr_like(f, "/M", b->K, "/K", &b->M));
+  if (b->M->nrows != b->ndof || b->M->ncols != b->ndof) {
+    RFAIL("/M", "shape (%lld, %lld), expected (%lld, %lld) from /K", (long long)b->M->nrows,
+          (long long)b->M->ncols, (long long)b->ndof, (long long)b->ndof);
+  }
+done:
+  return rc;
+}
+
+static int fe_read(fmbd_h5 *f, read_what what, fmbd_fe_body **out) {
+  const bool matrices = what != READ_DESCRIPTION;
   int rc = FMBD_OK;
   fmbd_fe_body *b = NULL;
   int nnames = 0;
@@ -134,6 +156,10 @@ static int fe_read(fmbd_h5 *f, bool matrices, fmbd_fe_body **out) {
   char path[1024];
   int64_t dims[2];
   FMBD_GALLOC(b = fmbd_calloc(1, sizeof *b));
+  if (what == READ_MATRICES) {
+    FMBD_GCALL(fe_read_matrices(f, b));
+    goto out;
+  }
   // --- /mesh ---
   dims[0] = -1;
   dims[1] = 3;
@@ -312,6 +338,7 @@ static int fe_read(fmbd_h5 *f, bool matrices, fmbd_fe_body **out) {
   if (fmbd_h5_has_attr(f, "/body", "volume")) {
     FMBD_GCALL(fmbd_h5_read_attr_f64(f, "/body", "volume", 1, &b->volume));
   }
+out:
   *out = b;
   b = NULL;
 done:
@@ -325,11 +352,15 @@ done:
 }
 
 int fmbd_fe_read(fmbd_h5 *f, fmbd_fe_body **out) {
-  return fe_read(f, true, out);
+  return fe_read(f, READ_ALL, out);
 }
 
 int fmbd_fe_read_description(fmbd_h5 *f, fmbd_fe_body **out) {
-  return fe_read(f, false, out);
+  return fe_read(f, READ_DESCRIPTION, out);
+}
+
+int fmbd_fe_read_matrices(fmbd_h5 *f, fmbd_fe_body **out) {
+  return fe_read(f, READ_MATRICES, out);
 }
 
 int fmbd_fe_copy_description(fmbd_h5 *src, fmbd_h5 *dst) {

@@ -148,6 +148,15 @@ static void round_trip(fmbd_fe_body *a, const char *name) {
   EXPECT(fmbd_fe_read(g, &b) == FMBD_OK, "read: %s", fmbd_err_get()->msg);
   if (b) compare(a, b, true, name);
   fmbd_fe_body_destroy(&b);
+  // the selection of /K and /M only: the same matrices, nothing else read
+  EXPECT(fmbd_fe_read_matrices(g, &b) == FMBD_OK, "read matrices: %s", fmbd_err_get()->msg);
+  if (b) {
+    EXPECT(b->ndof == a->ndof && same_csr(a->K, b->K) && same_csr(a->M, b->M),
+           "%s: K and M read alone differ", name);
+    EXPECT(!b->xyz && !b->dofs && !b->expand && b->ninterfaces == 0,
+           "%s: the matrices-only read read more", name);
+  }
+  fmbd_fe_body_destroy(&b);
   // description copied into a downstream file: read back without K and M
   char dname[256];
   snprintf(dname, sizeof dname, "desc-%s", name);
@@ -160,6 +169,8 @@ static void round_trip(fmbd_fe_body *a, const char *name) {
   EXPECT(fmbd_fe_read(g, &b) == FMBD_OK, "read downstream: %s", fmbd_err_get()->msg);
   if (b) compare(a, b, false, dname);
   fmbd_fe_body_destroy(&b);
+  EXPECT(fmbd_fe_read_matrices(g, &b) != FMBD_OK && !b, "%s: no /K, yet matrices read", dname);
+  fmbd_err_clear();
   fmbd_h5_close(&g);
 }
 
