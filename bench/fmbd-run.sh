@@ -7,8 +7,9 @@
 #     integration, one core); at 30 and 100 modes the fixed-step case again with the modal
 #     block not eliminated (FMBD_MBS_SCHUR=0: KLU on the whole iteration matrix) and with the
 #     rod's partial inertia coupling (inertia_coupling: partial, docs/THEORY.md section 4c;
-#     node A's error against the full model's reference); beside it the rigid-only quadruple
-#     pendulum;
+#     node A's error against the full model's reference), at 30 modes also partial coupling with
+#     fixed 2e-3 s steps and newton_tol 1e-4 (the 100x row of issue 12); beside it the
+#     rigid-only quadruple pendulum;
 #  2. the peer side by side: the rigid quadruple pendulum in minimal coordinates (the planar
 #     chain's four angles, Lagrange's equations) integrated by scipy's solve_ivp (DOP853,
 #     rtol 1e-10), its CPU time, and the RMS difference of link 3's tip over the first 2 s
@@ -88,6 +89,15 @@ for nm in (10, 30, 100):
         # full model's reference, as every row
         st = run(f"quad{nm}fp", fixed.replace("%BODY%", body % nm + "    inertia_coupling: partial\n"), ref)
         if st: row(f"  the same, partial coupling", st, 7)
+    if nm == 30:
+        # issue 12's 100x target at the accuracy of the example's variable steps (node A 4e-4 to
+        # 1e-3 m over 0..2 s): partial coupling, fixed 2e-3 s steps, newton_tol 1e-4 (9.4e-4 m;
+        # 1.25e-3 and 1.5e-3 s steps are less accurate here: bench/README.md, "Fewer Newton
+        # iterations")
+        coarse = re.sub(r"  step: 1e-3\n", "  step: 2e-3\n", fixed)
+        coarse = re.sub(r"  newton_tol: .*\n( +#.*\n)*", "  newton_tol: 1e-4\n", coarse)
+        st = run("quad30fp2", coarse.replace("%BODY%", body % nm + "    inertia_coupling: partial\n"), ref)
+        if st: row("  partial, 2e-3 s, newton_tol 1e-4", st, 7)
 st = run("quadrigid", rigid)
 if st: row("rigid only, variable", st, 7)
 rigid_fixed = re.sub(r"  first_step: .*\n  max_step: .*\n  tolerance: .*\n( +#.*\n)*", "  step: 1e-3\n", rigid)

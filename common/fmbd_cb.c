@@ -317,82 +317,132 @@ static FILE *scratch_file(void) {
   return tmpfile();
 }
 
-// Arrays parked in an unlinked temporary file (scratch_file) while a stage that does not read them
-// runs, and freed: Ms's values during the LL' (the factor is of Ks alone), Ks's from the LL'
-// until the Sturm check (back for the residual check only: ks_back_fn), the four
-// ns x nb projection blocks during the Sturm check. Each stage's peak then holds those bytes
-// less (bench/README.md "fe2cb's memory"); the file lives in the page cache or on disk, not
-// in the process. No file (neither $TMPDIR nor /tmp writable): the arrays stay in memory,
-// *f NULL. k arrays of m doubles each, none NULL (else nothing is parked).
-static void park(int k, double **const a[], size_t m, FILE **f) {
-  *f = NULL;
-  if (m == 0) return;
-  for (int i = 0; i < k; i++)
-    if (!*a[i]) return;
-  FILE *t = scratch_file();
-  if (!t) return;
-  for (int i = 0; i < k; i++) {
-    if (fwrite(*a[i], sizeof(double), m, t) != m) {
-      fclose(t);
-      return;
-    }
-  }
-  if (fflush(t) != 0) {
-    fclose(t);
+// Arrays parked in an unlinked temporary file (scratch_file) while a stage that does not read
+// them runs, and freed: Ks's and Ms's values and their index array from the moment each
+// factorisation has formed its input (fmbd_chol_set_input_hook) until it returns, Ks's values
+// from the LL' until the Sturm check (back for the residual check only: ks_back_fn), the Ritz
+// vectors and the ns x nb projection blocks as each is finished, until the Sturm check has run.
+// Each stage's peak then holds those bytes less (bench/README.md "fe2cb's memory"); the file
+// lives in the page cache or on disk, not in the process. No file (neither $TMPDIR nor /tmp
+// writable) or a failed write: the arrays stay in memory from then on. A parking holds up to 8
+// arrays, read back in the order they were parked.
+typedef struct {
+  FILE *f;
+  bool failed;  // no file, or a write failed: nothing more is parked here
+  int n;
+  struct {
+    double **d;  // one of d, i: where the array's pointer lives
+    int64_t **i;
+    size_t count;
+  } a[8];
+} parking;
+
+static void park_arr(parking *pk, double **d, int64_t **i, size_t count) {
+  void *p = d ? (void *)*d : (void *)*i;
+  if (pk->failed || !p || count == 0 || pk->n == 8) return;
+  if (!pk->f) pk->f = scratch_file();
+  if (!pk->f || fseek(pk->f, 0, SEEK_END) != 0 || fwrite(p, 8, count, pk->f) != count ||
+      fflush(pk->f) != 0) {
+    pk->failed = true;
     return;
   }
-  for (int i = 0; i < k; i++) {
-    fmbd_free(*a[i]);
-    *a[i] = NULL;
-  }
-  *f = t;
+  pk->a[pk->n].d = d;
+  pk->a[pk->n].i = i;
+  pk->a[pk->n].count = count;
+  pk->n++;
+  fmbd_free(p);
+  if (d) *d = NULL;
+  if (i) *i = NULL;
+}
+static void park_f64(parking *pk, double **a, size_t count) {
+  park_arr(pk, a, NULL, count);
 }
 
-// the arrays parked by park (the same k, a[] and m) back into memory; closes the file unless
-// keep (then they can be dropped again without writing: drop_parked)
-static int unpark(int k, double **const a[], size_t m, FILE **f, bool keep) {
-  if (!*f) return FMBD_OK;
-  FILE *t = *f;
-  if (!keep) *f = NULL;
-  bool ok = fseek(t, 0, SEEK_SET) == 0, mem = true;
-  for (int i = 0; i < k && ok && mem; i++) {
-    *a[i] = fmbd_malloc(m * sizeof(double));
-    mem = *a[i] != NULL;
-    ok = mem && fread(*a[i], sizeof(double), m, t) == m;
+// the parked arrays back into memory (those not already there); keep: the file and its list
+// are kept, so that drop can free them again without a second write
+static int unpark(parking *pk, bool keep) {
+  bool ok = pk->n == 0 || fseek(pk->f, 0, SEEK_SET) == 0, mem = true;
+  for (int k = 0; k < pk->n && ok && mem; k++) {
+    if (pk->a[k].d ? *pk->a[k].d != NULL : *pk->a[k].i != NULL) {
+      ok = fseek(pk->f, (long)(pk->a[k].count * 8), SEEK_CUR) == 0;
+      continue;
+    }
+    void *p = fmbd_malloc(pk->a[k].count * 8);
+    mem = p != NULL;
+    if (pk->a[k].d)
+      *pk->a[k].d = p;
+    else
+      *pk->a[k].i = p;
+    ok = mem && fread(p, 8, pk->a[k].count, pk->f) == pk->a[k].count;
   }
-  if (!keep) fclose(t);
+  if (!keep) {
+    if (pk->f) fclose(pk->f);
+    memset(pk, 0, sizeof *pk);
+  }
   FMBD_CHECK(mem, FMBD_ERR_NOMEM, "out of memory");
   FMBD_CHECK(ok, FMBD_ERR_IO, "cannot read back the arrays parked in a temporary file");
   return FMBD_OK;
 }
 
-// a matrix's values (park)
-static void park_values(fmbd_csr *A, FILE **f) {
-  double **const a[1] = {&A->data};
-  park(1, a, (size_t)fmbd_csr_nnz(A), f);
-}
-static int unpark_values(fmbd_csr *A, FILE **f, bool keep) {
-  double **const a[1] = {&A->data};
-  return unpark(1, a, (size_t)fmbd_csr_nnz(A), f, keep);
+// the arrays of a parking unparked with keep, freed again (the file still holds them)
+static void drop(parking *pk) {
+  for (int k = 0; k < pk->n; k++) {
+    if (pk->a[k].d) {
+      fmbd_free(*pk->a[k].d);
+      *pk->a[k].d = NULL;
+    } else {
+      fmbd_free(*pk->a[k].i);
+      *pk->a[k].i = NULL;
+    }
+  }
 }
 
-// fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that they
-// can be dropped again after the eigensolver (when its Ritz vectors and the projections'
-// blocks are alive beside the factor) without a second write. First the Ritz vectors' back
-// solve's wide CHOLMOD workspaces and the iterations' freed arrays go back to the system, so
-// that Ks's values take their place.
+static void parking_close(parking *pk) {
+  if (pk->f) fclose(pk->f);
+  memset(pk, 0, sizeof *pk);
+}
+
+// fmbd_eig_opts.need_k: Ks's values back for the residual check, the file kept, so that the
+// Sturm check's LDL' can drop them again without a second write.
 typedef struct {
-  fmbd_csr *Ks;
-  FILE **f;
+  parking *pk;
   fmbd_chol *F;
 } ks_back;
 static int ks_back_fn(void *ctx) {
   ks_back *b = ctx;
-  fmbd_chol_release_workspace(b->F);
-#ifdef __GLIBC__
-  malloc_trim(0);
-#endif
-  return unpark_values(b->Ks, b->f, true);
+  // the factor is not read after the Lanczos run (the projections came first, the Sturm check
+  // makes its own): its values go, in place of which Ks's come back; should the eigensolver
+  // solve again (a residual above its bound: one more run), fmbd_chol factors Ks again first
+  FMBD_CALL(fmbd_chol_drop_numeric(b->F));
+  return unpark(b->pk, true);
+}
+
+// fmbd_chol_set_input_hook of the LL' of Ks and of the Sturm check's LDL' of Ks - s Ms: once
+// the factorisation has formed its input, Ks's values and the index array (Ms's too when
+// shared) go to the scratch file, and Ms's values if they are in memory (the LL' is of Ks
+// alone: Ms's are parked before it). Parkings already holding an array (unparked with keep)
+// are dropped without a second write.
+typedef struct {
+  fmbd_csr *Ks, *Ms;
+  parking *vals, *idx, *msvals;
+} inputs_away;
+static void inputs_away_fn(void *ctx) {
+  inputs_away *w = ctx;
+  bool shared = w->Ms->indices == w->Ks->indices;
+  size_t nnz = (size_t)fmbd_csr_nnz(w->Ks);
+  if (w->vals->n)
+    drop(w->vals);
+  else
+    park_f64(w->vals, &w->Ks->data, nnz);
+  if (w->idx->n)
+    drop(w->idx);
+  else
+    park_arr(w->idx, NULL, &w->Ks->indices, nnz);
+  if (shared && !w->Ks->indices) w->Ms->indices = NULL;
+  if (w->Ms->data && w->msvals->n)
+    drop(w->msvals);
+  else if (w->Ms->data)
+    park_f64(w->msvals, &w->Ms->data, (size_t)fmbd_csr_nnz(w->Ms));
 }
 
 // C (nb x m, ldc) += S' X  for a sparse S (ns x nb) and dense X (ns x m, ld ns)
@@ -461,14 +511,18 @@ static int singular_message(int rc, const fmbd_chol *F, const int64_t *interior,
 }
 
 // constraint modes Psi = -Ks^-1 Kc, the projections A = Ms Psi + Mc, Ks^-1 A, Ks^-1 Ms Ks^-1 A
-// and the boundary blocks of the reduced matrices, with the factor F of Ks. Called after the
-// Lanczos run: its basis is freed by then, so the four ns x nb blocks are not alive beside it
-// (peak memory, bench/README.md "fe2cb's memory"); the same operations on the same factor as
-// before, so the same numbers.
+// and the boundary blocks of the reduced matrices, with the factor F of Ks. pk (may be NULL):
+// each block is parked there once the steps that read it are done (Psi, A, Ks^-1 A,
+// Ks^-1 Ms Ks^-1 A, in that order), so that at most two are in memory beside the factor and
+// none beside the Lanczos basis, which comes after (peak memory, bench/README.md "fe2cb's
+// memory"); the caller unparks them. The same operations on the same factor, in whichever
+// order, so the same numbers.
 static int constraint_modes(fmbd_cb *cb, fmbd_chol *F, const fmbd_csr *Ms, const fmbd_csr *Kc,
-                            const fmbd_csr *Mc, const fmbd_csr *Kb, const fmbd_csr *Mb) {
+                            const fmbd_csr *Mc, const fmbd_csr *Kb, const fmbd_csr *Mb,
+                            parking *pk) {
   int rc = FMBD_OK;
   int64_t ns = cb->ns, nb = cb->nb;
+  size_t blk = (size_t)(ns * nb);
   double t1 = fmbd_wall_s();
   // --- constraint modes Psi = -Ks^-1 Kc: one multi-rhs solve ---
   int64_t s0 = 0;
@@ -478,7 +532,7 @@ static int constraint_modes(fmbd_cb *cb, fmbd_chol *F, const fmbd_csr *Ms, const
     s0 = st.n_solves;
   }
   FMBD_GALLOC(cb->Psi = alloc_f64(ns * nb));
-  memset(cb->Psi, 0, (size_t)(ns * nb) * sizeof(double));
+  memset(cb->Psi, 0, blk * sizeof(double));
   for (int64_t i = 0; i < ns; i++) {
     for (int64_t p = Kc->indptr[i]; p < Kc->indptr[i + 1]; p++) {
       cb->Psi[i + Kc->indices[p] * ns] = -Kc->data[p];
@@ -490,11 +544,9 @@ static int constraint_modes(fmbd_cb *cb, fmbd_chol *F, const fmbd_csr *Ms, const
   }
   cb->time.constraint = fmbd_wall_s() - t1;
 
-  // --- projections: A, Ks^-1 A, Ks^-1 Ms Ks^-1 A, Phi' A, boundary blocks ---
+  // --- projections: A, the boundary blocks, Ks^-1 A, Ks^-1 Ms Ks^-1 A ---
   t1 = fmbd_wall_s();
   FMBD_GALLOC(cb->A = alloc_f64(ns * nb));
-  FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
-  FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
   if (nb > 0) {
     fmbd_csr_matmat(Ms, nb, cb->Psi, ns, cb->A, ns);
     for (int64_t i = 0; i < ns; i++) {
@@ -502,13 +554,22 @@ static int constraint_modes(fmbd_cb *cb, fmbd_chol *F, const fmbd_csr *Ms, const
         cb->A[i + Mc->indices[p] * ns] += Mc->data[p];
       }
     }
-    memcpy(cb->KsinvA, cb->A, (size_t)(ns * nb) * sizeof(double));
+  }
+  // the boundary blocks read Psi and A only (the last step that reads Psi)
+  FMBD_GCALL(fmbd_cb_condense_boundary(cb, Kc, Mc, Kb, Mb));
+  if (pk) park_f64(pk, &cb->Psi, blk);
+  FMBD_GALLOC(cb->KsinvA = alloc_f64(ns * nb));
+  memcpy(cb->KsinvA, cb->A, blk * sizeof(double));
+  if (pk) park_f64(pk, &cb->A, blk);
+  if (nb > 0) {
     if (fmbd_progress_enabled()) fmbd_progress("projections: %lld solves", (long long)(2 * nb));
     FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvA, ns));
-    fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
-    FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
   }
-  FMBD_GCALL(fmbd_cb_condense_boundary(cb, Kc, Mc, Kb, Mb));
+  FMBD_GALLOC(cb->KsinvMsKsinvA = alloc_f64(ns * nb));
+  if (nb > 0) fmbd_csr_matmat(Ms, nb, cb->KsinvA, ns, cb->KsinvMsKsinvA, ns);
+  if (pk) park_f64(pk, &cb->KsinvA, blk);
+  if (nb > 0) FMBD_GCALL(fmbd_chol_solve(F, nb, cb->KsinvMsKsinvA, ns));
+  if (pk) park_f64(pk, &cb->KsinvMsKsinvA, blk);
   {
     fmbd_chol_stats st;
     fmbd_chol_get_stats(F, &st);
@@ -667,7 +728,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   fmbd_eig_result er = {0};
   char *mark = NULL;
   int64_t *perm = NULL;
-  FILE *parked_ms = NULL, *parked_ks = NULL, *parked_blocks = NULL;  // park
+  // parked arrays: Ks's values, the index array of Ks (and Ms), Ms's values, the projection
+  // blocks, the Ritz vectors
+  parking pk_ks = {0}, pk_idx = {0}, pk_ms = {0}, pk_blocks = {0}, pk_x = {0};
   *out = NULL;
   int64_t n = K->nrows;
   FMBD_CHECK(o.nmodes >= 0, FMBD_ERR_VALUE, "negative number of modes");
@@ -704,7 +767,6 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   int64_t ns = n - nb;
   FMBD_GCHECK(ns > 0, FMBD_ERR_VALUE, "every dof of the body is a boundary dof: nothing to reduce");
   cb->ns = ns;
-  double **const blocks[4] = {&cb->Psi, &cb->A, &cb->KsinvA, &cb->KsinvMsKsinvA};  // park
   FMBD_GALLOC(cb->interior = fmbd_malloc((size_t)ns * sizeof(int64_t)));
   FMBD_GALLOC(cb->boundary = fmbd_malloc((size_t)(nb ? nb : 1) * sizeof(int64_t)));
   for (int64_t i = 0, a = 0, b = 0; i < n; i++) {
@@ -718,6 +780,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   FMBD_GCALL(sub(M, ns, cb->interior, ns, cb->interior, &Ms));
   share_pattern(Ks, Ms);
   FMBD_GCALL(keep_lower(Ks, Ms));
+  bool shared = Ms->indices == Ks->indices;
   FMBD_GCALL(sub(K, ns, cb->interior, nb, cb->boundary, &Kc));
   FMBD_GCALL(sub(M, ns, cb->interior, nb, cb->boundary, &Mc));
   FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
@@ -740,11 +803,19 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   // --- the factor of Ks, once ---
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   mem_log("after the analysis");
-  park_values(Ms, &parked_ms);  // the LL' is of Ks alone
+  // the LL' is of Ks alone: Ms's values parked; Ks's values and the index array too once the
+  // LL' input (tril(P Ks P'), fmbd_chol.c) is formed
+  park_f64(&pk_ms, &Ms->data, (size_t)fmbd_csr_nnz(Ms));
+  inputs_away away = {Ks, Ms, &pk_ks, &pk_idx, &pk_ms};
+  fmbd_chol_set_input_hook(inputs_away_fn, &away);
   rc = fmbd_chol_factor(F, 0.0);
+  fmbd_chol_set_input_hook(NULL, NULL);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, dofs, nb));
   fmbd_chol_release_matrix(F);  // factored once: the matrix copy is not needed for solves
-  FMBD_GCALL(unpark_values(Ms, &parked_ms, false));
+  // the index array back (kept in the file: dropped again without a write at the Sturm check)
+  FMBD_GCALL(unpark(&pk_idx, true));
+  if (shared) Ms->indices = Ks->indices;
+  FMBD_GCALL(unpark(&pk_ms, true));  // kept too
   mem_log("after the factorisation");
   {
     fmbd_chol_stats st;
@@ -766,9 +837,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->nr = 0;
   }
 
-  // --- fixed-interface modes (Lanczos with the same factor; the constraint modes and
-  // projections after it, with the same factor; the Sturm check after the factor is freed,
-  // since its LDL' factor is as large) ---
+  // --- fixed-interface modes (the constraint modes and projections first, each block parked
+  // as it is finished; then Lanczos with the same factor, whose values are dropped at the
+  // residual check; the Sturm check after the factor is freed, since its LDL' factor is as
+  // large) ---
   if (o.fmax_hz > 0.0 || o.nmodes > 0) {
     double lmax = o.fmax_hz > 0.0 ? pow(2.0 * M_PI * o.fmax_hz, 2) : 0.0;
     int64_t nev = o.fmax_hz > 0.0 ? (o.nmodes > 0 ? o.nmodes : 20) : o.nmodes;
@@ -778,20 +850,26 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // the Ritz vectors' back solve (nev + a few columns) and the projections (nb): by 8
     // columns, CHOLMOD's two n x w workspaces stay small beside the factor and the basis, for
     // a few more passes over the factor (peak memory: bench/README.md "fe2cb's memory")
+    // the projections' solves of nb columns in one pass over the factor while no basis is
+    // alive (CHOLMOD's two n x nb workspaces: 36 MB at 188 k dofs and 12 boundary dofs)
+    if (nev < 60) fmbd_chol_set_solve_width(F, nb > 8 && nb <= 16 ? nb : 8);
+    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb, &pk_blocks));
+    fmbd_chol_release_workspace(F);
     if (nev < 60) fmbd_chol_set_solve_width(F, 8);
+    mem_log("after the constraint modes and projections");
     // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
-    // residual check) nor by the projections: parked until the Sturm check
-    ks_back kb = {Ks, &parked_ks, F};
-    if (ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)) park_values(Ks, &parked_ks);
-    if (parked_ks) {
+    // residual check) nor by the projections: parked since the LL' until the Sturm check; the
+    // dense path and an iteration over almost all of Ks's spectrum read them
+    ks_back kb = {&pk_ks, F};
+    if (!(ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)))
+      FMBD_GCALL(unpark(&pk_ks, false));
+    if (pk_ks.n) {
       o2.eig.need_k = ks_back_fn;
       o2.eig.need_k_ctx = &kb;
     }
+    // Ks's values stay in memory from the residual check on: the factor's values are gone by
+    // then (ks_back_fn), and the Sturm check reads them
     FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
-    if (parked_ks) {  // the file still holds them
-      fmbd_free(Ks->data);
-      Ks->data = NULL;
-    }
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
                  o.fmax_hz, hz(er.next_lambda));
@@ -799,26 +877,41 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // the Ritz vectors' wide back solve left CHOLMOD's workspaces n x (pairs) large
     fmbd_chol_release_workspace(F);
 #ifdef __GLIBC__
-    malloc_trim(0);  // the eigensolver's freed work arrays, before the projections allocate
+    malloc_trim(0);  // the eigensolver's freed work arrays
 #endif
     mem_log("after the Lanczos run");
-    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb));
-    mem_log("after the constraint modes and projections");
+    // the Ritz vectors are read again only after the Sturm check (Phi' A, the output)
+    park_f64(&pk_x, &er.X, (size_t)(ns * er.nev));
     if (o.eig.sturm && !er.dense) {
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
-      fmbd_chol_destroy(&F);
+      // the factor's values go (if the residual check has not dropped them); its analysis
+      // serves the Sturm check's LDL' (the same pattern and ordering: fmbd_chol_lend_analysis)
+      FMBD_GCALL(fmbd_chol_drop_numeric(F));
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
 #endif
-      FMBD_GCALL(unpark_values(Ks, &parked_ks, false));
-      park(4, blocks, (size_t)(ns * cb->nb), &parked_blocks);  // not read by the Sturm check
+      // Ks's values back (the file kept); the LDL' puts Ks - s Ms into its factor first, then
+      // Ks's and Ms's arrays go to the file until it returns (inputs_away_fn)
+      if (!Ks->data) FMBD_GCALL(unpark(&pk_ks, true));
       mem_log("after the Lanczos iterations, the factor freed");
       bool ok = false;
       if (fmbd_progress_enabled())
         fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
-      FMBD_GCALL(fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok));
+      fmbd_chol_set_input_hook(inputs_away_fn, &away);
+      fmbd_chol_lend_analysis(F);
+      rc = fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok);
+      fmbd_chol_lend_analysis(NULL);
+      fmbd_chol_set_input_hook(NULL, NULL);
+      fmbd_chol_destroy(&F);
+      FMBD_GCALL(rc);
       if (!ok) {
+        // Ks and Ms back, the Ritz vectors dropped (solved again)
+        FMBD_GCALL(unpark(&pk_ks, false));
+        FMBD_GCALL(unpark(&pk_idx, false));
+        if (shared) Ms->indices = Ks->indices;
+        FMBD_GCALL(unpark(&pk_ms, false));
+        parking_close(&pk_x);
         // a skipped mode, or no gap to place the shift: again with the full checked solver
         fmbd_log(FMBD_LOG_INFO,
                  "Sturm count %lld below %.6g Hz, Lanczos found %lld: solving again "
@@ -831,9 +924,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
         FMBD_GCALL(fmbd_chol_factor(F, 0.0));
         FMBD_GCALL(modes(Ks, Ms, F, &o, nev, lmax, false, &er));
       }
-      FMBD_GCALL(unpark(4, blocks, (size_t)(ns * cb->nb), &parked_blocks, false));
       mem_log("after the Sturm check");
     }
+    FMBD_GCALL(unpark(&pk_x, false));
+    FMBD_GCALL(unpark(&pk_blocks, false));
     take_eig_time(cb, &er);
     cb->nd = er.nev;
     cb->kappa = er.lambda;
@@ -841,7 +935,8 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     cb->kappa_next = er.next_lambda;
     er.lambda = er.X = NULL;
   } else {
-    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb));
+    FMBD_GCALL(unpark(&pk_ks, false));
+    if (!o.nm) FMBD_GCALL(constraint_modes(cb, F, Ms, Kc, Mc, Kb, Mb, NULL));
     FMBD_GALLOC(cb->kappa = alloc_f64(0));
     FMBD_GALLOC(cb->Phi = alloc_f64(0));
   }
@@ -888,9 +983,13 @@ done:
   fmbd_eig_result_free(&er);
   fmbd_free(mark);
   fmbd_free(perm);
-  if (parked_ms) fclose(parked_ms);
-  if (parked_ks) fclose(parked_ks);
-  if (parked_blocks) fclose(parked_blocks);
+  fmbd_chol_set_input_hook(NULL, NULL);
+  fmbd_chol_lend_analysis(NULL);
+  parking_close(&pk_ks);
+  parking_close(&pk_idx);
+  parking_close(&pk_ms);
+  parking_close(&pk_blocks);
+  parking_close(&pk_x);
   return rc;
 }
 

@@ -1,5 +1,6 @@
 // common/fmbd_chol.c: sparse symmetric factorisations through CHOLMOD (64-bit cholmod_l_*)
 // SPDX-License-Identifier: MIT
+#define _DEFAULT_SOURCE  // madvise (release_zero_pages)
 #include "fmbd_chol.h"
 
 #include <cblas.h>
@@ -11,10 +12,15 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
+
+// orderings of matrices of this order and more: METIS alone (fmbd_chol_analyze_perm)
+enum { METIS_ONLY_N = 50000 };
 
 struct fmbd_chol {
   int kind;
@@ -23,6 +29,7 @@ struct fmbd_chol {
   cholmod_common c;
   int started;
   int released;          // fmbd_chol_release_matrix called: no refactorisation
+  int dropped;           // fmbd_chol_drop_numeric called: the next solve factors again
   cholmod_sparse *S;     // upper triangle (stype = +1) of the union pattern, CSC: the analysis
                          // (and the values of the simplicial LDL'); LLT and LDLT free it after
   int64_t *posA, *posB;  // position in S of each upper entry of A / B (CSR order)
@@ -32,7 +39,8 @@ struct fmbd_chol {
   double sigma;
   double pivot_rtol;
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
-  double *Lx;  // L->xsize values: D on the diagonal, unit-L below
+  double *Lx;    // L->xsize values: D on the diagonal, unit-L below
+  bool lx_zero;  // Lx as calloc gave it (not yet touched: zero pages, not resident)
   int64_t *iperm, *col2super, *map, *head, *next, *lpos;
   double *wC, *wW;  // update workspaces
   int64_t sizeC, sizeW;
@@ -40,6 +48,19 @@ struct fmbd_chol {
   int64_t failed_row;
   fmbd_chol_stats st;
 };
+
+// fmbd_chol_set_input_hook: called once a factorisation's input is formed
+static _Thread_local fmbd_chol_input_fn g_input_fn = NULL;
+static _Thread_local void *g_input_ctx = NULL;
+
+void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx) {
+  g_input_fn = fn;
+  g_input_ctx = fn ? ctx : NULL;
+}
+
+static void input_formed(void) {
+  if (g_input_fn) g_input_fn(g_input_ctx);
+}
 
 // CHOLMOD reports errors through a handler; keep the last message for ours.
 static char g_cholmod_msg[256];
@@ -58,6 +79,26 @@ static void route_suitesparse_memory(void) {
   SuiteSparse_config.realloc_func = fmbd_realloc;
   SuiteSparse_config.free_func = fmbd_free;
   SuiteSparse_config.printf_func = NULL;
+}
+
+// CHOLMOD's supernodal numeric factorisation runs its scatter and copy loops in OpenMP regions
+// with num_threads(CHOLMOD_OMP_NUM_THREADS), 4 as Debian's libcholmod3 is compiled
+// (cholmod_core.h), whatever OMP_NUM_THREADS says: on one thread (OMP_NUM_THREADS=1) and on
+// this project's 2-core machines the 3 extra threads spun and slept on futexes, about 2.7 of
+// the 8 CPU seconds of the 188 k dofs LL' (perf, bench/README.md "fe2cb's memory, third
+// round"). With OpenMP's dynamic adjustment on, libgomp caps a region's threads at
+// OMP_NUM_THREADS (the cores if unset) less the load average; the loops write disjoint
+// entries, so the factor is the same. Set per calling thread (dyn-var is a per-task ICV), found
+// at run time like OpenBLAS's thread count (fmbd_blas_set_threads); nothing without libgomp.
+static void cap_openmp_threads(void) {
+  static int looked = 0;
+  static void (*set_dynamic)(int) = NULL;
+  if (!looked) {
+    looked = 1;
+    void *self = dlopen(NULL, RTLD_LAZY);
+    if (self) *(void **)&set_dynamic = dlsym(self, "omp_set_dynamic");
+  }
+  if (set_dynamic) set_dynamic(1);
 }
 
 static const char *ordering_name(int o) {
@@ -242,6 +283,46 @@ done:
   return rc;
 }
 
+// --- the unused upper triangles of a supernodal factor's diagonal blocks ---------------------
+// A supernodal factor stores each supernode's nsrow x nscol block in full, column-major, but
+// its strictly upper triangle (rows above the diagonal in the first nscol rows) is never
+// read: CHOLMOD's supernodal numeric factorisation zeroes the block, assembles and updates
+// the lower part only, factors the diagonal block with dpotrf('L'), and its solves read the
+// lower part (SuiteSparse CHOLMOD/Supernodal/t_cholmod_super_numeric.c, t_cholmod_super_solve.c);
+// our LDL' does the same. At 188 k dofs these triangles are most of the 1.50e8 - 1.24e8
+// values beyond L's entries (208 MB). The whole memory pages inside column c's upper part
+// (c values) that hold only zeros are given back to the system (Linux madvise MADV_DONTNEED
+// on private anonymous memory: a page touched again is a fresh zero page, so the values are
+// the same whether or not a page was given back); a page with any nonzero is kept. Returns
+// the bytes given back (0 where madvise is unavailable or fails).
+static double release_zero_pages(const cholmod_factor *L, double *x) {
+  double freed = 0.0;
+#ifdef MADV_DONTNEED
+  long pg = sysconf(_SC_PAGESIZE);
+  if (pg <= 0 || !L->is_super || !x) return 0.0;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px;
+  size_t per = (size_t)pg / sizeof(double);
+  for (int64_t s = 0; s < (int64_t)L->nsuper; s++) {
+    int64_t nscol = super[s + 1] - super[s], nsrow = pi[s + 1] - pi[s];
+    if (nscol <= (int64_t)per) continue;  // no column holds a whole page above its diagonal
+    for (int64_t c = (int64_t)per; c < nscol; c++) {
+      double *col = x + px[s] + c * nsrow;
+      uintptr_t lo = ((uintptr_t)col + (uintptr_t)pg - 1) & ~(uintptr_t)(pg - 1);
+      uintptr_t hi = (uintptr_t)(col + c) & ~(uintptr_t)(pg - 1);
+      if (hi <= lo) continue;
+      const double *a = (const double *)lo, *e = (const double *)hi;
+      bool zero = true;
+      for (; a < e && zero; a++) zero = *a == 0.0;
+      if (zero && madvise((void *)lo, hi - lo, MADV_DONTNEED) == 0) freed += (double)(hi - lo);
+    }
+  }
+#else
+  (void)L;
+  (void)x;
+#endif
+  return freed;
+}
+
 // --- supernodal LDL' without pivoting ---------------------------------------------------------
 // Left-looking over CHOLMOD's supernodes (Ng and Peyton 1993; the structure of CHOLMOD's
 // t_cholmod_super_numeric.c, written here for D): for each supernode s, assemble its columns of
@@ -256,7 +337,10 @@ static int super_ldl_setup(fmbd_chol *F) {
   FMBD_GCHECK(L->is_super, FMBD_ERR_INTERNAL, "CHOLMOD analysis is not supernodal");
   int64_t n = F->n, ns = (int64_t)L->nsuper;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *perm = L->Perm;
-  FMBD_GALLOC(F->Lx = fmbd_malloc((L->xsize ? L->xsize : 1) * sizeof(double)));
+  // zeroed by calloc: the pages that the factorisation never writes (most of the diagonal
+  // blocks' upper triangles) are never made resident
+  FMBD_GALLOC(F->Lx = fmbd_calloc(L->xsize ? L->xsize : 1, sizeof(double)));
+  F->lx_zero = true;
   FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->col2super = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->map = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
@@ -282,8 +366,24 @@ done:
   return rc;
 }
 
+// C (m x n, ldc) = alpha A B' + beta C (A m x k, B n x k, column-major), m >= n, where only
+// the lower trapezoid (rows i >= column j) is wanted: by column blocks of 128, each product
+// starting at its block's diagonal, so the part above the diagonal is not computed beyond the
+// blocks' corners (half the flops of a square update, bench/README.md "third round")
+static void gemm_lower(int64_t m, int64_t n, int64_t k, double alpha, const double *A, int64_t lda,
+                       const double *B, int64_t ldb, double beta, double *C, int64_t ldc) {
+  const int64_t cb = 128;
+  for (int64_t c0 = 0; c0 < n; c0 += cb) {
+    int64_t w = n - c0 < cb ? n - c0 : cb;
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)(m - c0), (int)w, (int)k, alpha,
+                A + c0, (int)lda, B + c0, (int)ldb, beta, C + c0 + c0 * ldc, (int)ldc);
+  }
+}
+
 // blocked unpivoted LDL' of the n x n lower triangle of A (leading dimension lda); D on the
-// diagonal, unit L below it. Returns the index of a zero or NaN pivot, or -1.
+// diagonal, unit L below it; nothing above the diagonal is read, and only the corners of the
+// trailing updates' column blocks are written there. Returns the index of a zero or NaN
+// pivot, or -1.
 static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *neg) {
   const int64_t nb = 64;
   for (int64_t j0 = 0; j0 < n; j0 += nb) {
@@ -305,15 +405,14 @@ static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *
     }
     int64_t n2 = n - j0 - jb;
     if (n2 > 0) {
-      // trailing block -= L21 D1 L21' (full square product; only the lower triangle is used)
+      // trailing block -= L21 D1 L21' (its lower triangle)
       double *L21 = A + (j0 + jb) + j0 * lda;
       for (int64_t k = 0; k < jb; k++) {
         double dk = A[(j0 + k) + (j0 + k) * lda];
         for (int64_t i = 0; i < n2; i++) W[i + k * n2] = L21[i + k * lda] * dk;
       }
       double *A22 = A + (j0 + jb) + (j0 + jb) * lda;
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)n2, (int)n2, (int)jb, -1.0, W,
-                  (int)n2, L21, (int)lda, 1.0, A22, (int)lda);
+      gemm_lower(n2, n2, jb, -1.0, W, n2, L21, lda, 1.0, A22, lda);
     }
   }
   return -1;
@@ -329,7 +428,15 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
   cholmod_factor *L = F->L;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
   const fmbd_csr *mat[2] = {F->A, sigma != 0.0 ? F->B : NULL};
-  memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  // B on A's index arrays (fe2cb's Ms on Ks's): one search serves both entries, which then
+  // get the same operations in the same order as in two passes (each position holds one
+  // entry of each)
+  const fmbd_csr *Bs = mat[1];
+  bool both =
+      Bs && Bs->indptr == F->A->indptr && Bs->indices == F->A->indices && Bs->lower == F->A->lower;
+  if (both) mat[1] = NULL;
+  if (!F->lx_zero) memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  F->lx_zero = false;
   for (int m = 0; m < 2; m++) {
     const fmbd_csr *A = mat[m];
     if (!A) continue;
@@ -348,10 +455,12 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
         FMBD_CHECK(Ls[lo] == r, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the LDL' pattern",
                    (long long)r, (long long)c);
         double *x = F->Lx + px[sn] + (c - super[sn]) * (pi[sn + 1] - pi[sn]) + (lo - pi[sn]);
-        if (m == 0)
+        if (m == 0) {
           *x += A->data[p];
-        else
+          if (both) *x -= sigma * Bs->data[p];
+        } else {
           *x -= sigma * A->data[p];
+        }
       }
     }
   }
@@ -367,7 +476,11 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
   bool prefill = A->lower || (B && B->lower);
-  if (prefill) FMBD_CALL(ldl_prefill(F, sigma));
+  if (prefill) {
+    FMBD_CALL(ldl_prefill(F, sigma));
+    input_formed();  // the loop below reads only the factor
+  }
+  F->lx_zero = false;
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
@@ -407,8 +520,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
         double dc = Ldx[c + c * ndrow];
         for (int64_t r = 0; r < nr1; r++) W[r + c * nr1] = Ldx[r1 + r + c * ndrow] * dc;
       }
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)nr2, (int)nr1, (int)ndcol, 1.0,
-                  Ldx + r1, (int)ndrow, W, (int)nr1, 0.0, C, (int)nr2);
+      gemm_lower(nr2, nr1, ndcol, 1.0, Ldx + r1, ndrow, W, nr1, 0.0, C, nr2);
       for (int64_t jj = 0; jj < nr1; jj++) {
         double *col = Lsx + (Ls[p1 + jj] - k1) * nsrow;
         for (int64_t ii = jj; ii < nr2; ii++) col[map[Ls[p1 + ii]]] -= C[ii + jj * nr2];
@@ -447,6 +559,30 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   return FMBD_OK;
 }
 
+// fmbd_chol_lend_analysis: a supernodal LL' whose symbolic factor serves the next analyses
+static _Thread_local const fmbd_chol *g_lent = NULL;
+
+void fmbd_chol_lend_analysis(const fmbd_chol *F) {
+  g_lent = F;
+}
+
+// the lent LL' if its analysis is the one an LDLT of (A, B) with the ordering perm would make:
+// the same matrix A (object and arrays), B NULL or on A's index arrays (so the union pattern
+// is A's), perm its final permutation, and no numeric values (the copy is then symbolic)
+static const fmbd_chol *lent_analysis(const fmbd_csr *A, const fmbd_csr *B, int kind,
+                                      const int64_t *perm) {
+  const fmbd_chol *D = g_lent;
+  if (!D || kind != FMBD_CHOL_LDLT || !perm || D->kind != FMBD_CHOL_LLT || D->B || D->A != A ||
+      !D->L || !D->L->is_super || D->L->xtype != CHOLMOD_PATTERN || !D->L->Perm)
+    return NULL;
+  if (B && (B->indptr != A->indptr || B->indices != A->indices || B->lower != A->lower))
+    return NULL;
+  const SuiteSparse_long *p = D->L->Perm;
+  for (int64_t k = 0; k < D->n; k++)
+    if (p[k] != perm[k]) return NULL;
+  return D;
+}
+
 int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol **out) {
   return fmbd_chol_analyze_perm(A, B, kind, NULL, out);
 }
@@ -470,6 +606,7 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
   FMBD_CHECK(kind == FMBD_CHOL_LLT || kind == FMBD_CHOL_LDLT || kind == FMBD_CHOL_LDLT_SIMPLICIAL,
              FMBD_ERR_VALUE, "bad kind %d", kind);
   route_suitesparse_memory();
+  cap_openmp_threads();
   FMBD_GALLOC(F = fmbd_calloc(1, sizeof *F));
   F->kind = kind;
   F->n = A->nrows;
@@ -496,20 +633,41 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
     F->c.final_asis = 1;
   }
   g_cholmod_msg[0] = 0;
-  FMBD_GCALL(build_pattern(F));
   double t0 = fmbd_wall_s();
-  if (perm) {
-    // the caller's fill-reducing ordering (e.g. of an earlier factor of the same pattern)
-    F->c.nmethods = 1;
+  const fmbd_chol *D = lent_analysis(A, B, kind, perm);
+  if (D) {
+    // the lent LL' analysis: the same pattern and ordering give the same symbolic factor
+    F->L = cholmod_l_copy_factor(D->L, &F->c);
+    if (!F->L) FMBD_GCALL(cholmod_fail(F, "copy_factor"));
+    F->st.nnz_a = D->st.nnz_a;
+    F->c.lnz = D->c.lnz;
     F->c.method[0].ordering = CHOLMOD_GIVEN;
-    F->c.postorder = 1;
-    F->L = cholmod_l_analyze_p(F->S, (SuiteSparse_long *)perm, NULL, 0, &F->c);
+    fmbd_log(FMBD_LOG_DEBUG, "analysis: the LL' one of the same pattern and ordering (lent)");
   } else {
-    F->L = cholmod_l_analyze(F->S, &F->c);
+    FMBD_GCALL(build_pattern(F));
+    t0 = fmbd_wall_s();
+    if (perm) {
+      // the caller's fill-reducing ordering (e.g. of an earlier factor of the same pattern)
+      F->c.nmethods = 1;
+      F->c.method[0].ordering = CHOLMOD_GIVEN;
+      F->c.postorder = 1;
+      F->L = cholmod_l_analyze_p(F->S, (SuiteSparse_long *)perm, NULL, 0, &F->c);
+    } else {
+      if (F->n >= METIS_ONLY_N) {
+        // CHOLMOD's default tries AMD first and METIS only when AMD's fill is high; on the FE
+        // bodies above this size METIS always won (51 k and 188 k dofs: 1.24e8 entries in L
+        // and 1.89e11 flops against AMD's 1.60e8 and 3.0e11 at 188 k), so the AMD pass is
+        // skipped: the same ordering, 0.4 s less at 188 k (bench/README.md "fe2cb's memory,
+        // third round")
+        F->c.nmethods = 1;
+        F->c.method[0].ordering = CHOLMOD_METIS;
+      }
+      F->L = cholmod_l_analyze(F->S, &F->c);
+    }
   }
   F->st.t_analyze_s = fmbd_wall_s() - t0;
   if (!F->L || F->c.status < 0) FMBD_GCALL(cholmod_fail(F, "analyze"));
-  F->st.ordering = ordering_name(F->c.method[F->c.selected].ordering);
+  F->st.ordering = ordering_name(F->c.method[D ? 0 : F->c.selected].ordering);
   F->st.nnz_l = F->c.lnz;
   if (F->L->is_super) {
     fmbd_log(FMBD_LOG_DEBUG,
@@ -581,7 +739,10 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
     F->st.n_factor++;
     return rc;
   }
-  FMBD_CHECK(!F->released, FMBD_ERR_INTERNAL, "factor after fmbd_chol_release_matrix");
+  // the LL' assembles its input from A and B (assemble_llt): only the simplicial LDL' needs
+  // the copy that fmbd_chol_release_matrix frees
+  FMBD_CHECK(!F->released || F->kind == FMBD_CHOL_LLT, FMBD_ERR_INTERNAL,
+             "factor after fmbd_chol_release_matrix");
   cholmod_sparse *T = NULL;
   double *dg = NULL;
   int ok;
@@ -596,8 +757,14 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
       return rc;
     }
     double beta[2] = {0.0, 0.0};
+    input_formed();  // super_numeric reads T only
     ok = cholmod_l_super_numeric(T, NULL, beta, F->L, &F->c);
     cholmod_l_free_sparse(&T, &F->c);
+    if (ok && F->c.status == CHOLMOD_OK) {
+      double freed = release_zero_pages(F->L, F->L->x);
+      fmbd_log(FMBD_LOG_DEBUG, "LL': %.0f MB of the diagonal blocks' upper triangles given back",
+               freed / 1048576.0);
+    }
 #ifdef __GLIBC__
     malloc_trim(0);  // T and CHOLMOD's update workspace, freed, back to the system
 #endif
@@ -665,6 +832,14 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 
 // X <- the solves sys[0], then sys[1], ... (CHOLMOD_A, or CHOLMOD_P/L/Lt/Pt) applied in turn
 static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, double *X, int64_t ldx) {
+  if (F->dropped) {
+    // fmbd_chol_drop_numeric: factored again first (A's and B's arrays must be back)
+    FMBD_CHECK(F->A->data && F->A->indices && (!F->B || (F->B->data && F->B->indices)),
+               FMBD_ERR_INTERNAL, "solve after fmbd_chol_drop_numeric without the matrix");
+    fmbd_log(FMBD_LOG_DEBUG, "LL': factored again after its values were dropped");
+    F->dropped = 0;
+    FMBD_CALL(fmbd_chol_factor(F, F->sigma));
+  }
   FMBD_CHECK(F->L && F->st.n_factor > 0 && F->failed_row < 0 && F->kind != FMBD_CHOL_LDLT,
              FMBD_ERR_INTERNAL, "solve without a valid factor (or with the inertia-only LDL')");
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
@@ -726,6 +901,23 @@ void fmbd_chol_release_workspace(fmbd_chol *F) {
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
+}
+
+int fmbd_chol_drop_numeric(fmbd_chol *F) {
+  FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
+             FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
+  if (F->dropped) return FMBD_OK;
+  cholmod_l_free_dense(&F->X, &F->c);
+  cholmod_l_free_dense(&F->Y, &F->c);
+  cholmod_l_free_dense(&F->E, &F->c);
+  // back to the symbolic supernodal factor (cholmod_change_factor: L->x freed)
+  if (!cholmod_l_change_factor(CHOLMOD_PATTERN, 1, 1, 1, 1, F->L, &F->c))
+    return cholmod_fail(F, "change_factor");
+  F->dropped = 1;
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+  return FMBD_OK;
 }
 
 void fmbd_chol_release_matrix(fmbd_chol *F) {

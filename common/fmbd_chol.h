@@ -96,10 +96,33 @@ void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
 /// run's wide back solve; peak memory). The next solve allocates them again.
 void fmbd_chol_release_workspace(fmbd_chol *F);
 
+/// @brief A function that the numeric factorisations of the calling thread (fmbd_chol_factor
+/// of LLT, and of LDLT when A or B is stored as a lower triangle) call once they have formed
+/// their input from A and B and before they factor it; from then until fmbd_chol_factor
+/// returns they read neither matrix, so the caller may drop their arrays (fe2cb writes them to
+/// a scratch file: peak memory, bench/README.md). Thread-local (the Sturm check makes its
+/// factor inside fmbd_eig.c); fn NULL clears it.
+typedef void (*fmbd_chol_input_fn)(void *ctx);
+void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx);
+
+/// @brief Lend the analysis of the LLT factor F (its values dropped: fmbd_chol_drop_numeric) to
+/// the next fmbd_chol_analyze_perm calls of the calling thread: an LDLT of (A, B) with F's own
+/// A, B NULL or on A's index arrays, and F's permutation copies F's symbolic factor instead of
+/// analysing again (the same result; fe2cb's Sturm check, made inside fmbd_eig.c). F must
+/// outlive the calls; NULL ends the loan.
+void fmbd_chol_lend_analysis(const fmbd_chol *F);
+
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
-/// solves still work, fmbd_chol_factor does not any more. Lowers the peak memory of a long
-/// solve phase by the size of the upper triangle.
+/// solves still work, fmbd_chol_factor does not any more (except for LLT, which assembles its
+/// input from A and B). Lowers the peak memory of a long solve phase by the size of the upper
+/// triangle.
 void fmbd_chol_release_matrix(fmbd_chol *F);
+
+/// @brief Free the numeric values of an LLT factor (the analysis stays): for a stage that
+/// will most likely not solve again (fe2cb's residual check after the Lanczos run: the factor
+/// is 1.1 GB of the 188 k dofs body's peak). A later solve first factors A (- sigma B) again,
+/// so their arrays must then be in memory.
+int fmbd_chol_drop_numeric(fmbd_chol *F);
 
 /// @brief Number of negative pivots of the last LDLT factorisation (-1 for LLT or before a
 /// factorisation). With B positive definite: the number of eigenvalues below sigma.

@@ -210,8 +210,8 @@ static int check_inputs(const fmbd_mesh *m, const fmbd_fe_opts *o) {
 // --- rigid-body accumulation --------------------------------------------------------------------
 // Mr = sum_e R_e' M_e R_e (6x6, row-major) for the rigid modes u = u0 + theta x x (translations)
 // and theta (rotations); tt = m I, tr = -[S1]x, rr = inertia about the origin.
-static void rigid_solid(int nn, const int64_t *en, const double *xyz, const double *Me,
-                        double Mr[36]) {
+static void rigid_solid_sums(int nn, const int64_t *en, const double *xyz, const double *Me,
+                             double S[13]) {
   double S0 = 0.0, S1[3] = {0, 0, 0}, S2[9] = {0};
   for (int a = 0; a < nn; a++) {
     const double *xa = xyz + 3 * en[a];
@@ -225,6 +225,14 @@ static void rigid_solid(int nn, const int64_t *en, const double *xyz, const doub
       }
     }
   }
+  S[0] = S0;
+  memcpy(S + 1, S1, sizeof S1);
+  memcpy(S + 4, S2, sizeof S2);
+}
+
+// Mr += the element's part from its sums S = (S0, S1, S2) (rigid_solid_sums)
+static void rigid_solid_add(const double S[13], double Mr[36]) {
+  const double S0 = S[0], *S1 = S + 1, *S2 = S + 4;
   // tr = -[S1]x ; rr = tr(S2) I - S2'
   double tr2 = S2[0] + S2[4] + S2[8];
   double X[9] = {0, -S1[2], S1[1], S1[2], 0, -S1[0], -S1[1], S1[0], 0};  // [S1]x
@@ -238,8 +246,8 @@ static void rigid_solid(int nn, const int64_t *en, const double *xyz, const doub
   }
 }
 
-static void rigid_beam(const double *x0, const double *x1, const double *Me, double Mr[36]) {
-  // R (12 x 6): node a rows: [I, -[x_a]x ; 0, I]
+// the beam's part of Mr, R' Me R (R: 12 x 6, node a rows [I, -[x_a]x ; 0, I])
+static void rigid_beam(const double *x0, const double *x1, const double *Me, double Rb[36]) {
   double R[72] = {0};
   const double *x[2] = {x0, x1};
   for (int a = 0; a < 2; a++) {
@@ -259,7 +267,7 @@ static void rigid_beam(const double *x0, const double *x1, const double *Me, dou
     for (int j = 0; j < 6; j++) {
       double s = 0.0;
       for (int k = 0; k < 12; k++) s += R[k * 6 + i] * MR[k * 6 + j];
-      Mr[i * 6 + j] += s;
+      Rb[i * 6 + j] = s;
     }
   }
 }
@@ -298,24 +306,37 @@ typedef struct asm_ctx {
   const int8_t *tied;   // per node
   const fmbd_csr *T;    // full -> active
   bool any_tied;
-  int64_t *eptr, *enode;          // reduced node list of each element (CSR)
-  int64_t *G_ptr, *G_idx, *noff;  // node graph; dof offset of each neighbour within a dof row
-  int64_t *stamp, *pos;           // scratch per node
-  double *Te, *W, *R;             // scratch for tied elements
-  int64_t cap;                    // capacity of the scratch (in dofs)
+  int64_t *eptr, *enode;  // reduced node list of each element (CSR)
+  // node graph: row p holds pairs (neighbour q, offset of q's dofs within a dof row of p) at
+  // gq[2 G_ptr[p]] ..: the offset of a found neighbour is on the cache line just read
+  int64_t *G_ptr;
+  int32_t *gq;
+  int64_t *stamp, *pos;   // scratch per node
+  double *Te, *W, *R;     // scratch for tied elements
+  int64_t cap;            // capacity of the scratch (in dofs)
+  int32_t *nset;          // set of each node (node_sets), NULL: one set
+  int32_t nsets, cur;     // number of sets, the set being visited
+  int64_t *sptr, *selem;  // elements that touch each set, increasing (CSR)
 } asm_ctx;
 
 static void asm_free(asm_ctx *c) {
   fmbd_free(c->eptr);
   fmbd_free(c->enode);
   fmbd_free(c->G_ptr);
-  fmbd_free(c->G_idx);
-  fmbd_free(c->noff);
+  fmbd_free(c->gq);
   fmbd_free(c->stamp);
   fmbd_free(c->pos);
   fmbd_free(c->Te);
   fmbd_free(c->W);
   fmbd_free(c->R);
+  fmbd_free(c->nset);
+  fmbd_free(c->sptr);
+  fmbd_free(c->selem);
+}
+
+// are the rows of node p added in this visit (all rows when there is one set)
+static inline bool in_set(const asm_ctx *c, int64_t p) {
+  return !c->nset || c->nset[p] == c->cur;
 }
 
 // element e's nodes and the number of its dofs per node (3 tet, 6 beam)
@@ -430,6 +451,9 @@ static int build_pattern(asm_ctx *c, fmbd_csr **out) {
   int64_t *lists = NULL;
   fmbd_csr *G1 = NULL, *G2 = NULL, *A = NULL;
   int64_t nlong = 0, klong = 0;
+  FMBD_CHECK(nn < INT32_MAX && b->ndof < INT32_MAX, FMBD_ERR_VALUE,
+             "%lld nodes, %lld dofs: more than the assembly's 32-bit node graph holds",
+             (long long)nn, (long long)b->ndof);
   for (int64_t e = 0; e < nel; e++) {
     int64_t len = c->eptr[e + 1] - c->eptr[e];
     if (len > kshort) {
@@ -468,14 +492,13 @@ static int build_pattern(asm_ctx *c, fmbd_csr **out) {
           v = G1->indices[i1++];
           i2++;
         }
-        if (merge) c->G_idx[k] = v;
+        if (merge) c->gq[2 * k] = (int32_t)v;
         k++;
       }
       if (!merge) c->G_ptr[p + 1] = k;
     }
     if (!merge) {
-      FMBD_GALLOC(c->G_idx = fmbd_malloc((size_t)(k + 1) * sizeof *c->G_idx));
-      FMBD_GALLOC(c->noff = fmbd_malloc((size_t)(k + 1) * sizeof *c->noff));
+      FMBD_GALLOC(c->gq = fmbd_malloc((size_t)(2 * k + 2) * sizeof *c->gq));
     }
   }
   fmbd_csr_destroy(&G1);
@@ -485,8 +508,8 @@ static int build_pattern(asm_ctx *c, fmbd_csr **out) {
   for (int64_t p = 0; p < nn; p++) {
     int64_t len = 0;
     for (int64_t t = c->G_ptr[p]; t < c->G_ptr[p + 1]; t++) {
-      c->noff[t] = len;
-      len += nact(b, c->G_idx[t]);
+      c->gq[2 * t + 1] = (int32_t)len;
+      len += nact(b, c->gq[2 * t]);
     }
     nnz += nact(b, p) * len;
   }
@@ -498,7 +521,7 @@ static int build_pattern(asm_ctx *c, fmbd_csr **out) {
     for (int64_t r = b->node_dof[p]; r < b->node_dof[p + 1]; r++) {
       A->indptr[r] = at;
       for (int64_t t = c->G_ptr[p]; t < c->G_ptr[p + 1]; t++) {
-        int64_t q = c->G_idx[t];
+        int64_t q = c->gq[2 * t];
         for (int64_t j = b->node_dof[q]; j < b->node_dof[q + 1]; j++) A->indices[at++] = j;
       }
     }
@@ -549,33 +572,39 @@ static int add_diag(fmbd_csr *A, int64_t r0, int n, double v) {
   return FMBD_OK;
 }
 
+// position of node q in the sorted node row (pairs, the node first: row[2 t]), or -1.
+// Branch-free halving (the compiler makes the step a conditional move): the branches of a plain
+// binary search mispredicted about every other step, a quarter of the scatter's time.
+static inline int64_t node_pos(const int32_t *row, int64_t len, int64_t q) {
+  if (len <= 0) return -1;
+  const int32_t *base = row;
+  int64_t n = len;
+  while (n > 1) {
+    const int64_t half = n / 2;
+    base = base[2 * half] <= q ? base + 2 * half : base;
+    n -= half;
+  }
+  return *base == q ? (base - row) / 2 : -1;
+}
+
 // add the blocks of the element matrices Ae (and Be, may be NULL) for the nodes of list: block
-// (a, b) is Ae[(eoff[a] + i) * stride + eoff[b] + j], i < nact(list[a]), j < nact(list[b])
+// (a, b) is Ae[(eoff[a] + i) * stride + eoff[b] + j], i < nact(list[a]), j < nact(list[b]);
+// only the rows of the nodes in the set being visited
 static int add_blocks(asm_ctx *c, int64_t nl, const int64_t *list, const int64_t *eoff,
                       int64_t stride, const double *Ae, const double *Be) {
   fmbd_fe_body *b = c->b;
   fmbd_csr *K = b->K, *M = b->M;
   for (int64_t a = 0; a < nl; a++) {
     int64_t p = list[a], np = nact(b, p), r0 = b->node_dof[p];
-    const int64_t *row = c->G_idx + c->G_ptr[p];
+    if (!in_set(c, p)) continue;
+    const int32_t *row = c->gq + 2 * c->G_ptr[p];
     int64_t len = c->G_ptr[p + 1] - c->G_ptr[p];
     for (int64_t bb = 0; bb < nl; bb++) {
       int64_t q = list[bb], nq = nact(b, q);
-      int64_t lo = 0, hi = len - 1, t = -1;
-      while (lo <= hi) {
-        int64_t mid = (lo + hi) / 2;
-        if (row[mid] == q) {
-          t = mid;
-          break;
-        }
-        if (row[mid] < q)
-          lo = mid + 1;
-        else
-          hi = mid - 1;
-      }
+      int64_t t = node_pos(row, len, q);
       FMBD_CHECK(t >= 0, FMBD_ERR_INTERNAL, "node pair (%lld, %lld) not in the pattern",
                  (long long)p, (long long)q);
-      int64_t o = c->noff[c->G_ptr[p] + t];
+      int64_t o = row[2 * t + 1];
       for (int64_t i = 0; i < np; i++) {
         int64_t base = K->indptr[r0 + i] + o;
         const double *ar = Ae + (eoff[a] + i) * stride + eoff[bb];
@@ -584,6 +613,54 @@ static int add_blocks(asm_ctx *c, int64_t nl, const int64_t *list, const int64_t
           const double *br = Be + (eoff[a] + i) * stride + eoff[bb];
           for (int64_t j = 0; j < nq; j++) M->data[base + j] += br[j];
         }
+      }
+    }
+  }
+  return FMBD_OK;
+}
+
+// A plain tetrahedron (elem_plain: its active nodes carry 3 dofs each): K gets the 3 x 3 blocks
+// of Ke (3 tn x 3 tn), M (when Ms is given) Ms[a][b] on the diagonal of block (a, b): the
+// element mass is Ms (x) I3, whose other entries are zeros, and adding a zero leaves an entry
+// bit for bit as it was (an entry starts +0.0 and a sum is -0.0 only when both terms are, so no
+// entry is ever -0.0). Only the rows of the nodes in the set being visited.
+static int add_tet(asm_ctx *c, int64_t e, int tn, const double *Ke, const double *Ms) {
+  const fmbd_fe_body *b = c->b;
+  const int64_t *en = c->m->tet + e * tn, *list = c->enode + c->eptr[e];
+  const int64_t nl = c->eptr[e + 1] - c->eptr[e], kt = 3 * tn;
+  const int64_t *indptr = b->K->indptr;
+  double *Kd = b->K->data, *Md = b->M->data;
+  int ea[10];  // the element node of each list entry (the list: active nodes in element order)
+  for (int a = 0, i = 0; a < tn; a++) {
+    if (nact(b, en[a]) > 0) ea[i++] = a;
+  }
+  for (int64_t i = 0; i < nl; i++) {
+    const int64_t p = list[i];
+    if (!in_set(c, p)) continue;
+    const int64_t r0 = b->node_dof[p], g0 = c->G_ptr[p], len = c->G_ptr[p + 1] - g0;
+    const int64_t k0 = indptr[r0], k1 = indptr[r0 + 1], k2 = indptr[r0 + 2];
+    const double *kr = Ke + 3 * ea[i] * kt, *mr = Ms ? Ms + ea[i] * tn : NULL;
+    for (int64_t j = 0; j < nl; j++) {
+      const int64_t t = node_pos(c->gq + 2 * g0, len, list[j]);
+      FMBD_CHECK(t >= 0, FMBD_ERR_INTERNAL, "node pair (%lld, %lld) not in the pattern",
+                 (long long)p, (long long)list[j]);
+      const int64_t o = c->gq[2 * (g0 + t) + 1];
+      const double *k = kr + 3 * ea[j];
+      double *d0 = Kd + k0 + o, *d1 = Kd + k1 + o, *d2 = Kd + k2 + o;
+      d0[0] += k[0];
+      d0[1] += k[1];
+      d0[2] += k[2];
+      d1[0] += k[kt];
+      d1[1] += k[kt + 1];
+      d1[2] += k[kt + 2];
+      d2[0] += k[2 * kt];
+      d2[1] += k[2 * kt + 1];
+      d2[2] += k[2 * kt + 2];
+      if (mr) {
+        const double v = mr[ea[j]];
+        Md[k0 + o] += v;
+        Md[k1 + o + 1] += v;
+        Md[k2 + o + 2] += v;
       }
     }
   }
@@ -665,6 +742,145 @@ done:
   return rc;
 }
 
+// --- the order of the element loop ------------------------------------------------------------
+// Every K and M entry must take its elements' terms in element order (then the matrices are bit
+// for bit those of a plain loop over the elements), but gmsh numbers elements and nodes in no
+// spatial order: the elements of one node of the 946 k-dof rod spread over half the element
+// list, and a plain loop found nearly every entry it added to out of cache. So the nodes are cut
+// into sets of nearby nodes (runs of their Morton order), each small enough that its rows of K
+// and M stay in cache, and the loop visits set by set the elements that touch the set, in
+// element order, adding only the set's rows. Each row still takes its elements in element
+// order; an element on several sets is computed once per set.
+#define SET_BYTES ((double)(4 << 20))  // K and M values of one set's rows
+
+static uint64_t spread3(uint64_t v) {  // the low 21 bits of v to every third bit
+  v &= 0x1fffffULL;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+typedef struct node_key {
+  uint64_t key;
+  int64_t node;
+} node_key;
+
+static int cmp_node_key(const void *a, const void *b) {
+  const node_key *x = a, *y = b;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
+  return (x->node > y->node) - (x->node < y->node);
+}
+
+// c->nset (NULL when all nodes make one set), c->nsets, and the element list of each set
+fmbd_fe_asm_hook fmbd_fe_asm_test = {0, 0};
+
+static int node_sets(asm_ctx *c) {
+  int rc = FMBD_OK;
+  const fmbd_fe_body *b = c->b;
+  const int64_t nn = c->nn, nel = c->m->ntet + c->m->nbeam;
+  node_key *keys = NULL;
+  int32_t *tmp = NULL, *cur = NULL;
+  const double per = 16.0 * (double)fmbd_csr_nnz(b->K) / (double)nn;  // bytes per node
+  int64_t S = (int64_t)(SET_BYTES / (per > 1.0 ? per : 1.0));
+  if (S < 64) S = 64;
+  if (fmbd_fe_asm_test.set_nodes > 0) S = fmbd_fe_asm_test.set_nodes;
+  c->nsets = 1;
+  if (nn > S) {
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++) lo[k] = hi[k] = b->xyz[k];
+    for (int64_t p = 0; p < nn; p++) {
+      for (int k = 0; k < 3; k++) {
+        double x = b->xyz[3 * p + k];
+        lo[k] = x < lo[k] ? x : lo[k];
+        hi[k] = x > hi[k] ? x : hi[k];
+      }
+    }
+    // one scale for the three axes: cubic cells, compact sets on long bodies too
+    double ext = 0.0;
+    for (int k = 0; k < 3; k++) ext = hi[k] - lo[k] > ext ? hi[k] - lo[k] : ext;
+    FMBD_GALLOC(keys = fmbd_malloc((size_t)nn * sizeof *keys));
+    for (int64_t p = 0; p < nn; p++) {
+      uint64_t key = 0;
+      for (int k = 0; k < 3; k++) {
+        double f = ext > 0.0 ? (b->xyz[3 * p + k] - lo[k]) / ext : 0.0;
+        key |= spread3((uint64_t)(f * 2097151.0)) << k;
+      }
+      keys[p].key = key;
+      keys[p].node = p;
+    }
+    qsort(keys, (size_t)nn, sizeof *keys, cmp_node_key);
+    FMBD_GALLOC(c->nset = fmbd_malloc((size_t)nn * sizeof *c->nset));
+    for (int64_t i = 0; i < nn; i++) c->nset[keys[i].node] = (int32_t)(i / S);
+    c->nsets = (int32_t)((nn + S - 1) / S);
+  }
+  fmbd_fe_asm_test.sets_used = c->nsets;
+  // the sets of each element: of its mesh nodes (node masses) and of its reduced list (rows)
+  int64_t maxl = 0;
+  for (int64_t e = 0; e < nel; e++) {
+    if (c->eptr[e + 1] - c->eptr[e] > maxl) maxl = c->eptr[e + 1] - c->eptr[e];
+  }
+  FMBD_GALLOC(tmp = fmbd_malloc((size_t)(maxl + 10) * sizeof *tmp));
+  FMBD_GALLOC(c->sptr = fmbd_calloc((size_t)c->nsets + 1, sizeof *c->sptr));
+  FMBD_GALLOC(cur = fmbd_calloc((size_t)c->nsets, sizeof *cur));
+  for (int pass = 0; pass < 2; pass++) {
+    for (int64_t e = 0; e < nel; e++) {
+      int n = 0;
+      if (c->nset) {
+        const int64_t *nodes;
+        int per_node, nen = elem_nodes(c, e, &nodes, &per_node);
+        for (int64_t i = -nen; i < c->eptr[e + 1] - c->eptr[e]; i++) {
+          int32_t s = c->nset[i < 0 ? nodes[nen + i] : c->enode[c->eptr[e] + i]];
+          int j = 0;
+          while (j < n && tmp[j] != s) j++;
+          if (j == n) tmp[n++] = s;
+        }
+      } else {
+        tmp[n++] = 0;
+      }
+      for (int j = 0; j < n; j++) {
+        if (pass == 0) {
+          c->sptr[tmp[j] + 1]++;
+        } else {
+          c->selem[c->sptr[tmp[j]] + cur[tmp[j]]++] = e;
+        }
+      }
+    }
+    if (pass == 0) {
+      for (int32_t s = 0; s < c->nsets; s++) c->sptr[s + 1] += c->sptr[s];
+      FMBD_GALLOC(c->selem = fmbd_malloc((size_t)(c->sptr[c->nsets] + 1) * sizeof *c->selem));
+    }
+  }
+done:
+  fmbd_free(keys);
+  fmbd_free(tmp);
+  fmbd_free(cur);
+  return rc;
+}
+
+// the first element, in element order, whose matrices fail (its error recorded), up to and
+// including `last` (the element that failed in the set-wise loop): the error the plain loop
+// reported
+static int first_failure(const fmbd_mesh *m, const fmbd_fe_body *b, int64_t last, double *Ke,
+                         double *Me) {
+  for (int64_t e = 0; e <= last && e < m->ntet; e++) {
+    double xe[30], Ms[100], vol;
+    const int64_t *en = m->tet + e * m->tet_nodes;
+    for (int a = 0; a < m->tet_nodes; a++) memcpy(xe + 3 * a, m->xyz + 3 * en[a], 3 * sizeof *xe);
+    FMBD_CALL(fmbd_fe_tet_matrices(m->tet_nodes, xe, b->E, b->nu, b->rho, e, Ke, Ms, &vol));
+  }
+  for (int64_t e = 0; e + m->ntet <= last && e < m->nbeam; e++) {
+    const double *x0 = m->xyz + 3 * m->beam[2 * e], *x1 = m->xyz + 3 * m->beam[2 * e + 1];
+    const double *v = b->beam_orientation + 3 * e;
+    FMBD_CALL(fmbd_fe_beam_matrices(x0, x1, v, b->E, b->nu, b->rho, b->area, b->Iy, b->Iz, b->J, e,
+                                    Ke, Me));
+    FMBD_CALL(fmbd_fe_beam_lumped(x0, x1, v, b->rho, b->area, b->J, e, Me));
+  }
+  return FMBD_OK;  // not reached: element `last` failed
+}
+
 // --- assembly -----------------------------------------------------------------------------------
 int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_opts *opt, fmbd_fe_body **out) {
   int rc = FMBD_OK;
@@ -676,7 +892,9 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_opts *opt, fmbd_fe_body *
   fmbd_fe_body *b = NULL;
   int8_t *on_solid = NULL, *on_beam = NULL, *tied = NULL;
   int64_t *fdof = NULL;
-  double *Ke = NULL, *Me = NULL, *Ml = NULL;
+  double *Ke = NULL, *Me = NULL, *Ml = NULL, *once = NULL, *pool = NULL;
+  uint8_t *seen = NULL;
+  int32_t *slot = NULL, *vleft = NULL, *freel = NULL;
   fmbd_csr *T = NULL;
   asm_ctx c = {0};
   FMBD_CALL(check_inputs(m, opt));
@@ -817,76 +1035,162 @@ int fmbd_fe_assemble(const fmbd_mesh *m, const fmbd_fe_opts *opt, fmbd_fe_body *
     hugepage_hint(b->M->data, (size_t)nnz * sizeof(double));
   }
   FMBD_GALLOC(b->node_mass = fmbd_calloc((size_t)nn, sizeof *b->node_mass));
-  // --- element loop: matrices, reduction, addition; node masses, rigid-body sums ---
+  // --- element loop, set by set (node_sets): matrices, reduction, addition; node masses. The
+  // sums over all elements (volume, rigid-body mass) are kept per element at its first visit and
+  // added in element order after the loop, as the plain loop added them.
+  FMBD_GCALL(node_sets(&c));
   const int tn = b->tet_nodes, kt = 3 * tn;
+  const int64_t nel = m->ntet + m->nbeam;
   FMBD_GALLOC(Ke = fmbd_malloc(900 * sizeof *Ke));
   FMBD_GALLOC(Me = fmbd_malloc(900 * sizeof *Me));
   FMBD_GALLOC(Ml = fmbd_malloc(900 * sizeof *Ml));
-  double Mr[36] = {0}, vol_solid = 0.0, vol_beam = 0.0;
-  const bool progress = fmbd_progress_enabled() && m->ntet + m->nbeam > 200000;
-  for (int64_t e = 0; e < m->ntet; e++) {
-    if (progress && e % 65536 == 0) {
-      fmbd_progress("assembling: %lld of %lld elements", (long long)e,
-                    (long long)(m->ntet + m->nbeam));
-    }
-    double xe[30], vol, d[10], Ms[100];
-    const int64_t *en = m->tet + e * tn;
-    for (int a = 0; a < tn; a++) memcpy(xe + 3 * a, m->xyz + 3 * en[a], 3 * sizeof(double));
-    FMBD_GCALL(fmbd_fe_tet_matrices(tn, xe, b->E, b->nu, b->rho, e, Ke, Ms, &vol));
-    vol_solid += vol;
-    double me = 0.0;
-    for (int i = 0; i < tn * tn; i++) me += Ms[i];
-    fmbd_fe_hrz_scalar(tn, Ms, me, d);
-    for (int a = 0; a < tn; a++) b->node_mass[en[a]] += d[a];
-    rigid_solid(tn, en, m->xyz, Ms, Mr);
-    // the 3D element mass: consistent Ms (x) I3, or the HRZ diagonal
-    memset(Me, 0, (size_t)(kt * kt) * sizeof *Me);
-    for (int a = 0; a < tn; a++) {
-      for (int k = 0; k < 3; k++) {
-        if (opt->mass == FMBD_FE_MASS_CONSISTENT) {
-          for (int bb = 0; bb < tn; bb++) Me[(3 * a + k) * kt + 3 * bb + k] = Ms[a * tn + bb];
-        } else {
-          Me[(3 * a + k) * kt + 3 * a + k] = d[a];
-        }
-      }
-    }
-    FMBD_GCALL(add_element(&c, e, kt, Ke, diag_mass ? NULL : Me));
-    if (diag_mass) {
-      for (int a = 0; a < tn; a++) {
-        if (nact(b, en[a]) > 0) FMBD_GCALL(add_diag(b->M, b->node_dof[en[a]], 3, d[a]));
-      }
-    }
+  FMBD_GALLOC(once = fmbd_malloc((size_t)(14 * m->ntet + 37 * m->nbeam + 1) * sizeof *once));
+  FMBD_GALLOC(seen = fmbd_calloc((size_t)nel + 1, 1));
+  FMBD_GALLOC(slot = fmbd_malloc(((size_t)m->ntet + 1) * sizeof *slot));
+  FMBD_GALLOC(vleft = fmbd_calloc((size_t)m->ntet + 1, sizeof *vleft));
+  for (int64_t e = 0; e < m->ntet; e++) slot[e] = -1;
+  for (int64_t i = 0; i < c.sptr[c.nsets]; i++) {
+    if (c.selem[i] < m->ntet) vleft[c.selem[i]]++;
   }
-  for (int64_t e = 0; e < m->nbeam; e++) {
-    const double *x0 = m->xyz + 3 * m->beam[2 * e], *x1 = m->xyz + 3 * m->beam[2 * e + 1];
-    const double *v = b->beam_orientation + 3 * e;
-    double L = sqrt((x1[0] - x0[0]) * (x1[0] - x0[0]) + (x1[1] - x0[1]) * (x1[1] - x0[1]) +
+  const int64_t csz = kt * kt + tn * tn + tn;  // Ke, Ms, d of one element in the pool
+  int32_t pcap = 0, nfree = 0;
+  double Mr[36] = {0}, vol_solid = 0.0, vol_beam = 0.0;
+  const bool progress = fmbd_progress_enabled() && nel > 200000;
+  const int64_t nvisit = c.sptr[c.nsets];
+  for (c.cur = 0; c.cur < c.nsets; c.cur++) {
+    for (int64_t iv = c.sptr[c.cur]; iv < c.sptr[c.cur + 1]; iv++) {
+      const int64_t e = c.selem[iv];
+      const bool first = !seen[e];
+      seen[e] = 1;
+      if (progress && iv % 65536 == 0) {
+        fmbd_progress("assembling: %lld of %lld element visits", (long long)iv, (long long)nvisit);
+      }
+      if (e < m->ntet) {
+        // the element's Ke, Ms and HRZ masses: computed at its first visit, kept in the pool
+        // for its later visits
+        double Ms0[100], d0[10], Ld[100], *Kx = Ke, *Ms = Ms0, *d = d0;
+        const int64_t *en = m->tet + e * tn;
+        int32_t sl = slot[e];
+        if (sl < 0 && vleft[e] > 1) {
+          if (nfree == 0) {  // grow the pool
+            const int32_t ncap2 = 2 * pcap + 64;
+            double *pool2 = fmbd_realloc(pool, (size_t)ncap2 * (size_t)csz * sizeof *pool);
+            FMBD_GCHECK(pool2, FMBD_ERR_NOMEM, "out of memory");
+            pool = pool2;
+            int32_t *fl2 = fmbd_realloc(freel, (size_t)ncap2 * sizeof *freel);
+            FMBD_GCHECK(fl2, FMBD_ERR_NOMEM, "out of memory");
+            freel = fl2;
+            for (int32_t k = ncap2 - 1; k >= pcap; k--) freel[nfree++] = k;
+            pcap = ncap2;
+          }
+          sl = slot[e] = freel[--nfree];
+          Kx = pool + (size_t)sl * (size_t)csz;
+          Ms = Kx + kt * kt;
+          d = Ms + tn * tn;
+        } else if (sl >= 0) {
+          Kx = pool + (size_t)sl * (size_t)csz;
+          Ms = Kx + kt * kt;
+          d = Ms + tn * tn;
+        }
+        if (first) {
+          double xe[30], vol;
+          for (int a = 0; a < tn; a++) memcpy(xe + 3 * a, m->xyz + 3 * en[a], 3 * sizeof(double));
+          rc = fmbd_fe_tet_matrices(tn, xe, b->E, b->nu, b->rho, e, Kx, Ms, &vol);
+          if (rc != FMBD_OK) {
+            int rc2 = first_failure(m, b, e, Ke, Me);
+            if (rc2 != FMBD_OK) rc = rc2;
+            goto done;
+          }
+          double me = 0.0;
+          for (int i = 0; i < tn * tn; i++) me += Ms[i];
+          fmbd_fe_hrz_scalar(tn, Ms, me, d);
+          once[14 * e] = vol;
+          rigid_solid_sums(tn, en, m->xyz, Ms, once + 14 * e + 1);
+        }
+        if (--vleft[e] == 0 && sl >= 0) freel[nfree++] = sl;  // used below, before any reuse
+        for (int a = 0; a < tn; a++) {
+          if (in_set(&c, en[a])) b->node_mass[en[a]] += d[a];
+        }
+        if (elem_plain(&c, tn, en, 3)) {
+          // the element mass Ms (x) I3: consistent, or the HRZ diagonal
+          const double *Mx = Ms;
+          if (opt->mass != FMBD_FE_MASS_CONSISTENT) {
+            memset(Ld, 0, (size_t)(tn * tn) * sizeof *Ld);
+            for (int a = 0; a < tn; a++) Ld[a * tn + a] = d[a];
+            Mx = Ld;
+          }
+          FMBD_GCALL(add_tet(&c, e, tn, Kx, diag_mass ? NULL : Mx));
+        } else {
+          // the 3D element mass: consistent Ms (x) I3, or the HRZ diagonal
+          memset(Me, 0, (size_t)(kt * kt) * sizeof *Me);
+          for (int a = 0; a < tn; a++) {
+            for (int k = 0; k < 3; k++) {
+              if (opt->mass == FMBD_FE_MASS_CONSISTENT) {
+                for (int bb = 0; bb < tn; bb++) Me[(3 * a + k) * kt + 3 * bb + k] = Ms[a * tn + bb];
+              } else {
+                Me[(3 * a + k) * kt + 3 * a + k] = d[a];
+              }
+            }
+          }
+          FMBD_GCALL(add_element(&c, e, kt, Kx, diag_mass ? NULL : Me));
+        }
+        if (diag_mass) {
+          for (int a = 0; a < tn; a++) {
+            if (nact(b, en[a]) > 0 && in_set(&c, en[a]))
+              FMBD_GCALL(add_diag(b->M, b->node_dof[en[a]], 3, d[a]));
+          }
+        }
+        continue;
+      }
+      const int64_t eb = e - m->ntet;
+      const int64_t *bn = m->beam + 2 * eb;
+      const double *x0 = m->xyz + 3 * bn[0], *x1 = m->xyz + 3 * bn[1];
+      const double *v = b->beam_orientation + 3 * eb;
+      rc = fmbd_fe_beam_matrices(x0, x1, v, b->E, b->nu, b->rho, b->area, b->Iy, b->Iz, b->J, eb,
+                                 Ke, Me);
+      if (rc == FMBD_OK) rc = fmbd_fe_beam_lumped(x0, x1, v, b->rho, b->area, b->J, eb, Ml);
+      if (rc != FMBD_OK) {
+        int rc2 = first_failure(m, b, e, Ke, Ml);
+        if (rc2 != FMBD_OK) rc = rc2;
+        goto done;
+      }
+      if (first) {
+        double *o = once + 14 * m->ntet + 37 * eb;
+        o[0] = sqrt((x1[0] - x0[0]) * (x1[0] - x0[0]) + (x1[1] - x0[1]) * (x1[1] - x0[1]) +
                     (x1[2] - x0[2]) * (x1[2] - x0[2]));
-    vol_beam += b->area * L;
-    FMBD_GCALL(fmbd_fe_beam_matrices(x0, x1, v, b->E, b->nu, b->rho, b->area, b->Iy, b->Iz, b->J, e,
-                                     Ke, Me));
-    rigid_beam(x0, x1, Me, Mr);
-    FMBD_GCALL(fmbd_fe_beam_lumped(x0, x1, v, b->rho, b->area, b->J, e, Ml));
-    b->node_mass[m->beam[2 * e]] += Ml[0];
-    b->node_mass[m->beam[2 * e + 1]] += Ml[6 * 12 + 6];
-    const double *Mb = opt->mass == FMBD_FE_MASS_CONSISTENT ? Me : Ml;
-    FMBD_GCALL(add_element(&c, m->ntet + e, 12, Ke, diag_mass ? NULL : Mb));
-    if (diag_mass) {  // translations on the diagonal (isotropic m/2), rotations a 3x3 block
-      for (int a = 0; a < 2; a++) {
-        int64_t r0 = b->node_dof[m->beam[2 * e + a]];
-        if (b->node_dof[m->beam[2 * e + a] + 1] == r0) continue;  // clamped
-        FMBD_GCALL(add_diag(b->M, r0, 3, Ml[(6 * a) * 13]));
-        for (int i = 0; i < 3; i++) {
-          for (int j = 0; j < 3; j++) {
-            int64_t pos = fmbd_csr_find(b->M, r0 + 3 + i, r0 + 3 + j);
-            FMBD_GCHECK(pos >= 0, FMBD_ERR_INTERNAL, "lumped rotational block not in the pattern");
-            b->M->data[pos] += Ml[(6 * a + 3 + i) * 12 + 6 * a + 3 + j];
+        rigid_beam(x0, x1, Me, o + 1);
+      }
+      if (in_set(&c, bn[0])) b->node_mass[bn[0]] += Ml[0];
+      if (in_set(&c, bn[1])) b->node_mass[bn[1]] += Ml[6 * 12 + 6];
+      const double *Mb = opt->mass == FMBD_FE_MASS_CONSISTENT ? Me : Ml;
+      FMBD_GCALL(add_element(&c, e, 12, Ke, diag_mass ? NULL : Mb));
+      if (diag_mass) {  // translations on the diagonal (isotropic m/2), rotations a 3x3 block
+        for (int a = 0; a < 2; a++) {
+          int64_t r0 = b->node_dof[bn[a]];
+          if (b->node_dof[bn[a] + 1] == r0 || !in_set(&c, bn[a])) continue;  // clamped, or later
+          FMBD_GCALL(add_diag(b->M, r0, 3, Ml[(6 * a) * 13]));
+          for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < 3; j++) {
+              int64_t pos = fmbd_csr_find(b->M, r0 + 3 + i, r0 + 3 + j);
+              FMBD_GCHECK(pos >= 0, FMBD_ERR_INTERNAL,
+                          "lumped rotational block not in the pattern");
+              b->M->data[pos] += Ml[(6 * a + 3 + i) * 12 + 6 * a + 3 + j];
+            }
           }
         }
       }
     }
   }
   if (progress) fmbd_progress(NULL);
+  for (int64_t e = 0; e < m->ntet; e++) {
+    vol_solid += once[14 * e];
+    rigid_solid_add(once + 14 * e + 1, Mr);
+  }
+  for (int64_t eb = 0; eb < m->nbeam; eb++) {
+    const double *o = once + 14 * m->ntet + 37 * eb;
+    vol_beam += b->area * o[0];
+    for (int i = 0; i < 36; i++) Mr[i] += o[1 + i];
+  }
   b->volume = vol_solid + vol_beam;
   body_properties(b, Mr);
   *out = b;
@@ -900,6 +1204,12 @@ done:
   fmbd_free(Ke);
   fmbd_free(Me);
   fmbd_free(Ml);
+  fmbd_free(once);
+  fmbd_free(seen);
+  fmbd_free(slot);
+  fmbd_free(vleft);
+  fmbd_free(pool);
+  fmbd_free(freel);
   fmbd_csr_destroy(&T);
   asm_free(&c);
   return rc;

@@ -20,4 +20,13 @@ int fmbd_fe_tie_build(fmbd_fe_body *b, const int64_t *fdof, fmbd_csr **T, int8_t
 /// Derive b->node_dof from b->dofs (checks that /dofs is node-major and in range).
 int fmbd_fe_index_dofs(fmbd_fe_body *b);
 
+/// The assembly's element loop visits the nodes set by set (fmbd_fe.c, "the order of the element
+/// loop"). For tests only: set_nodes > 0 fixes the nodes per set (0: from the cache size), and
+/// the assembly records the number of sets it used in sets_used.
+typedef struct fmbd_fe_asm_hook {
+  int64_t set_nodes;
+  int32_t sets_used;
+} fmbd_fe_asm_hook;
+extern fmbd_fe_asm_hook fmbd_fe_asm_test;
+
 #endif

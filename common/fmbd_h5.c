@@ -696,26 +696,51 @@ static int deflate_level(hid_t ftype, hsize_t nelem) {
 }
 #define CHUNK_TARGET_ELEMS 131072  // 1 MiB of doubles: fits HDF5's default 1 MiB chunk cache
 
-// Whether doubles like x[0..n) are worth HDF5's shuffle + deflate (FLOAT_DEFLATE_MIN_RATIO on
-// the first CHUNK_TARGET_ELEMS of them); true when the trial itself cannot run
-static bool floats_compress(const double *x, hsize_t n) {
+// The ratio by which deflate 1 shrinks the first CHUNK_TARGET_ELEMS of the doubles x[0..n),
+// shuffled first (as HDF5's shuffle filter does) or not; 0 when the trial itself cannot run
+static double float_ratio(const double *x, hsize_t n, bool shuffle) {
   if (n > CHUNK_TARGET_ELEMS) n = CHUNK_TARGET_ELEMS;
   size_t nb = (size_t)n * sizeof(double);
   uLongf zn = compressBound((uLong)nb);
-  unsigned char *sh = fmbd_malloc(nb), *z = fmbd_malloc((size_t)zn);
-  bool yes = true;
-  if (sh && z) {
+  unsigned char *sh = shuffle ? fmbd_malloc(nb) : NULL, *z = fmbd_malloc((size_t)zn);
+  double r = 0.0;
+  if ((sh || !shuffle) && z) {
     const unsigned char *b = (const unsigned char *)x;
-    for (size_t i = 0; i < (size_t)n; i++) {
-      for (size_t k = 0; k < sizeof(double); k++) sh[k * (size_t)n + i] = b[i * sizeof(double) + k];
+    if (shuffle) {
+      for (size_t i = 0; i < (size_t)n; i++) {
+        for (size_t k = 0; k < sizeof(double); k++)
+          sh[k * (size_t)n + i] = b[i * sizeof(double) + k];
+      }
     }
-    if (compress2(z, &zn, sh, (uLong)nb, 1) == Z_OK)
-      yes = (double)nb >= FLOAT_DEFLATE_MIN_RATIO * (double)zn;
+    if (compress2(z, &zn, shuffle ? sh : b, (uLong)nb, 1) == Z_OK && zn > 0)
+      r = (double)nb / (double)zn;
   }
   fmbd_free(sh);
   fmbd_free(z);
-  return yes;
+  return r;
 }
+
+// Whether doubles like x[0..n) are worth HDF5's shuffle + deflate (FLOAT_DEFLATE_MIN_RATIO on
+// the first CHUNK_TARGET_ELEMS of them); true when the trial itself cannot run
+static bool floats_compress(const double *x, hsize_t n) {
+  double r = float_ratio(x, n, true);
+  return r == 0.0 || r >= FLOAT_DEFLATE_MIN_RATIO;
+}
+
+// The arrays of a CSR group (fmbd_h5_write_csr*) have filters of their own, chosen for the
+// reader: cbcheck's estimate run reads the fe file's K and M whole, and inflating them was most
+// of that read (bench/README.md, cbcheck: "The fe file's CSR arrays"). Index arrays: shuffle +
+// deflate 2 (51 k-dof rod, /K/indices of 3.9 M values: 1.26 MB, inflated in 0.030 s CPU, where
+// deflate 4 gave 1.15 MB in 0.073 s). Values: deflate 1 without shuffle when that shrinks the
+// first chunk CSR_DEFLATE_MIN_RATIO times (a consistent mass: Ms (x) I3 repeats whole doubles,
+// which LZ77 finds and shuffle hides: 8.4:1, inflated in 0.032 s, against 5.5:1 in 0.065 s
+// shuffled), else shuffle + deflate 1 if that does, else none (a stiffness: 1.1-1.25:1, read
+// plain in 0.004 s against 0.10 s inflated); beyond FLOAT_DEFLATE_MAX values none, as for any
+// float dataset. FMBD_H5_DEFLATE still overrides all of it.
+#define CSR_INDEX_LEVEL 2
+#define CSR_DEFLATE_MIN_RATIO 2.0
+typedef enum csr_array { CSR_NONE, CSR_INDEX, CSR_VALUES } csr_array;
+static csr_array g_csr_array = CSR_NONE;  // set by the CSR writers around each array's write
 
 // Chunk shape: trailing dimensions whole while the chunk stays under the target, the first
 // that does not fit cut, leading dimensions 1. Every chunk extent is in [1, dim].
@@ -763,10 +788,20 @@ static int create_dataset(fmbd_h5 *f, const char *path, hid_t ftype, int rank, c
     chunk_shape(rank, hd, chunk);
     FMBD_H5(H5Pset_chunk(dcpl, rank, chunk), FMBD_ERR_EXTERNAL, "H5Pset_chunk failed");
     int level = deflate_level(ftype, nelem);
-    if (level > 0 && values && !getenv("FMBD_H5_DEFLATE") && !floats_compress(values, nelem))
+    bool shuffle = true;
+    if (g_csr_array != CSR_NONE && !getenv("FMBD_H5_DEFLATE")) {  // a CSR group's array
+      if (g_csr_array == CSR_INDEX) {
+        level = CSR_INDEX_LEVEL;
+      } else if (level > 0 && values) {
+        shuffle = float_ratio(values, nelem, false) < CSR_DEFLATE_MIN_RATIO;
+        if (shuffle && float_ratio(values, nelem, true) < CSR_DEFLATE_MIN_RATIO) level = 0;
+      }
+    } else if (level > 0 && values && !getenv("FMBD_H5_DEFLATE") &&
+               !floats_compress(values, nelem)) {
       level = 0;  // values: the doubles to be written (when at hand), for the trial
+    }
     if (level > 0) {
-      FMBD_H5(H5Pset_shuffle(dcpl), FMBD_ERR_EXTERNAL, "H5Pset_shuffle failed");
+      if (shuffle) FMBD_H5(H5Pset_shuffle(dcpl), FMBD_ERR_EXTERNAL, "H5Pset_shuffle failed");
       FMBD_H5(H5Pset_deflate(dcpl, (unsigned)level), FMBD_ERR_EXTERNAL, "H5Pset_deflate failed");
     }
     *rows_per_block = chunk[0];
@@ -1043,15 +1078,19 @@ int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A) {
   FMBD_GCALL(unlink_existing(f, path));
   FMBD_GCALL(fmbd_h5_make_group(f, path));
   FMBD_GCALL(join(p, sizeof p, path, "data"));
+  g_csr_array = CSR_VALUES;
   FMBD_GCALL(fmbd_h5_write_f64(f, p, 1, &nnz, A->data));
   FMBD_GCALL(join(p, sizeof p, path, "indices"));
+  g_csr_array = CSR_INDEX;
   FMBD_GCALL(fmbd_h5_write_i64(f, p, 1, &nnz, A->indices));
   FMBD_GCALL(join(p, sizeof p, path, "indptr"));
   FMBD_GCALL(fmbd_h5_write_i64(f, p, 1, &np1, A->indptr));
+  g_csr_array = CSR_NONE;
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-type", "csr_matrix"));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-version", "0.1.0"));
   FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "shape", 2, shape));
 done:
+  g_csr_array = CSR_NONE;
   if (rc) ctx(f, path);
   return rc;
 }
@@ -1069,7 +1108,9 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
   FMBD_GCALL(unlink_existing(f, path));
   FMBD_GCALL(fmbd_h5_make_group(f, path));
   FMBD_GCALL(join(p, sizeof p, path, "data"));
+  g_csr_array = CSR_VALUES;
   FMBD_GCALL(fmbd_h5_write_f64(f, p, 1, &nnz, A->data));
+  g_csr_array = CSR_NONE;
   FMBD_H5(lcpl = H5Pcreate(H5P_LINK_CREATE), FMBD_ERR_IO, "cannot create a link property list");
   H5Pset_char_encoding(lcpl, H5T_CSET_UTF8);
   const char *member[2] = {"indices", "indptr"};
@@ -1083,6 +1124,7 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-version", "0.1.0"));
   FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "shape", 2, shape));
 done:
+  g_csr_array = CSR_NONE;
   close_id(&lcpl, H5Pclose);
   if (rc) ctx(f, path);
   return rc;

@@ -98,15 +98,16 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
   if (m->eq) {
     for (int64_t e = 0; e < m->neq; e++) {
       fmbd_free(m->eq[e].jac), fmbd_free(m->eq[e].pr), fmbd_free(m->eq[e].pc),
-          fmbd_free(m->eq[e].text), fmbd_free(m->eq[e].cols);
+          fmbd_free(m->eq[e].jw), fmbd_free(m->eq[e].text), fmbd_free(m->eq[e].cols);
     }
     fmbd_free(m->eq);
   }
-  double *arrs[] = {m->x,      m->xd,     m->xdd,    m->a,     m->lam,   m->xn,   m->xdn,
-                    m->xddn,   m->an,     m->lamn,   m->xddp,  m->res,   m->rhs,  m->scale,
-                    m->nscale, m->ascale, m->floor_, m->wk,    m->bres,  m->bblk, m->bwork,
-                    m->Ax,     m->rscale, m->lamp,   m->xddpp, m->lampp, m->itx};
+  double *arrs[] = {m->x,      m->xd,    m->xdd,  m->a,    m->lam,   m->xn,    m->xdn,    m->xddn,
+                    m->an,     m->lamn,  m->xddp, m->res,  m->rhs,   m->scale, m->nscale, m->ascale,
+                    m->floor_, m->wk,    m->bres, m->bblk, m->bwork, m->Ax,    m->rscale, m->lamp,
+                    m->xddpp,  m->lampp, m->itx,  m->ity,  m->tx,    m->dyp};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
+  fmbd_free(m->dpos);
   if (m->bpos) {
     for (int i = 0; i < m->nb; i++) fmbd_free(m->bpos[i]);
     fmbd_free(m->bpos);

@@ -96,8 +96,13 @@
 //   (the residual keeps it). Environment FMBD_MBS_SCHUR=0 / 1 forces the whole-matrix KLU /
 //   the elimination of every modal body.
 // NEWTON convergence: with theta the contraction rate of successive increments, stop when
-//   theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II, IV.8), or |dx_i| <= 1e-3 tx_i
-//   in the first iteration, or |dx_i| <= tx_i with theta >= 1 (round-off stagnation), where
+//   max_i |dx_i|/tx_i <= 1 and theta/(1-theta) max_i |dx_i|/tx_i <= 1 (Hairer & Wanner II,
+//   IV.8), or |dx_i| <= 1e-3 tx_i in the first iteration, or |dx_i| <= tx_i with theta >= 1
+//   (round-off stagnation); or (the early stop, from the third iteration on) when theta <= 0.1
+//   and theta/(1-theta) max_i |dx_i|/tx_i <= 1 and the same holds for the multipliers'
+//   increments (lambda = beta' y) measured in ty_k = max(min_i A_ii tx_i / |J_ki|, 1e3 eps
+//   |lambda_k| / beta'), i over the coordinates of equation k whose diagonal A_ii of the
+//   iteration matrix is formed (the force that moves each of them by its tolerance), where
 //   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, rscale_i)),
 //   rscale_i = nscale_i for the frame coordinates, L_ref (L_ref sqrt(m) for modal
 //   coordinates) for elastic ones, which the constraints' round-off reaches via the frame:

@@ -227,6 +227,7 @@ typedef struct meq {
   double *jac;       // nj
   int64_t *cols;     // nj coordinates of the jac entries (side 1's body, then side 2's)
   int64_t *pr, *pc;  // positions in Ax of (row, col) and (col, row) per jac entry
+  double *jw;        // nj: A_ii / |jac| at the last matrix (fmbd_mbs_step.c, mult_tol)
   char *text;        // description (redundant ones)
 } meq;
 
@@ -255,7 +256,12 @@ struct fmbd_mbs {
   double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
   double *xddp;                         // x'' one step before
   double *lamp;                         // lam one step before
-  double *itx;  // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
+  double *itx;    // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
+  double *ity;    // 1 / Newton tolerance of each kept multiplier's increment (fmbd_mbs_step.c)
+  double *tx;     // Newton tolerance of each coordinate in this attempt (1 / itx)
+  double *dyp;    // the multipliers' increments of the last Newton iteration
+  bool jw_ok;     // the equations' jw formed from the last evaluated matrix
+  int64_t *dpos;  // position of each coordinate's diagonal entry in Ax (-1: not formed there)
   double *xddpp, *lampp;  // x'', lam two steps before (the predictor)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
@@ -273,6 +279,7 @@ struct fmbd_mbs {
   int64_t worst_i;  // largest scaled residual of the last iterate
   double worst_v;
   int64_t worst_dx;  // coordinate of the largest Newton correction
+  int64_t worst_dy;  // kept equation of the largest multiplier correction (debug output)
   bool need_factor, after_reject;
   // --- sparse matrix and KLU ---
   int64_t nnz;

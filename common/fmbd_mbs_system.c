@@ -173,6 +173,7 @@ int mbs_build_pattern(fmbd_mbs *m) {
     if (!q->kept) continue;
     FMBD_GALLOC(q->pr = fmbd_malloc(sizeof(int64_t) * (size_t)q->nj));
     FMBD_GALLOC(q->pc = fmbd_malloc(sizeof(int64_t) * (size_t)q->nj));
+    FMBD_GALLOC(q->jw = fmbd_malloc(sizeof(double) * (size_t)q->nj));
     int64_t row = m->n + q->row;
     for (int i = 0; i < q->nj; i++) {
       int64_t col = q->cols[i];
@@ -215,6 +216,23 @@ int mbs_build_pattern(fmbd_mbs *m) {
   }
   FMBD_GCALL(fmbd_klu_analyze(N, Ap, Ai, &m->klu));
   FMBD_GCALL(mbs_schur_setup(m, Ap, Ai));
+  // each coordinate's diagonal entry (the multipliers' Newton tolerance, fmbd_mbs_step.c); an
+  // eliminated body's modal-modal block is not formed in Ax (fmbd_mbs_schur.c): none there
+  FMBD_GALLOC(m->dpos = fmbd_malloc(sizeof(int64_t) * (size_t)(m->n ? m->n : 1)));
+  FMBD_GALLOC(m->ity = fmbd_calloc((size_t)m->m + 1, sizeof(double)));
+  FMBD_GALLOC(m->tx = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
+  FMBD_GALLOC(m->dyp = fmbd_calloc((size_t)m->m + 1, sizeof(double)));
+  for (int64_t c = 0; c < m->n; c++) {
+    m->dpos[c] = -1;
+    for (int64_t k = Ap[c]; k < Ap[c + 1]; k++) {
+      if (Ai[k] == c) m->dpos[c] = k;
+    }
+  }
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (!b->elim) continue;
+    for (int k = 7; k < b->n; k++) m->dpos[mbs_col(b, k)] = -1;
+  }
 done:
   fmbd_free(sl), fmbd_free(where), fmbd_free(Ap), fmbd_free(Ai);
   return rc;

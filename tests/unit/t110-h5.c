@@ -631,6 +631,69 @@ static void test_countdown(void) {
   EXPECT(rc == FMBD_OK && k > 20, "countdown ended at %lld with rc %d", (long long)k, rc);
 }
 
+// The filters of a CSR group's arrays (fmbd_h5.c, CSR_INDEX_LEVEL): indices and indptr shuffle +
+// deflate 2; values like a consistent mass (whole doubles repeated) deflate 1 unshuffled; values
+// that do not compress 2:1 either way (pseudo-random) plain. `filters` gives the dataset's
+// filter count, whether shuffle is among them and the deflate level (0 when none)
+static void filters(hid_t fid, const char *path, bool *shuffle, unsigned *level, int *n) {
+  hid_t d = H5Dopen2(fid, path, H5P_DEFAULT), pl = d >= 0 ? H5Dget_create_plist(d) : -1;
+  *shuffle = false;
+  *level = 0;
+  *n = pl >= 0 ? H5Pget_nfilters(pl) : -1;
+  for (int i = 0; i < *n; i++) {
+    unsigned flags, cd[4] = {0};
+    size_t ncd = 4;
+    H5Z_filter_t id = H5Pget_filter2(pl, (unsigned)i, &flags, &ncd, cd, 0, NULL, NULL);
+    if (id == H5Z_FILTER_SHUFFLE) *shuffle = true;
+    if (id == H5Z_FILTER_DEFLATE) *level = ncd > 0 ? cd[0] : 0;
+  }
+  if (pl >= 0) H5Pclose(pl);
+  if (d >= 0) H5Dclose(d);
+}
+
+static void test_csr_filters(void) {
+  const char *name = tmp("csrf.h5");
+  const int64_t n = 20000;  // one entry a row: chunked (over CHUNK_MIN_ELEMS)
+  fmbd_csr *A = NULL;
+  fmbd_h5 *f = NULL;
+  EXPECT(fmbd_csr_create(n, n, n, &A) == FMBD_OK, "csr");
+  uint64_t s = 1;
+  for (int64_t i = 0; i <= n; i++) A->indptr[i] = i;
+  for (int64_t i = 0; i < n; i++) {
+    A->indices[i] = i;
+    A->data[i] = (double)(i % 7 == 0 ? 3 : 0) * 0.1;  // mass-like: repeated whole doubles
+  }
+  EXPECT(fmbd_h5_create(name, "fmbd-test", "1.0", &f) == FMBD_OK, "create");
+  EXPECT(fmbd_h5_write_csr(f, "/M", A) == FMBD_OK, "write M");
+  for (int64_t i = 0; i < n; i++) {
+    s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+    A->data[i] = (double)(s >> 11) / 9007199254740992.0;  // random mantissas: ~1:1 either way
+  }
+  EXPECT(fmbd_h5_write_csr_like(f, "/K", A, "/M") == FMBD_OK, "write K");
+  EXPECT(fmbd_h5_commit(&f, 0, 0) == FMBD_OK, "commit");
+  hid_t fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT);
+  bool sh;
+  unsigned lv;
+  int nf;
+  filters(fid, "/M/indices", &sh, &lv, &nf);
+  EXPECT(nf == 2 && sh && lv == 2, "indices: %d filters, shuffle %d, deflate %u", nf, sh, lv);
+  filters(fid, "/M/indptr", &sh, &lv, &nf);
+  EXPECT(nf == 2 && sh && lv == 2, "indptr: %d filters, shuffle %d, deflate %u", nf, sh, lv);
+  filters(fid, "/M/data", &sh, &lv, &nf);
+  EXPECT(nf == 1 && !sh && lv == 1, "mass-like data: %d filters, shuffle %d, deflate %u", nf, sh,
+         lv);
+  filters(fid, "/K/data", &sh, &lv, &nf);
+  EXPECT(nf == 0, "random data: %d filters, shuffle %d, deflate %u", nf, sh, lv);
+  H5Fclose(fid);
+  fmbd_csr *B = NULL;
+  EXPECT(fmbd_h5_open(name, &f) == FMBD_OK && fmbd_h5_read_csr(f, "/K", &B) == FMBD_OK && B &&
+             !memcmp(B->data, A->data, (size_t)n * sizeof *A->data),
+         "filtered csr read back");
+  fmbd_csr_destroy(&B);
+  fmbd_h5_close(&f);
+  fmbd_csr_destroy(&A);
+}
+
 int main(void) {
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
   snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t110-h5", root ? root : ".",
@@ -642,6 +705,7 @@ int main(void) {
   test_dense();
   test_cm();
   test_csr();
+  test_csr_filters();
   test_attrs();
   test_open_errors();
   test_atomic();

@@ -37,15 +37,6 @@ static int top_face(const double *x) {
   return fabs(x[2] - 0.5) < 1e-12;
 }
 
-static fmbd_fe_opts base_options(void) {
-  fmbd_fe_opts o;
-  fmbd_fe_opts_defaults(&o);
-  o.E = 1e9;
-  o.nu = 0.25;
-  o.rho = 1000;
-  return o;
-}
-
 // u = u0 + th x (x - x0) at every active dof; rotations th
 static double *rigid_q(const fmbd_fe_body *b, const double u0[3], const double th[3],
                        const double x0[3]) {
@@ -152,7 +143,7 @@ static void dense_ptap_check(const fmbd_fe_body *tied, const fmbd_fe_body *free_
 static void test_rbe2(fmbd_fe_mass_kind mass) {
   fmbd_mesh mesh;
   box_mesh(&mesh, 1.0, 0.5, 0.5, 3, 2, 2, 1);
-  fmbd_fe_opts o = base_options();
+  fmbd_fe_opts o = t2_soft_options();
   o.mass = mass;
   fmbd_fe_body *free_b = NULL, *b = NULL;
   EXPECT(fmbd_fe_assemble(&mesh, &o, &free_b) == FMBD_OK, "free: %s", fmbd_err_get()->msg);
@@ -229,7 +220,7 @@ static void test_rbe2(fmbd_fe_mass_kind mass) {
 static void test_rbe3(void) {
   fmbd_mesh mesh;
   box_mesh(&mesh, 1.0, 0.5, 0.5, 3, 2, 2, 2);
-  fmbd_fe_opts o = base_options();
+  fmbd_fe_opts o = t2_soft_options();
   fmbd_fe_interface_spec it[2] = {
       {.group = "xmax", .kind = FMBD_FE_RBE3, .has_point = true, .point = {1.1, 0.3, 0.2}},
       {.group = "xmin", .kind = FMBD_FE_RBE2}};
@@ -301,7 +292,7 @@ static void test_errors(void) {
   add_group(&mesh, "edge", on_edge);
   add_group(&mesh, "pair", two_nodes);
   add_group(&mesh, "top", top_face);
-  fmbd_fe_opts o = base_options();
+  fmbd_fe_opts o = t2_soft_options();
   fmbd_fe_interface_spec it[2] = {{.group = "edge", .kind = FMBD_FE_RBE3},
                                   {.group = "top", .kind = FMBD_FE_RBE2}};
   o.ninterfaces = 1;
@@ -336,7 +327,7 @@ static void test_beam_tie(void) {
   const double p0[3] = {0, 0, 0}, p1[3] = {1, 0, 0};
   fmbd_mesh mesh;
   beam_mesh(&mesh, p0, p1, 8);
-  fmbd_fe_opts o = base_options();
+  fmbd_fe_opts o = t2_soft_options();
   o.area = 1e-4;
   o.Iy = 1e-9;
   o.Iz = 2e-9;

@@ -180,4 +180,14 @@ static inline double *csr_dense(const fmbd_csr *A) {
   return D;
 }
 
+// options of a soft test material (E = 1 GPa, nu = 0.25, rho = 1000 kg/m^3), the rest defaults
+static inline fmbd_fe_opts t2_soft_options(void) {
+  fmbd_fe_opts o;
+  fmbd_fe_opts_defaults(&o);
+  o.E = 1e9;
+  o.nu = 0.25;
+  o.rho = 1000;
+  return o;
+}
+
 #endif

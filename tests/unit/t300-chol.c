@@ -206,8 +206,102 @@ static void inertia_3d(void) {
   for (size_t t = 0; t < sizeof all / sizeof all[0]; t++) fmbd_csr_destroy(&all[t]);
 }
 
+// fmbd_chol_set_input_hook: the caller's matrix arrays dropped once the input is formed
+static int g_hook_calls;
+static double *g_hook_saved;
+static void drop_values(void *ctx) {
+  fmbd_csr *A = ctx;
+  g_hook_calls++;
+  g_hook_saved = A->data;
+  A->data = NULL;  // a read after this point would crash (and ASan would name it)
+}
+
+// One dense supernode of 700 columns: A_ij = min(i, j) (i, j = 1..n), eigenvalues
+// 1 / (4 sin^2((2k - 1) pi / (4n + 2))), k = 1..n (its inverse is the second-difference
+// matrix). Exercises what small supernodes do not: the diagonal blocks' upper-triangle pages
+// given back after the LL' (columns of more than a page above the diagonal), the LDL''s
+// trailing updates by column blocks of 128 (gemm_lower), and the input hook.
+static void dense_supernode(void) {
+  const int64_t n = 700;
+  fmbd_csr *A = NULL, *Al = NULL;
+  EXPECT(fmbd_csr_create(n, n, n * n, &A) == 0, "allocation");
+  for (int64_t i = 0; i < n; i++) {
+    A->indptr[i] = i * n;
+    for (int64_t j = 0; j < n; j++) {
+      A->indices[i * n + j] = j;
+      A->data[i * n + j] = (double)((i < j ? i : j) + 1);
+    }
+  }
+  A->indptr[n] = n * n;
+  double *ex = malloc((size_t)n * sizeof(double));
+  for (int64_t k = 1; k <= n; k++) {
+    double sn = sin((double)(2 * k - 1) * M_PI / (double)(4 * n + 2));
+    ex[k - 1] = 1.0 / (4.0 * sn * sn);
+  }
+  qsort(ex, (size_t)n, sizeof(double), cmpd);
+  // LL' solve: backward error at round-off (|A|_inf <= n^2), the hook called once, A's values
+  // not read after it
+  fmbd_chol *F = NULL;
+  EXPECT(fmbd_chol_analyze(A, NULL, FMBD_CHOL_LLT, &F) == 0, "dense analyse");
+  g_hook_calls = 0;
+  fmbd_chol_set_input_hook(drop_values, A);
+  int rc = F ? fmbd_chol_factor(F, 0.0) : -1;
+  fmbd_chol_set_input_hook(NULL, NULL);
+  EXPECT(rc == 0 && g_hook_calls == 1, "dense LL': rc %d, hook called %d times", rc, g_hook_calls);
+  if (g_hook_calls) A->data = g_hook_saved;
+  double *x = malloc((size_t)n * sizeof(double)), *b = malloc((size_t)n * sizeof(double)),
+         *r = malloc((size_t)n * sizeof(double));
+  for (int64_t i = 0; i < n; i++) b[i] = x[i] = cos(0.3 * (double)i);
+  EXPECT(rc == 0 && fmbd_chol_solve(F, 1, x, n) == 0, "dense solve");
+  fmbd_csr_matvec(A, x, r);
+  double e = 0.0, xm = 0.0;
+  for (int64_t i = 0; i < n; i++) e = fmax(e, fabs(r[i] - b[i])), xm = fmax(xm, fabs(x[i]));
+  // normwise backward error |A x - b| / (|A| |x| + |b|), |A|_inf = n (n + 1) / 2: a
+  // backward-stable solve gives a small multiple of eps (cond(A) ~ 2e5 does not enter)
+  double be = e / (0.5 * (double)(n * (n + 1)) * xm + 1.0);
+  EXPECT(be <= 1e-14, "dense LL' backward error %.3g", be);
+  // values dropped (fmbd_chol_drop_numeric): the next solve factors again, the same solution
+  double *y = malloc((size_t)n * sizeof(double));
+  memcpy(y, b, (size_t)n * sizeof(double));
+  EXPECT(F && fmbd_chol_drop_numeric(F) == 0 && fmbd_chol_solve(F, 1, y, n) == 0 &&
+             memcmp(x, y, (size_t)n * sizeof(double)) == 0,
+         "solve after the values were dropped differs");
+  free(y);
+  fmbd_chol_destroy(&F);
+  // LDL' counts from the lower storage (prefilled, the hook after it) against the exact ones
+  EXPECT(fmbd_csr_duplicate(A, &Al) == 0 && fmbd_csr_keep_lower(Al, NULL) == 0, "lower copy");
+  fmbd_csr *I = NULL;
+  EXPECT(fmbd_csr_create(n, n, n, &I) == 0, "identity");
+  for (int64_t i = 0; i < n; i++) I->indptr[i] = i, I->indices[i] = i, I->data[i] = 1.0;
+  I->indptr[n] = n;
+  fmbd_chol *Fs = NULL;
+  EXPECT(fmbd_chol_analyze(Al, I, FMBD_CHOL_LDLT, &Fs) == 0, "dense LDL' analyse");
+  int64_t idx[] = {1, 10, 350, 699};
+  for (size_t t = 0; Fs && t < sizeof idx / sizeof idx[0]; t++) {
+    int64_t k = idx[t];
+    double sgm = 0.5 * (ex[k - 1] + ex[k]);
+    g_hook_calls = 0;
+    fmbd_chol_set_input_hook(drop_values, Al);
+    rc = fmbd_chol_factor(Fs, sgm);
+    fmbd_chol_set_input_hook(NULL, NULL);
+    if (g_hook_calls) Al->data = g_hook_saved;
+    EXPECT(rc == 0 && g_hook_calls == 1 && fmbd_chol_negative_pivots(Fs) == k,
+           "dense count below %.6g: %lld, exact %lld (hook %d)", sgm,
+           (long long)fmbd_chol_negative_pivots(Fs), (long long)k, g_hook_calls);
+  }
+  fmbd_chol_destroy(&Fs);
+  fmbd_csr_destroy(&I);
+  fmbd_csr_destroy(&Al);
+  fmbd_csr_destroy(&A);
+  free(ex);
+  free(x);
+  free(b);
+  free(r);
+}
+
 int main(void) {
   inertia_3d();
+  dense_supernode();
   const int64_t n = 500;
   const double h = 1.0 / (double)(n + 1);
   fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h);
