@@ -178,11 +178,10 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
 
 // Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride w): one pass over A
 // for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
-// (same results, bit for bit). Full blocks of NB = 8 columns go through fixed-width kernels
-// (rows8_full, rows8_lower below); a remainder of 2-7 columns of a full-storage A through
-// rows_full.
+// (same results, bit for bit). Full passes of NB = 8 columns go through rows8_full and
+// rows8_lower, which pick a vector kernel where the processor has one (below).
 enum { NB = 8 };
-static void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
+static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
   for (int64_t i = 0; i < A->nrows; i++) {
     double s[NB] = {0};
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
@@ -194,58 +193,149 @@ static void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int
   }
 }
 
-// The kernels of the 8-column passes: 8 sums as one vector of the compiler's (GCC and clang
-// vector extensions: 4 SSE2 registers in the baseline x86-64 build, 2 AVX2 or one AVX-512
-// register in the clones below), so that the sums stay in registers across a row (as plain
-// arrays GCC 12 kept them on the stack and went through memory at every entry). Every lane
-// does the scalar code's operations in the scalar code's order, a * x then + (no contraction
-// into FMA: -std=c11 compiles with -ffp-contract=off, and the clones inherit it), so the
-// results are the same bits on every instruction set and as fmbd_csr_matvec's (tests/unit/t300).
-// Built for the baseline and, where GCC can (x86-64 Linux, an ifunc chosen at load: one
-// portable binary), for AVX2 and AVX-512 (bench/README.md, "The sparse product's kernels").
-typedef double v8d
-    __attribute__((vector_size(8 * sizeof(double)), aligned(sizeof(double)), may_alias));
-#define LD8(p) (*(const v8d *)(p))
-#define ST8(p, v) (*(v8d *)(p) = (v))
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && \
-    !defined(FMBD_NO_CLONES)
-#define FMBD_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define FMBD_CLONES
-#endif
-
-// Y(:, 0..7) = A X, A full storage, xt = X row-major (stride 8)
-FMBD_CLONES static void rows8_full(const fmbd_csr *A, const double *xt, double *Y, int64_t ldy) {
-  const int64_t *ip = A->indptr, *ix = A->indices;
-  const double *d = A->data;
+// the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
+// yt (row-major, stride w)
+static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
+                              int64_t ldy) {
+  memset(yt, 0, (size_t)A->nrows * (size_t)w * sizeof(double));
   for (int64_t i = 0; i < A->nrows; i++) {
-    v8d s = {0};
-    for (int64_t p = ip[i]; p < ip[i + 1]; p++) s += d[p] * LD8(xt + ix[p] * NB);
-    for (int k = 0; k < NB; k++) Y[i + k * ldy] = s[k];
+    double s[NB] = {0};
+    const double *xi = xt + i * w;
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      int64_t j = A->indices[p];
+      double a = A->data[p];
+      const double *x = xt + j * w;
+      for (int k = 0; k < w; k++) s[k] += a * x[k];
+      if (j != i) {
+        double *y = yt + j * w;
+        for (int k = 0; k < w; k++) y[k] += a * xi[k];
+      }
+    }
+    double *y = yt + i * w;
+    for (int k = 0; k < w; k++) y[k] += s[k];
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * w + k];
   }
 }
 
-// the same for a lower-stored symmetric A (sym_matvec's order): the transposed entries' sums in
-// yt (row-major, stride 8, zeroed here), then Y
-FMBD_CLONES static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt, double *Y,
-                                    int64_t ldy) {
+// Vector kernels of the 8-column passes (x86-64 with GCC or clang): the 8 sums as one vector
+// of the compiler's vector extensions, kept in registers across a row (as plain arrays, above,
+// GCC 12 keeps them on the stack and goes through memory at every entry), compiled for AVX2
+// (two registers) and AVX-512 (one) and chosen when called (__builtin_cpu_supports): one
+// portable binary. Not for the baseline x86-64: GCC lowers 64-byte vectors to SSE2 through the
+// stack, 4 times slower than the plain loops (300 modes of the 51 k-dof rod: M products 13-18 s
+// against 3-5 s, bench/README.md "The sparse product's kernels"), so that and every other
+// processor keep the plain loops. Every lane does the plain code's operations in its order,
+// a * x then + (no contraction into FMA: GCC compiles -std=c11 with -ffp-contract=off, the
+// target attributes inherit it, and clang is told so below), so the results are the same bits on
+// every instruction set and as fmbd_csr_matvec's (tests/unit/t300).
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#define FMBD_VEC8 1
+#ifdef __clang__
+#pragma clang fp contract( \
+    off)  // clang contracts a * x + s into FMA by default, GCC at -std=c11 not
+#endif
+typedef double v4d
+    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
+#define LD4(p) (*(const v4d *)(p))
+#define ST4(p, v) (*(v4d *)(p) = (v))
+
+// the 8 sums as two 4-wide vectors: GCC 12 keeps them in registers with AVX2 and AVX-512 (an
+// 8-wide type it splits for AVX2 through the stack)
+static inline __attribute__((always_inline)) void vrows8_full(const fmbd_csr *A, const double *xt,
+                                                              double *Y, int64_t ldy) {
+  const int64_t *ip = A->indptr, *ix = A->indices;
+  const double *d = A->data;
+  for (int64_t i = 0; i < A->nrows; i++) {
+    v4d s0 = {0}, s1 = {0};
+    for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
+      const double *x = xt + ix[p] * NB;
+      s0 += d[p] * LD4(x);
+      s1 += d[p] * LD4(x + 4);
+    }
+    for (int k = 0; k < 4; k++) {
+      Y[i + k * ldy] = s0[k];
+      Y[i + (k + 4) * ldy] = s1[k];
+    }
+  }
+}
+
+static inline __attribute__((always_inline)) void vrows8_lower(const fmbd_csr *A, const double *xt,
+                                                               double *yt, double *Y, int64_t ldy) {
   const int64_t *ip = A->indptr, *ix = A->indices;
   const double *d = A->data;
   int64_t n = A->nrows;
   memset(yt, 0, (size_t)n * NB * sizeof(double));
   for (int64_t i = 0; i < n; i++) {
-    v8d s = {0}, xi = LD8(xt + i * NB);
+    v4d s0 = {0}, s1 = {0}, x0 = LD4(xt + i * NB), x1 = LD4(xt + i * NB + 4);
     for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
       int64_t j = ix[p];
       double a = d[p];
-      s += a * LD8(xt + j * NB);
-      if (j != i) ST8(yt + j * NB, LD8(yt + j * NB) + a * xi);
+      const double *x = xt + j * NB;
+      s0 += a * LD4(x);
+      s1 += a * LD4(x + 4);
+      if (j != i) {
+        double *y = yt + j * NB;
+        ST4(y, LD4(y) + a * x0);
+        ST4(y + 4, LD4(y + 4) + a * x1);
+      }
     }
-    ST8(yt + i * NB, LD8(yt + i * NB) + s);
+    double *y = yt + i * NB;
+    ST4(y, LD4(y) + s0);
+    ST4(y + 4, LD4(y + 4) + s1);
   }
   for (int64_t i = 0; i < n; i++) {
     for (int k = 0; k < NB; k++) Y[i + k * ldy] = yt[i * NB + k];
   }
+}
+
+__attribute__((target("avx512f"))) static void rows8_full_avx512(const fmbd_csr *A,
+                                                                 const double *xt, double *Y,
+                                                                 int64_t ldy) {
+  vrows8_full(A, xt, Y, ldy);
+}
+__attribute__((target("avx2"))) static void rows8_full_avx2(const fmbd_csr *A, const double *xt,
+                                                            double *Y, int64_t ldy) {
+  vrows8_full(A, xt, Y, ldy);
+}
+__attribute__((target("avx512f"))) static void rows8_lower_avx512(const fmbd_csr *A,
+                                                                  const double *xt, double *yt,
+                                                                  double *Y, int64_t ldy) {
+  vrows8_lower(A, xt, yt, Y, ldy);
+}
+__attribute__((target("avx2"))) static void rows8_lower_avx2(const fmbd_csr *A, const double *xt,
+                                                             double *yt, double *Y, int64_t ldy) {
+  vrows8_lower(A, xt, yt, Y, ldy);
+}
+#endif
+
+static void rows8_full(const fmbd_csr *A, const double *xt, double *Y, int64_t ldy) {
+#ifdef FMBD_VEC8
+  if (__builtin_cpu_supports("avx512f")) {
+    rows8_full_avx512(A, xt, Y, ldy);
+    return;
+  }
+  if (__builtin_cpu_supports("avx2")) {
+    rows8_full_avx2(A, xt, Y, ldy);
+    return;
+  }
+#endif
+  rows_full(A, NB, xt, Y, ldy);
+}
+
+static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt, double *Y, int64_t ldy) {
+#ifdef FMBD_VEC8
+  if (__builtin_cpu_supports("avx512f")) {
+    rows8_lower_avx512(A, xt, yt, Y, ldy);
+    return;
+  }
+  if (__builtin_cpu_supports("avx2")) {
+    rows8_lower_avx2(A, xt, yt, Y, ldy);
+    return;
+  }
+#endif
+  rows_lower(A, NB, xt, yt, Y, ldy);
 }
 
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
