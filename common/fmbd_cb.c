@@ -886,7 +886,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
       // the factor's values go (if the residual check has not dropped them); its analysis
-      // serves the Sturm check's LDL' (the same pattern and ordering: fmbd_chol_lend_analysis)
+      // serves the Sturm check's LDL' (the same pattern and ordering: fmbd_chol_analyze_like)
       FMBD_GCALL(fmbd_chol_drop_numeric(F));
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
@@ -899,9 +899,7 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       if (fmbd_progress_enabled())
         fmbd_progress("Sturm check: LDL' factorisation (%lld dofs)", (long long)ns);
       fmbd_chol_set_input_hook(inputs_away_fn, &away);
-      fmbd_chol_lend_analysis(F);
-      rc = fmbd_eig_sturm_check(Ks, Ms, perm, &er, &ok);
-      fmbd_chol_lend_analysis(NULL);
+      rc = fmbd_eig_sturm_check(Ks, Ms, F, &er, &ok);
       fmbd_chol_set_input_hook(NULL, NULL);
       fmbd_chol_destroy(&F);
       FMBD_GCALL(rc);
@@ -984,7 +982,6 @@ done:
   fmbd_free(mark);
   fmbd_free(perm);
   fmbd_chol_set_input_hook(NULL, NULL);
-  fmbd_chol_lend_analysis(NULL);
   parking_close(&pk_ks);
   parking_close(&pk_idx);
   parking_close(&pk_ms);

@@ -559,29 +559,21 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   return FMBD_OK;
 }
 
-// fmbd_chol_lend_analysis: a supernodal LL' whose symbolic factor serves the next analyses
-static _Thread_local const fmbd_chol *g_lent = NULL;
-
-void fmbd_chol_lend_analysis(const fmbd_chol *F) {
-  g_lent = F;
-}
-
-// the lent LL' if its analysis is the one an LDLT of (A, B) with the ordering perm would make:
-// the same matrix A (object and arrays), B NULL or on A's index arrays (so the union pattern
-// is A's), perm its final permutation, and no numeric values (the copy is then symbolic)
-static const fmbd_chol *lent_analysis(const fmbd_csr *A, const fmbd_csr *B, int kind,
-                                      const int64_t *perm) {
-  const fmbd_chol *D = g_lent;
-  if (!D || kind != FMBD_CHOL_LDLT || !perm || D->kind != FMBD_CHOL_LLT || D->B || D->A != A ||
-      !D->L || !D->L->is_super || D->L->xtype != CHOLMOD_PATTERN || !D->L->Perm)
+// D's symbolic factor if it is the one an LDLT of (A, B) with D's ordering would make: D a
+// supernodal LL' of the same matrix A (object and arrays) with its values dropped (the copy is
+// then symbolic), B NULL or on A's index arrays (so the union pattern is A's)
+static const fmbd_chol *same_analysis(const fmbd_chol *D, const fmbd_csr *A, const fmbd_csr *B,
+                                      int kind) {
+  if (!D || kind != FMBD_CHOL_LDLT || D->kind != FMBD_CHOL_LLT || D->B || D->A != A || !D->L ||
+      !D->L->is_super || D->L->xtype != CHOLMOD_PATTERN || !D->L->Perm)
     return NULL;
   if (B && (B->indptr != A->indptr || B->indices != A->indices || B->lower != A->lower))
     return NULL;
-  const SuiteSparse_long *p = D->L->Perm;
-  for (int64_t k = 0; k < D->n; k++)
-    if (p[k] != perm[k]) return NULL;
   return D;
 }
+
+static int analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t *perm,
+                   const fmbd_chol *like, fmbd_chol **out);
 
 int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol **out) {
   return fmbd_chol_analyze_perm(A, B, kind, NULL, out);
@@ -596,6 +588,21 @@ int fmbd_chol_get_perm(const fmbd_chol *F, int64_t *perm) {
 
 int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t *perm,
                            fmbd_chol **out) {
+  return analyze(A, B, kind, perm, NULL, out);
+}
+
+int fmbd_chol_analyze_like(const fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B, int kind,
+                           fmbd_chol **out) {
+  *out = NULL;
+  FMBD_CHECK(like && like->L && like->L->Perm, FMBD_ERR_INTERNAL,
+             "analysis like a factor without a permutation");
+  return analyze(A, B, kind, (const int64_t *)like->L->Perm, like, out);
+}
+
+// fmbd_chol_analyze_perm; like: an earlier factor whose symbolic factor is copied where it is
+// the one this analysis would make (same_analysis), perm then being its ordering
+static int analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t *perm,
+                   const fmbd_chol *like, fmbd_chol **out) {
   int rc = FMBD_OK;
   fmbd_chol *F = NULL;
   *out = NULL;
@@ -634,15 +641,15 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
   }
   g_cholmod_msg[0] = 0;
   double t0 = fmbd_wall_s();
-  const fmbd_chol *D = lent_analysis(A, B, kind, perm);
+  const fmbd_chol *D = same_analysis(like, A, B, kind);
   if (D) {
-    // the lent LL' analysis: the same pattern and ordering give the same symbolic factor
+    // the LL' analysis: the same pattern and ordering give the same symbolic factor
     F->L = cholmod_l_copy_factor(D->L, &F->c);
     if (!F->L) FMBD_GCALL(cholmod_fail(F, "copy_factor"));
     F->st.nnz_a = D->st.nnz_a;
     F->c.lnz = D->c.lnz;
     F->c.method[0].ordering = CHOLMOD_GIVEN;
-    fmbd_log(FMBD_LOG_DEBUG, "analysis: the LL' one of the same pattern and ordering (lent)");
+    fmbd_log(FMBD_LOG_DEBUG, "analysis: the LL' one of the same pattern and ordering (copied)");
   } else {
     FMBD_GCALL(build_pattern(F));
     t0 = fmbd_wall_s();

@@ -63,6 +63,12 @@ int fmbd_chol_analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, fmbd_chol 
 /// saves the ordering time (METIS). perm NULL: CHOLMOD's choice. perm is copied.
 int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t *perm,
                            fmbd_chol **out);
+/// @brief fmbd_chol_analyze_perm with the ordering of the analysed factor like; where like is an
+/// LLT of the same A whose values were dropped (fmbd_chol_drop_numeric) and the new factor an
+/// LDLT with B NULL or on A's index arrays, like's symbolic factor is copied instead of
+/// analysed again (the same result; fe2cb's Sturm check). like is only read.
+int fmbd_chol_analyze_like(const fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B, int kind,
+                           fmbd_chol **out);
 /// @brief The permutation of an analysed factor into perm (n entries, caller allocates).
 int fmbd_chol_get_perm(const fmbd_chol *F, int64_t *perm);
 
@@ -104,13 +110,6 @@ void fmbd_chol_release_workspace(fmbd_chol *F);
 /// factor inside fmbd_eig.c); fn NULL clears it.
 typedef void (*fmbd_chol_input_fn)(void *ctx);
 void fmbd_chol_set_input_hook(fmbd_chol_input_fn fn, void *ctx);
-
-/// @brief Lend the analysis of the LLT factor F (its values dropped: fmbd_chol_drop_numeric) to
-/// the next fmbd_chol_analyze_perm calls of the calling thread: an LDLT of (A, B) with F's own
-/// A, B NULL or on A's index arrays, and F's permutation copies F's symbolic factor instead of
-/// analysing again (the same result; fe2cb's Sturm check, made inside fmbd_eig.c). F must
-/// outlive the calls; NULL ends the loan.
-void fmbd_chol_lend_analysis(const fmbd_chol *F);
 
 /// @brief Free the copy of the matrix kept for refactorisations (and CHOLMOD's workspace):
 /// solves still work, fmbd_chol_factor does not any more (except for LLT, which assembles its

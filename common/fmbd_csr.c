@@ -233,8 +233,8 @@ static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
 #define FMBD_VEC8 1
 #ifdef __clang__
-#pragma clang fp contract( \
-    off)  // clang contracts a * x + s into FMA by default, GCC at -std=c11 not
+// clang contracts a * x + s into FMA by default, GCC at -std=c11 not
+#pragma clang fp contract(off)
 #endif
 typedef double v4d
     __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));

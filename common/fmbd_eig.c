@@ -1056,7 +1056,7 @@ done:
   return rc;
 }
 
-int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const int64_t *perm,
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const fmbd_chol *like,
                          fmbd_eig_result *res, bool *ok) {
   int rc = FMBD_OK;
   fmbd_chol *ldl = NULL;
@@ -1067,7 +1067,10 @@ int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const int64_t *pe
   if (!(hi - lo > 1e-6 * ref)) return FMBD_OK;  // inside a cluster: inconclusive
   double s = 0.5 * (lo + hi);
   double t0 = fmbd_wall_s();
-  FMBD_GCALL(fmbd_chol_analyze_perm(K, M, FMBD_CHOL_LDLT, perm, &ldl));
+  if (like)
+    FMBD_GCALL(fmbd_chol_analyze_like(like, K, M, FMBD_CHOL_LDLT, &ldl));
+  else
+    FMBD_GCALL(fmbd_chol_analyze(K, M, FMBD_CHOL_LDLT, &ldl));
   FMBD_GCALL(fmbd_chol_factor(ldl, s));
   res->sturm_shift = s;
   res->sturm_count = fmbd_chol_negative_pivots(ldl);

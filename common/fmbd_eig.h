@@ -135,8 +135,9 @@ void fmbd_eig_result_free(fmbd_eig_result *res);
 /// @param[in,out] res  sturm_shift, sturm_count and t_sturm_s are set
 /// @param[out] ok  true: the count equals res->nev; false: a mode was skipped, or no gap above
 ///                 the last pair to place the shift (then solve again with o->sturm = true)
-/// @param[in] perm  a fill-reducing ordering of K's pattern to reuse (fmbd_chol_get_perm), or NULL
-int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const int64_t *perm,
+/// @param[in] like  a factor of K's pattern whose analysis (ordering, and where it allows the
+///                  symbolic factor: fmbd_chol_analyze_like) the LDL' reuses, or NULL
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const fmbd_chol *like,
                          fmbd_eig_result *res, bool *ok);
 
 /// @brief Relative residual ||K x - lambda M x|| / max(||K x||, |scale| ||M x||) of one pair.
