@@ -93,6 +93,30 @@ static double morth_err(const fmbd_csr *M, int64_t n, int64_t k, const double *X
   return e;
 }
 
+// the unit square membrane's linear-element K and M on an (N-1) x (N-1) interior grid, and its
+// exact discrete eigenvalues ascending (sums of the bar's, lam1d): *K1, *M1 the 1-D factors
+static double *membrane(int N, fmbd_csr **K1, fmbd_csr **M1, fmbd_csr **K, fmbd_csr **M) {
+  const int64_t m = N - 1;
+  const double h = 1.0 / N;
+  *K1 = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h);
+  *M1 = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
+  *K = kron_sum(*K1, *M1, 1.0);
+  *M = kron_sum(*M1, *M1, 0.0);
+  double *ex = malloc((size_t)(m * m) * sizeof(double));
+  for (int i = 0; i < m; i++)
+    for (int j = 0; j < m; j++) ex[i * m + j] = lam1d(i + 1, h) + lam1d(j + 1, h);
+  qsort(ex, (size_t)(m * m), sizeof(double), cmpd);
+  return ex;
+}
+
+static void free_case(double *ex, fmbd_csr *K1, fmbd_csr *M1, fmbd_csr *K, fmbd_csr *M) {
+  free(ex);
+  fmbd_csr_destroy(&K1);
+  fmbd_csr_destroy(&M1);
+  fmbd_csr_destroy(&K);
+  fmbd_csr_destroy(&M);
+}
+
 int main(void) {
   // --- held bar, by count, sparse path ------------------------------------------------------
   {
@@ -198,16 +222,9 @@ int main(void) {
   // --- square membrane: repeated pairs must all come out --------------------------------------
   {
     const int N = 26;
-    const int64_t m = N - 1;
-    const double h = 1.0 / N;
-    fmbd_csr *K1 = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h),
-             *M1 = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
-    fmbd_csr *K = kron_sum(K1, M1, 1.0), *M = kron_sum(M1, M1, 0.0);
-    int64_t n = m * m;  // 625 > dense_max: Lanczos
-    double *ex = malloc((size_t)(m * m) * sizeof(double));
-    for (int i = 0; i < m; i++)
-      for (int j = 0; j < m; j++) ex[i * m + j] = lam1d(i + 1, h) + lam1d(j + 1, h);
-    qsort(ex, (size_t)(m * m), sizeof(double), cmpd);
+    fmbd_csr *K1, *M1, *K, *M;
+    double *ex = membrane(N, &K1, &M1, &K, &M);
+    int64_t n = (N - 1) * (N - 1);  // 625 > dense_max: Lanczos
     fmbd_eig_opts o;
     fmbd_eig_opts_defaults(&o);
     o.nev = 24;
@@ -228,11 +245,7 @@ int main(void) {
       EXPECT(fabs(r.lambda[k] - ex[k]) <= 1e-10 * ex[k], "dense mode %lld", (long long)k + 1);
     }
     fmbd_eig_result_free(&r);
-    free(ex);
-    fmbd_csr_destroy(&K1);
-    fmbd_csr_destroy(&M1);
-    fmbd_csr_destroy(&K);
-    fmbd_csr_destroy(&M);
+    free_case(ex, K1, M1, K, M);
   }
 
   // --- many pairs, block method: the basis stays orthonormal --------------------------------
@@ -260,16 +273,8 @@ int main(void) {
     int64_t n, nev = pb == 0 ? 100 : 120;
     double *ex = NULL;
     if (pb == 0) {
-      const int64_t m = N - 1;
-      K1 = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h);
-      M1 = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
-      K = kron_sum(K1, M1, 1.0);
-      M = kron_sum(M1, M1, 0.0);
-      n = m * m;
-      ex = malloc((size_t)n * sizeof(double));
-      for (int i = 0; i < m; i++)
-        for (int j = 0; j < m; j++) ex[i * m + j] = lam1d(i + 1, h) + lam1d(j + 1, h);
-      qsort(ex, (size_t)n, sizeof(double), cmpd);
+      ex = membrane(N, &K1, &M1, &K, &M);
+      n = (int64_t)(N - 1) * (N - 1);
     } else {
       n = N - 1;
       K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h);
@@ -298,11 +303,7 @@ int main(void) {
     }
     if (rc == 0) EXPECT(morth_err(M, n, r.nev, r.X) <= 1e-10, "case %d: X'MX - I", pb);
     fmbd_eig_result_free(&r);
-    free(ex);
-    fmbd_csr_destroy(&K1);
-    fmbd_csr_destroy(&M1);
-    fmbd_csr_destroy(&K);
-    fmbd_csr_destroy(&M);
+    free_case(ex, K1, M1, K, M);
   }
   TEST_EXIT();
 }
