@@ -750,7 +750,8 @@ done:
 // into sets of nearby nodes (runs of their Morton order), each small enough that its rows of K
 // and M stay in cache, and the loop visits set by set the elements that touch the set, in
 // element order, adding only the set's rows. Each row still takes its elements in element
-// order; an element on several sets is computed once per set.
+// order. A tetrahedron on several sets is computed at its first visit and kept in a pool until
+// its last one; a beam is computed at each visit (cheap).
 #define SET_BYTES ((double)(4 << 20))  // K and M values of one set's rows
 
 static uint64_t spread3(uint64_t v) {  // the low 21 bits of v to every third bit

@@ -27,6 +27,9 @@
 #include "fmbd_log.h"
 #include "fmbd_sha256.h"
 
+// which array of a CSR group is being written (its own filters: create_dataset)
+typedef enum csr_array { CSR_NONE, CSR_INDEX, CSR_VALUES } csr_array;
+
 struct fmbd_h5 {
   hid_t fid;
   char *name;        ///< as given ("-" for stdin/stdout)
@@ -41,6 +44,7 @@ struct fmbd_h5 {
   double last_flush_s;  ///< wall clock of the last flush (fmbd_h5_flush_due)
   bool metadata_held;   ///< metadata evictions off: the disk changes only at flushes (series)
   bool inputs_checked;  ///< the recorded inputs were compared with the files at hand
+  csr_array csr;        ///< set by the CSR writers around each array's write
 };
 
 struct fmbd_h5_series {
@@ -739,8 +743,6 @@ static bool floats_compress(const double *x, hsize_t n) {
 // float dataset. FMBD_H5_DEFLATE still overrides all of it.
 #define CSR_INDEX_LEVEL 2
 #define CSR_DEFLATE_MIN_RATIO 2.0
-typedef enum csr_array { CSR_NONE, CSR_INDEX, CSR_VALUES } csr_array;
-static csr_array g_csr_array = CSR_NONE;  // set by the CSR writers around each array's write
 
 // Chunk shape: trailing dimensions whole while the chunk stays under the target, the first
 // that does not fit cut, leading dimensions 1. Every chunk extent is in [1, dim].
@@ -789,8 +791,8 @@ static int create_dataset(fmbd_h5 *f, const char *path, hid_t ftype, int rank, c
     FMBD_H5(H5Pset_chunk(dcpl, rank, chunk), FMBD_ERR_EXTERNAL, "H5Pset_chunk failed");
     int level = deflate_level(ftype, nelem);
     bool shuffle = true;
-    if (g_csr_array != CSR_NONE && !getenv("FMBD_H5_DEFLATE")) {  // a CSR group's array
-      if (g_csr_array == CSR_INDEX) {
+    if (f->csr != CSR_NONE && !getenv("FMBD_H5_DEFLATE")) {  // a CSR group's array
+      if (f->csr == CSR_INDEX) {
         level = CSR_INDEX_LEVEL;
       } else if (level > 0 && values) {
         shuffle = float_ratio(values, nelem, false) < CSR_DEFLATE_MIN_RATIO;
@@ -1078,19 +1080,19 @@ int fmbd_h5_write_csr(fmbd_h5 *f, const char *path, const fmbd_csr *A) {
   FMBD_GCALL(unlink_existing(f, path));
   FMBD_GCALL(fmbd_h5_make_group(f, path));
   FMBD_GCALL(join(p, sizeof p, path, "data"));
-  g_csr_array = CSR_VALUES;
+  f->csr = CSR_VALUES;
   FMBD_GCALL(fmbd_h5_write_f64(f, p, 1, &nnz, A->data));
   FMBD_GCALL(join(p, sizeof p, path, "indices"));
-  g_csr_array = CSR_INDEX;
+  f->csr = CSR_INDEX;
   FMBD_GCALL(fmbd_h5_write_i64(f, p, 1, &nnz, A->indices));
   FMBD_GCALL(join(p, sizeof p, path, "indptr"));
   FMBD_GCALL(fmbd_h5_write_i64(f, p, 1, &np1, A->indptr));
-  g_csr_array = CSR_NONE;
+  f->csr = CSR_NONE;
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-type", "csr_matrix"));
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-version", "0.1.0"));
   FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "shape", 2, shape));
 done:
-  g_csr_array = CSR_NONE;
+  f->csr = CSR_NONE;
   if (rc) ctx(f, path);
   return rc;
 }
@@ -1108,9 +1110,9 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
   FMBD_GCALL(unlink_existing(f, path));
   FMBD_GCALL(fmbd_h5_make_group(f, path));
   FMBD_GCALL(join(p, sizeof p, path, "data"));
-  g_csr_array = CSR_VALUES;
+  f->csr = CSR_VALUES;
   FMBD_GCALL(fmbd_h5_write_f64(f, p, 1, &nnz, A->data));
-  g_csr_array = CSR_NONE;
+  f->csr = CSR_NONE;
   FMBD_H5(lcpl = H5Pcreate(H5P_LINK_CREATE), FMBD_ERR_IO, "cannot create a link property list");
   H5Pset_char_encoding(lcpl, H5T_CSET_UTF8);
   const char *member[2] = {"indices", "indptr"};
@@ -1124,7 +1126,7 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
   FMBD_GCALL(fmbd_h5_write_attr_str(f, path, "encoding-version", "0.1.0"));
   FMBD_GCALL(fmbd_h5_write_attr_i64(f, path, "shape", 2, shape));
 done:
-  g_csr_array = CSR_NONE;
+  f->csr = CSR_NONE;
   close_id(&lcpl, H5Pclose);
   if (rc) ctx(f, path);
   return rc;
