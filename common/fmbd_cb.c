@@ -879,9 +879,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
   FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
   FMBD_GCALL(sub(M, nb, cb->boundary, nb, cb->boundary, &Mb));
   if (Kt && Mt) {
-    // the caller's full matrices are not needed any more: free them (peak memory)
+    // the caller's full matrices are not needed any more: free them (peak memory); M may be
+    // on K's index arrays (fmbd_h5_read_csr_like, fmbd_fe_assemble)
+    release_ms(Mt, *Kt);
     fmbd_csr_destroy(Kt);
-    fmbd_csr_destroy(Mt);
     K = M = NULL;
   }
   cb->time.partition = fmbd_wall_s() - t0;

@@ -1213,8 +1213,7 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
                 "data has %lld entries, more than a (%lld, %lld) matrix holds", (long long)nnz,
                 (long long)shape[0], (long long)shape[1]);
   }
-  FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
-  bool shared = false;  // indices and indptr are B's datasets: copied, not read again
+  bool shared = false;  // indices and indptr are B's datasets: B's arrays, not read again
   if (B && like && !B->lower && B->nrows == shape[0] && B->ncols == shape[1] &&
       fmbd_csr_nnz(B) == nnz) {
     char q[1100];
@@ -1227,9 +1226,15 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
     }
   }
   if (shared) {
-    memcpy(A->indptr, B->indptr, (size_t)(shape[0] + 1) * sizeof(int64_t));
-    memcpy(A->indices, B->indices, (size_t)nnz * sizeof(int64_t));
+    // A on B's index arrays (no copy: at 51 k dofs 33 MB of fresh pages less)
+    FMBD_GALLOC(A = fmbd_calloc(1, sizeof *A));
+    A->nrows = shape[0];
+    A->ncols = shape[1];
+    A->indptr = B->indptr;
+    A->indices = B->indices;
+    FMBD_GALLOC(A->data = fmbd_malloc((size_t)(nnz ? nnz : 1) * sizeof(double)));
   } else {
+    FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
     FMBD_GCALL(join(p, sizeof p, path, "indptr"));
     at = p;
     FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
@@ -1252,6 +1257,7 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
 done:
   close_id(&d, H5Dclose);
   fmbd_free(enc);
+  if (A && B && A->indices == B->indices) A->indptr = A->indices = NULL;  // B's
   fmbd_csr_destroy(&A);
   if (rc) ctx(f, at);
   return rc;

@@ -120,7 +120,9 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
 /// @brief The same, with B the CSR group already read from `like` (may be NULL): where path's
 /// `indices` and `indptr` are the very datasets of like's (hard links, fmbd_h5_write_csr_like)
-/// they are copied from B instead of read (no second inflation); otherwise as fmbd_h5_read_csr.
+/// they are not read: *out then holds B's indptr and indices arrays (the same pointers, as
+/// fmbd_fe_body's M may hold K's; clear them in *out before destroying it, and keep B until
+/// then); otherwise as fmbd_h5_read_csr.
 int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const char *like,
                           fmbd_csr **out);
 /// @brief Read rows r0 .. r1-1 of a CSR group (HDF5 hyperslabs: the indptr slice, then the
