@@ -323,8 +323,8 @@ static bool one_pattern(const fmbd_csr *K, const fmbd_csr *M) {
 // increase, one pass over the interior rows forms all four and allocates only what is kept;
 // else each block is cut (sub), the pattern shared and the triangles halved. The same entries,
 // in the same order, with the same values either way. The one pass saves the full Ks and Ms
-// that the cut makes and the halving shrinks (at 51 k dofs 98 MB of fresh pages, 0.1 s; the
-// partition's peak 262 -> 180 MB: bench/README.md "fe2cb's fixed costs").
+// that the cut makes and the halving shrinks (at 51 k dofs about 0.13 s CPU less and the
+// partition's peak 262 -> 189 MB: bench/README.md "fe2cb's fixed costs").
 static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
                            const int64_t *interior, int64_t nb, const int64_t *boundary,
                            fmbd_csr **Ks, fmbd_csr **Ms, fmbd_csr **Kc, fmbd_csr **Mc) {
