@@ -702,9 +702,10 @@ static int deflate_level(hid_t ftype, hsize_t nelem) {
 
 // The compression trials below read the first TRIAL_ELEMS values (128 KiB, four of deflate's
 // 32 KiB windows): a whole chunk's 1 MiB took 20-25 ms a dataset, 0.1 s of fe2cb's 0.12 s
-// write at 51 k dofs (five dense blocks, none of which compresses), and gave the same ratios
-// to 0.01-0.02 on the rod's cb blocks (1.03-1.14:1), K (1.11-1.14), M (5.6 and 8.1) and the
-// node coordinates (1.15-1.19) (bench/README.md "fe2cb's fixed costs")
+// write at 51 k dofs (five dense blocks, none of which compresses); the first 16,384 values
+// gave ratios within 0.01-0.05 of the whole chunk's on the rod's cb blocks (1.03-1.14:1), K
+// (1.11-1.14), M (5.6 and 8.1) and the node coordinates (1.12-1.19), on the same side of the
+// thresholds below (bench/README.md "fe2cb's fixed costs")
 #define TRIAL_ELEMS 16384
 
 // The ratio by which deflate 1 shrinks the first TRIAL_ELEMS of the doubles x[0..n), shuffled
