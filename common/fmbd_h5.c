@@ -1226,17 +1226,24 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
       same = same_object(f, p, q);
     }
   }
-  FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
   if (same && share) {  // B's arrays themselves: one pattern in memory
-    fmbd_free(A->indptr);
-    fmbd_free(A->indices);
+    // only the values allocated: an index block allocated and freed here (32 MB at 51 k dofs,
+    // mmapped) would raise glibc's mmap threshold to its size, and the later arrays of that
+    // size (fe2cb's parked Ks and Ms) would come from the heap and stay resident when freed:
+    // fe2cb's LL' peak 241 -> 271 MB (bench/README.md "fe2cb's fixed costs")
+    FMBD_GALLOC(A = fmbd_calloc(1, sizeof *A));
+    A->nrows = shape[0];
+    A->ncols = shape[1];
     A->indptr = B->indptr;
     A->indices = B->indices;
     shared = true;
+    FMBD_GALLOC(A->data = fmbd_malloc((size_t)(nnz ? nnz : 1) * sizeof(double)));
   } else if (same) {
+    FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
     memcpy(A->indptr, B->indptr, (size_t)(shape[0] + 1) * sizeof(int64_t));
     memcpy(A->indices, B->indices, (size_t)nnz * sizeof(int64_t));
   } else {
+    FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
     FMBD_GCALL(join(p, sizeof p, path, "indptr"));
     at = p;
     FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
