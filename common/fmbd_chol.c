@@ -846,11 +846,12 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 // BLAS calls of tiny width (OpenBLAS's small-matrix kernels: 15 % of fe2cb's CPU at 51 k dofs,
 // 20 modes, bench/README.md "Fewer and cheaper Lanczos solves"), well below the rate at which
 // the factor streams from memory, which is what bounds a narrow solve (each entry of L is used
-// once per column). Here the same sweeps (forward: column by column of each supernode, the
-// diagonal block's triangle then the rows below; backward: the transposed order) run on a
-// row-major copy Z of the right-hand sides (each row's 4 or 8 values contiguous: one or two
-// 4-wide vectors), 4 columns of a supernode at a time, so that each entry of L is loaded once
-// per sweep and used for every right-hand side in registers:
+// once per column; 4 columns of the 51 k-dof rod's factor, 180 MB: CHOLMOD 43-65 ms a full
+// solve, here 31-39 ms, streaming L twice 18 ms). Here the same sweeps (forward: column by column
+// of each supernode, the diagonal block's triangle then the rows below; backward: the transposed
+// order) run on a row-major copy Z of the right-hand sides (each row's 4 or 8 values contiguous:
+// one or two 4-wide vectors), 4 columns of a supernode at a time, so that each entry of L is loaded
+// once per sweep and used for every right-hand side in registers:
 //   forward, group of columns j..j+g-1 (g <= 4) of supernode s: the g x g triangle on their
 //   rows, then rows i below: z_i -= L(i,j) z_j + ... + L(i,j+g-1) z_{j+g-1} (vector per row);
 //   backward, the groups in reverse: z_j -= sum_i L(i,j) z_i over the rows below the group
@@ -859,11 +860,13 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 // of its off-diagonal part; zero for those in the forward sweep, whose sums are added to Z
 // afterwards, as CHOLMOD's dgemm-and-scatter does), so one kernel call covers both parts. Only
 // the lower part of each diagonal block is read (the upper is not kept: release_zero_pages).
-// Compiled for AVX2 (4-wide vectors of the compiler's vector extensions, no FMA contraction:
-// -std=c11 gives -ffp-contract=off; the sums in the order written) and chosen when called
-// (__builtin_cpu_supports); elsewhere (another processor, another compiler, FMBD_NO_VECTOR) and
-// for blocks of more than 8 columns, CHOLMOD's solve. The results agree with CHOLMOD's to
-// round-off (a different order of the same sums; tests/unit/t3xx compares them).
+// Compiled for AVX2 and FMA (4-wide vectors of the compiler's vector extensions, each product
+// and sum as one fused multiply-add, the sums in the order written) and chosen when called
+// (__builtin_cpu_supports); elsewhere (another processor, another compiler, FMBD_NO_VECTOR), for
+// single vectors (CHOLMOD's BLAS-2 path is as fast) and for blocks of more than 8 columns
+// (CHOLMOD's dgemm is as fast from 12 on), CHOLMOD's solve. The results agree with CHOLMOD's to
+// round-off (the same substitutions, the sums in another order and fused: tests/unit/t300
+// compares them, within the triangular solves' error bound).
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
 #define FMBD_OWN_SOLVE 1
 #include <immintrin.h>
