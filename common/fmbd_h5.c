@@ -1159,11 +1159,11 @@ static bool same_object(fmbd_h5 *f, const char *a, const char *b) {
 }
 
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out) {
-  return fmbd_h5_read_csr_like(f, path, NULL, NULL, out);
+  return fmbd_h5_read_csr_like(f, path, NULL, NULL, false, out);
 }
 
 int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const char *like,
-                          fmbd_csr **out) {
+                          bool share, fmbd_csr **out) {
   int rc = FMBD_OK;
   char p[1100];
   char *enc = NULL;
@@ -1171,6 +1171,7 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
   int64_t shape[2], nnz = -1;
   hid_t d = -1;
   const char *at = path;  // where an error is: the group, or the member dataset being read
+  bool shared = false;    // A's indptr and indices are B's arrays (share)
   *out = NULL;
   FMBD_GCHECK(fmbd_h5_exists(f, path), FMBD_ERR_FORMAT, "missing sparse matrix");
   FMBD_GCHECK(is_group(f, path), FMBD_ERR_FORMAT, "not a CSR group");
@@ -1206,20 +1207,25 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
                 "data has %lld entries, more than a (%lld, %lld) matrix holds", (long long)nnz,
                 (long long)shape[0], (long long)shape[1]);
   }
-  FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
-  bool shared = false;  // indices and indptr are B's datasets: copied, not read again
-  if (B && like && !B->lower && B->nrows == shape[0] && B->ncols == shape[1] &&
-      fmbd_csr_nnz(B) == nnz) {
+  bool same = B && like && !B->lower && B->nrows == shape[0] && B->ncols == shape[1] &&
+              fmbd_csr_nnz(B) == nnz;
+  if (same) {
     char q[1100];
-    shared = true;
     const char *member[2] = {"indices", "indptr"};
-    for (int k = 0; k < 2 && shared; k++) {
+    for (int k = 0; k < 2 && same; k++) {
       FMBD_GCALL(join(p, sizeof p, path, member[k]));
       FMBD_GCALL(join(q, sizeof q, like, member[k]));
-      shared = same_object(f, p, q);
+      same = same_object(f, p, q);
     }
   }
-  if (shared) {
+  FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
+  if (same && share) {  // B's arrays themselves: one pattern in memory
+    fmbd_free(A->indptr);
+    fmbd_free(A->indices);
+    A->indptr = B->indptr;
+    A->indices = B->indices;
+    shared = true;
+  } else if (same) {
     memcpy(A->indptr, B->indptr, (size_t)(shape[0] + 1) * sizeof(int64_t));
     memcpy(A->indices, B->indices, (size_t)nnz * sizeof(int64_t));
   } else {
@@ -1245,6 +1251,7 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
 done:
   close_id(&d, H5Dclose);
   fmbd_free(enc);
+  if (A && shared) A->indptr = A->indices = NULL;  // B's
   fmbd_csr_destroy(&A);
   if (rc) ctx(f, at);
   return rc;

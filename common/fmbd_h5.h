@@ -120,9 +120,11 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
 /// @brief The same, with B the CSR group already read from `like` (may be NULL): where path's
 /// `indices` and `indptr` are the very datasets of like's (hard links, fmbd_h5_write_csr_like)
-/// they are copied from B instead of read (no second inflation); otherwise as fmbd_h5_read_csr.
+/// they are not read again but copied from B, or with `share` are B's arrays themselves (the
+/// same pointers, as fmbd_fe_assemble's M shares K's: free them once, as fmbd_fe_body_destroy
+/// does). Otherwise as fmbd_h5_read_csr.
 int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const char *like,
-                          fmbd_csr **out);
+                          bool share, fmbd_csr **out);
 /// @brief Read rows r0 .. r1-1 of a CSR group (HDF5 hyperslabs: the indptr slice, then the
 /// indices and data slices it points to), so a process of a distributed program holds only its
 /// row block (docs/SCALE.md). *out is (r1 - r0) x ncols with indptr from 0 and the column

@@ -254,14 +254,23 @@ static void test_csr(void) {
            "linked csr read alone");
     fmbd_csr_destroy(&C);
     B->indices[0] = 1;  // row 0: 1, 4 (still increasing)
-    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", &C) == FMBD_OK && C->indices[0] == 1 &&
-               !memcmp(C->data, vc, sizeof vc),
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", false, &C) == FMBD_OK &&
+               C->indices != B->indices && C->indices[0] == 1 && !memcmp(C->data, vc, sizeof vc),
            "linked csr read like A: the pattern copied");
-    EXPECT(fmbd_h5_read_csr_like(f, "/mats/D", B, "/mats/A", &D) == FMBD_OK && D->indices[0] == 0 &&
-               !memcmp(D->indices, ix, sizeof ix) && !memcmp(D->data, vc, sizeof vc),
-           "separate csr read like A: read from the file");
     fmbd_csr_destroy(&C);
-    fmbd_csr_destroy(&D);
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", true, &C) == FMBD_OK &&
+               C->indices == B->indices && C->indptr == B->indptr && C->indices[0] == 1 &&
+               !memcmp(C->data, vc, sizeof vc),
+           "linked csr read like A, shared: A's pattern arrays themselves");
+    for (int share = 0; share < 2; share++) {
+      EXPECT(fmbd_h5_read_csr_like(f, "/mats/D", B, "/mats/A", share, &D) == FMBD_OK &&
+                 D->indices[0] == 0 && D->indices != B->indices &&
+                 !memcmp(D->indices, ix, sizeof ix) && !memcmp(D->data, vc, sizeof vc),
+             "separate csr read like A: read from the file");
+      fmbd_csr_destroy(&D);
+    }
+    C->indptr = C->indices = NULL;  // B's, freed with B
+    fmbd_csr_destroy(&C);
   }
   fmbd_csr_destroy(&B);
   // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0
