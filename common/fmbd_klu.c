@@ -172,7 +172,19 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     return klu_full(F, ax);
   }
   if (F->num) {
+    // the refactorisation without KLU's row scaling (scale -1: no scale factors, no checks of
+    // the fixed pattern). Scaling serves the choice of pivots, which a refactorisation does
+    // not make (it keeps those of the last full factorisation, made with KLU's default
+    // scaling); elimination in a fixed order is invariant to row scaling but for round-off.
+    // Saves the scale pass over A (klu_l_scale, 4 % of the 100-link chain's run) and the
+    // scaling in each solve (bench/README.md, "The predictor's order"). The rcond test below
+    // then reads the unscaled U. FMBD_KLU_RESCALE=1: KLU's default (rescale at each one)
+    static int resc = -1;
+    if (resc < 0) resc = getenv("FMBD_KLU_RESCALE") && !strcmp(getenv("FMBD_KLU_RESCALE"), "1");
+    int sc = F->kc.scale;
+    if (!resc) F->kc.scale = -1;
     int ok = (int)klu_l_refactor(F->Ap, F->Ai, ax, F->sym, F->num, &F->kc);
+    F->kc.scale = sc;
     if (ok && F->kc.status == KLU_OK) ok = (int)klu_l_rcond(F->sym, F->num, &F->kc);
     if (!ok || F->kc.status != KLU_OK || !(F->kc.rcond > RCOND_MIN))
       klu_l_free_numeric(&F->num, &F->kc);
