@@ -21,6 +21,8 @@
 
 // orderings of matrices of this order and more: METIS alone (fmbd_chol_analyze_perm)
 enum { METIS_ONLY_N = 50000 };
+// the supernodal LDL' panel's leaf width and product chunk (ldl_panel)
+enum { LDL_LEAF = 16, LDL_KC = 256, LDL_CB = 64 };
 
 struct fmbd_chol {
   int kind;
@@ -41,7 +43,7 @@ struct fmbd_chol {
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
   double *Lx;    // L->xsize values: D on the diagonal, unit-L below
   bool lx_zero;  // Lx as calloc gave it (not yet touched: zero pages, not resident)
-  int64_t *iperm, *col2super, *map, *head, *next, *lpos;
+  int64_t *iperm, *col2super, *map, *head, *next, *lpos, *runs;
   double *wC, *wW;  // update workspaces
   int64_t sizeC, sizeW;
   int64_t neg;  // negative pivots of the last LDLT factorisation
@@ -326,11 +328,16 @@ static double release_zero_pages(const cholmod_factor *L, double *x) {
 // --- supernodal LDL' without pivoting ---------------------------------------------------------
 // Left-looking over CHOLMOD's supernodes (Ng and Peyton 1993; the structure of CHOLMOD's
 // t_cholmod_super_numeric.c, written here for D): for each supernode s, assemble its columns of
-// P (A - sigma B) P', subtract the updates L_d D_d L_d(rows of s)' of every descendant d (a dense
-// product and a scatter), factor the dense diagonal block as L11 D L11' (blocked, unpivoted),
-// then L21 = A21 L11^-T D^-1 (dtrsm). Without pivoting the D of a symmetric indefinite matrix is
-// the same as the simplicial LDL' one; its signs give the inertia (Sylvester). BLAS-3 throughout,
-// so the Sturm count costs about one Cholesky factorisation instead of 10-20.
+// P (A - sigma B) P', subtract the updates L_d D_d L_d(rows of s)' of every descendant d (dense
+// products by column blocks, each scattered into s while it is in cache), then factor the
+// panel of s (diagonal block and rows below) as [L11; L21] D L11' (ldl_panel: recursive,
+// unpivoted). Without pivoting the D of a symmetric indefinite matrix is the same as the
+// simplicial LDL' one; its signs give the inertia of the matrix factored (Sylvester). BLAS-3
+// throughout, so the Sturm count costs about one Cholesky factorisation instead of 10-20.
+// What guards the count: a zero or NaN pivot stops it (FMBD_ERR_SINGULAR); the largest |L|
+// entry (element growth, which an unpivoted LDL' of an indefinite matrix does not bound) is
+// logged with the count; the eigensolver places the shift in a clear gap of its converged
+// pairs, so a count that disagrees makes it solve again, never pass silently.
 static int super_ldl_setup(fmbd_chol *F) {
   int rc = FMBD_OK;
   cholmod_factor *L = F->L;
@@ -348,13 +355,14 @@ static int super_ldl_setup(fmbd_chol *F) {
   FMBD_GALLOC(F->next = fmbd_malloc((size_t)(ns + 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->lpos = fmbd_malloc((size_t)(ns + 1) * sizeof(int64_t)));
   for (int64_t k = 0; k < n; k++) F->iperm[perm ? perm[k] : k] = k;
-  int64_t maxC = 1, maxW = 1;
+  int64_t maxC = 1, maxW = 1, maxR = 1;
   for (int64_t d = 0; d < ns; d++) {
     int64_t ncol = super[d + 1] - super[d], nrow = pi[d + 1] - pi[d], off = nrow - ncol;
+    if (off > maxR) maxR = off;
     for (int64_t k = super[d]; k < super[d + 1]; k++) F->col2super[k] = d;
-    if (off * off > maxC) maxC = off * off;
+    if (off * (off < LDL_CB ? off : LDL_CB) > maxC) maxC = off * (off < LDL_CB ? off : LDL_CB);
     if (off * ncol > maxW) maxW = off * ncol;
-    if (ncol * 64 > maxW) maxW = ncol * 64;  // the panel product inside a diagonal block
+    if (ncol * LDL_KC > maxW) maxW = ncol * LDL_KC;  // the panel's products (ldl_panel)
   }
   F->sizeC = maxC;
   F->sizeW = maxW;
@@ -362,6 +370,7 @@ static int super_ldl_setup(fmbd_chol *F) {
            (long long)ns, (double)L->xsize, (double)maxC, (double)maxW);
   FMBD_GALLOC(F->wC = fmbd_malloc((size_t)maxC * sizeof(double)));
   FMBD_GALLOC(F->wW = fmbd_malloc((size_t)maxW * sizeof(double)));
+  FMBD_GALLOC(F->runs = fmbd_malloc((size_t)(2 * maxR + 2) * sizeof(int64_t)));
 done:
   return rc;
 }
@@ -380,55 +389,86 @@ static void gemm_lower(int64_t m, int64_t n, int64_t k, double alpha, const doub
   }
 }
 
-// blocked unpivoted LDL' of the n x n lower triangle of A (leading dimension lda); D on the
-// diagonal, unit L below it; nothing above the diagonal is read, and only the corners of the
-// trailing updates' column blocks are written there. Returns the index of a zero or NaN
-// pivot, or -1.
-static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *neg) {
-  const int64_t nb = 64;
-  for (int64_t j0 = 0; j0 < n; j0 += nb) {
-    int64_t jb = n - j0 < nb ? n - j0 : nb;
-    for (int64_t j = j0; j < j0 + jb; j++) {
-      // column j (rows j..n-1) minus the panel columns j0..j-1
-      for (int64_t k = j0; k < j; k++) {
-        double t = A[j + k * lda] * A[k + k * lda];
-        if (t == 0.0) continue;
+// --- a supernode's columns: unpivoted LDL' of its nsrow x nscol panel -----------------------
+// the leaf of ldl_panel: columns one by one (left-looking), each less the earlier leaf columns
+// times D (a dgemv where the column is long, plain loops where it is short); returns the index
+// of a zero or NaN pivot, or -1
+static int64_t ldl_leaf(int64_t m, int64_t n, double *A, int64_t lda, int64_t *neg, double *lmax) {
+  double t[LDL_LEAF];
+  for (int64_t j = 0; j < n; j++) {
+    double *aj = A + j * lda;
+    for (int64_t k = 0; k < j; k++) t[k] = A[j + k * lda] * A[k + k * lda];
+    if (j > 0 && m - j >= 64) {
+      cblas_dgemv(CblasColMajor, CblasNoTrans, (int)(m - j), (int)j, -1.0, A + j, (int)lda, t, 1,
+                  1.0, aj + j, 1);
+    } else {
+      for (int64_t k = 0; k < j; k++) {
         const double *lk = A + k * lda;
-        double *aj = A + j * lda;
-        for (int64_t i = j; i < n; i++) aj[i] -= lk[i] * t;
+        for (int64_t i = j; i < m; i++) aj[i] -= lk[i] * t[k];
       }
-      double d = A[j + j * lda];
-      if (d == 0.0 || d != d) return j;
-      *neg += d < 0.0;
-      double r = 1.0 / d;
-      for (int64_t i = j + 1; i < n; i++) A[i + j * lda] *= r;
     }
-    int64_t n2 = n - j0 - jb;
-    if (n2 > 0) {
-      // trailing block -= L21 D1 L21' (its lower triangle)
-      double *L21 = A + (j0 + jb) + j0 * lda;
-      for (int64_t k = 0; k < jb; k++) {
-        double dk = A[(j0 + k) + (j0 + k) * lda];
-        for (int64_t i = 0; i < n2; i++) W[i + k * n2] = L21[i + k * lda] * dk;
-      }
-      double *A22 = A + (j0 + jb) + (j0 + jb) * lda;
-      gemm_lower(n2, n2, jb, -1.0, W, n2, L21, lda, 1.0, A22, lda);
+    double d = aj[j];
+    if (d == 0.0 || d != d) return j;
+    *neg += d < 0.0;
+    double r = 1.0 / d, big = *lmax;
+    for (int64_t i = j + 1; i < m; i++) {
+      double v = aj[i] * r;
+      aj[i] = v;
+      big = fabs(v) > big ? fabs(v) : big;
     }
+    *lmax = big;
   }
   return -1;
 }
 
+// The panel A (m x n, m >= n, leading dimension lda: the diagonal block and the rows below it)
+// factored in place as the lower trapezoid [L11; L21] with D on the diagonal, by halves
+// (recursive blocking, as Gustavson's recursive Cholesky, IBM J. Res. Dev. 41(6), 1997): the
+// left half, then the right half's columns (rows at and below their diagonal) less
+// L(below, left) D L(right, left)' by dgemm, then the right half. The rows below the diagonal
+// block, which a dtrsm and a scaling by D^-1 solved before, are solved within the same
+// products, so all flops but the leaves' (LDL_LEAF columns at most) go through dgemm: the
+// panel stage of the 188 k-dof rod's LDL' 2.3 -> 1.8 s (bench/README.md, "The Sturm check's
+// LDL'"). Nothing above the diagonal is read. W: the right half's rows of the left half times
+// D, by chunks of LDL_KC columns (nscol x LDL_KC values at most). Returns the index of a zero
+// or NaN pivot, or -1.
+static int64_t ldl_panel(int64_t m, int64_t n, double *A, int64_t lda, double *W, int64_t *neg,
+                         double *lmax) {
+  if (n <= LDL_LEAF) return ldl_leaf(m, n, A, lda, neg, lmax);
+  int64_t n1 = n / 2, n2 = n - n1;
+  int64_t bad = ldl_panel(m, n1, A, lda, W, neg, lmax);
+  if (bad >= 0) return bad;
+  // A(n1:m, n1:n) -= L(n1:m, 0:n1) D L(n1:n, 0:n1)', lower trapezoid
+  for (int64_t k0 = 0; k0 < n1; k0 += LDL_KC) {
+    int64_t kb = n1 - k0 < LDL_KC ? n1 - k0 : LDL_KC;
+    for (int64_t c = 0; c < kb; c++) {
+      const double *lc = A + n1 + (k0 + c) * lda;
+      double dc = A[(k0 + c) + (k0 + c) * lda];
+      for (int64_t r = 0; r < n2; r++) W[r + c * n2] = lc[r] * dc;
+    }
+    gemm_lower(m - n1, n2, kb, -1.0, A + n1 + k0 * lda, lda, W, n2, 1.0, A + n1 + n1 * lda, lda);
+  }
+  bad = ldl_panel(m - n1, n2, A + n1 + n1 * lda, lda, W, neg, lmax);
+  return bad >= 0 ? n1 + bad : -1;
+}
+
 // P (A - sigma B) P' put into the zeroed factor before the supernodal loop, for a matrix stored
 // as its lower triangle (fmbd_csr_keep_lower: a full row, which the loop reads per column, is
-// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices, found
-// in the ascending row list of its column's supernode (the order the loop's descendant
-// updates rely on too). The same sums (0 + a - sigma b) as the loop's assembly; the values
-// come from the lower triangle instead of the column's own row.
+// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices. The rows
+// are visited in pivot order (row j = perm[k] for k = 0, 1, ...), supernode by supernode, so
+// that every place is found without a search: an entry in column k (its other index a >= k)
+// through `map`, set to the rows of k's supernode; one in an earlier column a < k (row k of
+// a's supernode t) through a cursor in t's ascending row list, which only moves forward since
+// k increases (`lpos`, set afresh by the loop afterwards). The writes of the first kind go
+// down the factor's columns in order. The same sums (0 + a - sigma b) as the loop's assembly;
+// the values come from the lower triangle instead of the column's own row.
 static int ldl_prefill(fmbd_chol *F, double sigma) {
   cholmod_factor *L = F->L;
-  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s, *perm = L->Perm;
+  int64_t nsuper = (int64_t)L->nsuper, *map = F->map, *cur = F->lpos, *c2s = F->col2super;
+  const int64_t *iperm = F->iperm;
   const fmbd_csr *mat[2] = {F->A, sigma != 0.0 ? F->B : NULL};
-  // B on A's index arrays (fe2cb's Ms on Ks's): one search serves both entries, which then
+  // B on A's index arrays (fe2cb's Ms on Ks's): one place serves both entries, which then
   // get the same operations in the same order as in two passes (each position holds one
   // entry of each)
   const fmbd_csr *Bs = mat[1];
@@ -440,31 +480,73 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
   for (int m = 0; m < 2; m++) {
     const fmbd_csr *A = mat[m];
     if (!A) continue;
-    for (int64_t j = 0; j < F->n; j++) {
-      for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
-        int64_t a = F->iperm[A->indices[p]], b = F->iperm[j];
-        int64_t c = a < b ? a : b, r = a < b ? b : a, sn = F->col2super[c];
-        int64_t lo = pi[sn], hi = pi[sn + 1] - 1;
-        while (lo < hi) {
-          int64_t mid = lo + (hi - lo) / 2;
-          if (Ls[mid] < r)
-            lo = mid + 1;
-          else
-            hi = mid;
-        }
-        FMBD_CHECK(Ls[lo] == r, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the LDL' pattern",
-                   (long long)r, (long long)c);
-        double *x = F->Lx + px[sn] + (c - super[sn]) * (pi[sn + 1] - pi[sn]) + (lo - pi[sn]);
-        if (m == 0) {
-          *x += A->data[p];
-          if (both) *x -= sigma * Bs->data[p];
-        } else {
-          *x -= sigma * A->data[p];
+    for (int64_t t = 0; t < nsuper; t++) cur[t] = pi[t];
+    for (int64_t s = 0; s < nsuper; s++) {
+      int64_t k1 = super[s], psi = pi[s], nsrow = pi[s + 1] - psi;
+      double *Lsx = F->Lx + px[s];
+      for (int64_t i = 0; i < nsrow; i++) map[Ls[psi + i]] = i;
+      for (int64_t k = k1; k < super[s + 1]; k++) {
+        int64_t j = perm ? perm[k] : k;
+        for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
+          int64_t a = iperm[A->indices[p]];
+          double *x;
+          if (a >= k1) {
+            // column min(a, k) of s, row max(a, k)
+            int64_t c = a < k ? a : k, r = a < k ? k : a, q = map[r];
+            FMBD_CHECK(q >= 0 && q < nsrow && Ls[psi + q] == r, FMBD_ERR_INTERNAL,
+                       "entry (%lld, %lld) not in the LDL' pattern", (long long)r, (long long)c);
+            x = Lsx + (c - k1) * nsrow + q;
+          } else {
+            // column a of an earlier supernode t, row k
+            int64_t t = c2s[a], q = cur[t], e = pi[t + 1];
+            while (q < e && Ls[q] < k) q++;
+            cur[t] = q;
+            FMBD_CHECK(q < e && Ls[q] == k, FMBD_ERR_INTERNAL,
+                       "entry (%lld, %lld) not in the LDL' pattern", (long long)k, (long long)a);
+            x = F->Lx + px[t] + (a - super[t]) * (e - pi[t]) + (q - pi[t]);
+          }
+          if (m == 0) {
+            *x += A->data[p];
+            if (both) *x -= sigma * Bs->data[p];
+          } else {
+            *x -= sigma * A->data[p];
+          }
         }
       }
     }
   }
   return FMBD_OK;
+}
+
+// Lsx (supernode s, columns k1.., nsrow rows, map: row -> place) -= C (nr2 x nr1, lower
+// trapezoid), C's rows being the rows rows[0..nr2-1] of s (rows[0..nr1-1] also its columns).
+// The rows come in runs of consecutive places (volume-weighted mean 78 rows at 51 k dofs): the
+// runs are found once (run starts and their places in `runs`, 2 (nr2 + 1) values), then each
+// column subtracts run by run, contiguous on both sides
+static void scatter_update(int64_t nr1, int64_t nr2, const double *C, const SuiteSparse_long *rows,
+                           const int64_t *map, int64_t k1, double *Lsx, int64_t nsrow,
+                           int64_t *runs) {
+  int64_t *start = runs, *place = runs + nr2 + 1, nrun = 0;
+  for (int64_t ii = 0; ii < nr2; ii++) {
+    int64_t t = map[rows[ii]];
+    if (nrun == 0 || t != place[nrun - 1] + (ii - start[nrun - 1])) {
+      start[nrun] = ii;
+      place[nrun++] = t;
+    }
+  }
+  start[nrun] = nr2;
+  int64_t q = 0;
+  for (int64_t jj = 0; jj < nr1; jj++) {
+    while (start[q + 1] <= jj) q++;
+    double *col = Lsx + (rows[jj] - k1) * nsrow;
+    const double *c = C + jj * nr2;
+    for (int64_t r = q; r < nrun; r++) {
+      int64_t i0 = r == q ? jj : start[r], len = start[r + 1] - i0;
+      double *dst = col + place[r] + (i0 - start[r]);
+      const double *src = c + i0;
+      for (int64_t i = 0; i < len; i++) dst[i] -= src[i];
+    }
+  }
 }
 
 static int super_ldl_factor(fmbd_chol *F, double sigma) {
@@ -475,6 +557,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   int64_t *map = F->map, *head = F->head, *next = F->next, *lpos = F->lpos, *c2s = F->col2super;
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
+  double lmax = 0.0;  // largest |L| entry below the diagonal
   bool prefill = A->lower || (B && B->lower);
   if (prefill) {
     FMBD_CALL(ldl_prefill(F, sigma));
@@ -520,10 +603,11 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
         double dc = Ldx[c + c * ndrow];
         for (int64_t r = 0; r < nr1; r++) W[r + c * nr1] = Ldx[r1 + r + c * ndrow] * dc;
       }
-      gemm_lower(nr2, nr1, ndcol, 1.0, Ldx + r1, ndrow, W, nr1, 0.0, C, nr2);
-      for (int64_t jj = 0; jj < nr1; jj++) {
-        double *col = Lsx + (Ls[p1 + jj] - k1) * nsrow;
-        for (int64_t ii = jj; ii < nr2; ii++) col[map[Ls[p1 + ii]]] -= C[ii + jj * nr2];
+      // by column blocks of C, each scattered while it is in cache
+      for (int64_t c0 = 0; c0 < nr1; c0 += LDL_CB) {
+        int64_t w = nr1 - c0 < LDL_CB ? nr1 - c0 : LDL_CB;
+        gemm_lower(nr2 - c0, w, ndcol, 1.0, Ldx + r1 + c0, ndrow, W + c0, nr1, 0.0, C, nr2 - c0);
+        scatter_update(w, nr2 - c0, C, Ls + p1 + c0, map, k1, Lsx, nsrow, F->runs);
       }
       lpos[d] = p2;
       if (p2 < pdend) {
@@ -534,21 +618,13 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
       d = dnext;
     }
     // --- the diagonal block and the rows below it ---
-    int64_t bad = dense_ldl(nscol, Lsx, nsrow, F->wW, &neg);
+    int64_t bad = ldl_panel(nsrow, nscol, Lsx, nsrow, F->wW, &neg, &lmax);
     if (bad >= 0) {
       F->failed_row = perm ? perm[k1 + bad] : k1 + bad;
       FMBD_FAIL(FMBD_ERR_SINGULAR, "zero pivot in LDL' at row %lld (shift %.17g is an eigenvalue)",
                 (long long)F->failed_row, sigma);
     }
-    int64_t noff = nsrow - nscol;
-    if (noff > 0) {
-      double *A21 = Lsx + nscol;
-      cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasUnit, (int)noff,
-                  (int)nscol, 1.0, Lsx, (int)nsrow, A21, (int)nsrow);
-      for (int64_t c = 0; c < nscol; c++) {
-        double r = 1.0 / Lsx[c + c * nsrow];
-        for (int64_t i = 0; i < noff; i++) A21[i + c * nsrow] *= r;
-      }
+    if (nsrow > nscol) {
       lpos[s] = psi + nscol;
       int64_t t = c2s[Ls[psi + nscol]];
       next[s] = head[t];
@@ -556,6 +632,9 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
     }
   }
   F->neg = neg;
+  fmbd_log(FMBD_LOG_DEBUG,
+           "LDL' of the matrix shifted by %.9g: %lld negative pivots, largest |L| %.3g", sigma,
+           (long long)neg, lmax);
   return FMBD_OK;
 }
 
@@ -973,6 +1052,7 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
   fmbd_free(F->head);
   fmbd_free(F->next);
   fmbd_free(F->lpos);
+  fmbd_free(F->runs);
   fmbd_free(F->wC);
   fmbd_free(F->wW);
   fmbd_free(F->posA);

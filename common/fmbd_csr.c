@@ -176,20 +176,39 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y) {
   }
 }
 
-// Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride w): one pass over A
-// for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
-// (same results, bit for bit). Full passes of NB = 8 columns go through rows8_full and
-// rows8_lower, which pick a vector kernel where the processor has one (below).
+// Y(rows, 0..w-1) = A X for w <= NB columns held row-major in xt (stride sx >= w): one pass
+// over A for all w, each entry updating w contiguous sums in the order fmbd_csr_matvec adds them
+// (same results, bit for bit). Full passes of 5 to NB = 8 columns go through rows8_full (a
+// remainder of 5-7 padded with zero columns to 8: the padding's sums are never stored, the
+// others are added as before) and rows8_lower, which pick a vector kernel where the processor
+// has one (below).
 enum { NB = 8 };
-static inline void rows_full(const fmbd_csr *A, int w, const double *xt, double *Y, int64_t ldy) {
+static inline void rows_full(const fmbd_csr *A, int w, int sx, const double *xt, double *Y,
+                             int64_t ldy) {
   for (int64_t i = 0; i < A->nrows; i++) {
     double s[NB] = {0};
     for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
       double a = A->data[p];
-      const double *x = xt + A->indices[p] * w;
+      const double *x = xt + A->indices[p] * sx;
       for (int k = 0; k < w; k++) s[k] += a * x[k];
     }
     for (int k = 0; k < w; k++) Y[i + k * ldy] = s[k];
+  }
+}
+
+// the same for A and B on one pattern (A's indptr and indices), B's values in bd: Y = A X and
+// Z = B X in one pass over the pattern, each sum in rows_full's order
+static inline void rows_pair(const fmbd_csr *A, const double *bd, int w, int sx, const double *xt,
+                             double *Y, double *Z, int64_t ldy) {
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[NB] = {0}, t[NB] = {0};
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      double a = A->data[p], b = bd[p];
+      const double *x = xt + A->indices[p] * sx;
+      for (int k = 0; k < w; k++) s[k] += a * x[k];
+      for (int k = 0; k < w; k++) t[k] += b * x[k];
+    }
+    for (int k = 0; k < w; k++) Y[i + k * ldy] = s[k], Z[i + k * ldy] = t[k];
   }
 }
 
@@ -242,9 +261,9 @@ typedef double v4d
 #define ST4(p, v) (*(v4d *)(p) = (v))
 
 // the 8 sums as two 4-wide vectors: GCC 12 keeps them in registers with AVX2 and AVX-512 (an
-// 8-wide type it splits for AVX2 through the stack)
+// 8-wide type it splits for AVX2 through the stack); the first 5 <= w <= 8 columns stored
 static inline __attribute__((always_inline)) void vrows8_full(const fmbd_csr *A, const double *xt,
-                                                              double *Y, int64_t ldy) {
+                                                              int w, double *Y, int64_t ldy) {
   const int64_t *ip = A->indptr, *ix = A->indices;
   const double *d = A->data;
   for (int64_t i = 0; i < A->nrows; i++) {
@@ -254,10 +273,30 @@ static inline __attribute__((always_inline)) void vrows8_full(const fmbd_csr *A,
       s0 += d[p] * LD4(x);
       s1 += d[p] * LD4(x + 4);
     }
-    for (int k = 0; k < 4; k++) {
-      Y[i + k * ldy] = s0[k];
-      Y[i + (k + 4) * ldy] = s1[k];
+    for (int k = 0; k < 4; k++) Y[i + k * ldy] = s0[k];
+    for (int k = 4; k < w; k++) Y[i + k * ldy] = s1[k - 4];
+  }
+}
+
+// rows_pair's vector form: four 4-wide sums, the pattern and x read once for both matrices; the
+// first 1 <= w <= 8 columns stored
+static inline __attribute__((always_inline)) void vrows8_pair(const fmbd_csr *A, const double *bd,
+                                                              const double *xt, int w, double *Y,
+                                                              double *Z, int64_t ldy) {
+  const int64_t *ip = A->indptr, *ix = A->indices;
+  const double *d = A->data;
+  for (int64_t i = 0; i < A->nrows; i++) {
+    v4d s0 = {0}, s1 = {0}, t0 = {0}, t1 = {0};
+    for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
+      const double *x = xt + ix[p] * NB;
+      v4d x0 = LD4(x), x1 = LD4(x + 4);
+      s0 += d[p] * x0;
+      s1 += d[p] * x1;
+      t0 += bd[p] * x0;
+      t1 += bd[p] * x1;
     }
+    for (int k = 0; k < 4 && k < w; k++) Y[i + k * ldy] = s0[k], Z[i + k * ldy] = t0[k];
+    for (int k = 4; k < w; k++) Y[i + k * ldy] = s1[k - 4], Z[i + k * ldy] = t1[k - 4];
   }
 }
 
@@ -291,13 +330,24 @@ static inline __attribute__((always_inline)) void vrows8_lower(const fmbd_csr *A
 }
 
 __attribute__((target("avx512f"))) static void rows8_full_avx512(const fmbd_csr *A,
-                                                                 const double *xt, double *Y,
+                                                                 const double *xt, int w, double *Y,
                                                                  int64_t ldy) {
-  vrows8_full(A, xt, Y, ldy);
+  vrows8_full(A, xt, w, Y, ldy);
 }
 __attribute__((target("avx2"))) static void rows8_full_avx2(const fmbd_csr *A, const double *xt,
-                                                            double *Y, int64_t ldy) {
-  vrows8_full(A, xt, Y, ldy);
+                                                            int w, double *Y, int64_t ldy) {
+  vrows8_full(A, xt, w, Y, ldy);
+}
+__attribute__((target("avx512f"))) static void rows8_pair_avx512(const fmbd_csr *A,
+                                                                 const double *bd, const double *xt,
+                                                                 int w, double *Y, double *Z,
+                                                                 int64_t ldy) {
+  vrows8_pair(A, bd, xt, w, Y, Z, ldy);
+}
+__attribute__((target("avx2"))) static void rows8_pair_avx2(const fmbd_csr *A, const double *bd,
+                                                            const double *xt, int w, double *Y,
+                                                            double *Z, int64_t ldy) {
+  vrows8_pair(A, bd, xt, w, Y, Z, ldy);
 }
 __attribute__((target("avx512f"))) static void rows8_lower_avx512(const fmbd_csr *A,
                                                                   const double *xt, double *yt,
@@ -310,18 +360,35 @@ __attribute__((target("avx2"))) static void rows8_lower_avx2(const fmbd_csr *A, 
 }
 #endif
 
-static void rows8_full(const fmbd_csr *A, const double *xt, double *Y, int64_t ldy) {
+// xt of stride NB (columns w..NB-1 zero), 5 <= w <= NB
+static void rows8_full(const fmbd_csr *A, const double *xt, int w, double *Y, int64_t ldy) {
 #ifdef FMBD_VEC8
   if (__builtin_cpu_supports("avx512f")) {
-    rows8_full_avx512(A, xt, Y, ldy);
+    rows8_full_avx512(A, xt, w, Y, ldy);
     return;
   }
   if (__builtin_cpu_supports("avx2")) {
-    rows8_full_avx2(A, xt, Y, ldy);
+    rows8_full_avx2(A, xt, w, Y, ldy);
     return;
   }
 #endif
-  rows_full(A, NB, xt, Y, ldy);
+  rows_full(A, w, NB, xt, Y, ldy);
+}
+
+// xt of stride NB (columns w..NB-1 zero), 1 <= w <= NB
+static void rows8_pair(const fmbd_csr *A, const double *bd, const double *xt, int w, double *Y,
+                       double *Z, int64_t ldy) {
+#ifdef FMBD_VEC8
+  if (__builtin_cpu_supports("avx512f")) {
+    rows8_pair_avx512(A, bd, xt, w, Y, Z, ldy);
+    return;
+  }
+  if (__builtin_cpu_supports("avx2")) {
+    rows8_pair_avx2(A, bd, xt, w, Y, Z, ldy);
+    return;
+  }
+#endif
+  rows_pair(A, bd, w, NB, xt, Y, Z, ldy);
 }
 
 static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt, double *Y, int64_t ldy) {
@@ -349,6 +416,7 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   // the peak) for no gain measurable on the loaded development machine (Lanczos operator
   // time, 3 runs each).
   int64_t nc = A->ncols, wm = nrhs < NB ? nrhs : NB;
+  if (!A->lower && wm >= 5) wm = NB;  // room for a remainder of 5-7 padded to 8
   bool blocked = A->lower ? nrhs >= NB : nrhs >= 2;
   double *xt = blocked ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;
   double *yt =
@@ -366,18 +434,45 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
       for (int k = 0; k < w; k++) fmbd_csr_matvec(A, X + (c + k) * ldx, Y + (c + k) * ldy);
       continue;
     }
+    int sx = w >= 5 ? NB : w;  // xt's stride: 5-7 columns padded with zero columns to 8
     for (int64_t j = 0; j < nc; j++) {
-      for (int k = 0; k < w; k++) xt[j * w + k] = X[j + (c + k) * ldx];
+      for (int k = 0; k < w; k++) xt[j * sx + k] = X[j + (c + k) * ldx];
+      for (int k = w; k < sx; k++) xt[j * sx + k] = 0.0;
     }
     if (A->lower)
       rows8_lower(A, xt, yt, Y + c * ldy, ldy);
-    else if (w == NB)
-      rows8_full(A, xt, Y + c * ldy, ldy);
+    else if (sx == NB)
+      rows8_full(A, xt, w, Y + c * ldy, ldy);
     else
-      rows_full(A, w, xt, Y + c * ldy, ldy);
+      rows_full(A, w, w, xt, Y + c * ldy, ldy);
   }
   fmbd_free(xt);
   fmbd_free(yt);
+}
+
+void fmbd_csr_matmat_pair(const fmbd_csr *A, const fmbd_csr *B, int64_t nrhs, const double *X,
+                          int64_t ldx, double *Y, double *Z, int64_t ldy) {
+  // one pattern in memory (an fe body's K and M, fmbd_fe_assemble or fmbd_fe_read): 8 columns
+  // a pass, padded with zero columns, the pattern and X read once for both matrices. Otherwise,
+  // or without room for the copy of X, two products
+  int64_t nc = A->ncols;
+  bool one = A != B && !A->lower && !B->lower && A->indptr == B->indptr &&
+             A->indices == B->indices && A->nrows == B->nrows && A->ncols == B->ncols;
+  double *xt = one && nrhs > 0 ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
+  if (!xt) {
+    fmbd_csr_matmat(A, nrhs, X, ldx, Y, ldy);
+    fmbd_csr_matmat(B, nrhs, X, ldx, Z, ldy);
+    return;
+  }
+  for (int64_t c = 0; c < nrhs; c += NB) {
+    int w = nrhs - c < NB ? (int)(nrhs - c) : NB;
+    for (int64_t j = 0; j < nc; j++) {
+      for (int k = 0; k < w; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
+      for (int k = w; k < NB; k++) xt[j * NB + k] = 0.0;
+    }
+    rows8_pair(A, B->data, xt, w, Y + c * ldy, Z + c * ldy, ldy);
+  }
+  fmbd_free(xt);
 }
 
 int fmbd_csr_keep_lower(fmbd_csr *A, fmbd_csr *B) {

@@ -60,6 +60,11 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y);
 /// x nrhs, leading dim ldy).
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
                      int64_t ldy);
+/// @brief Y = A X and Z = B X, the same bits as two fmbd_csr_matmat calls. When A and B are
+/// stored in full on one pattern in memory (the same indptr and indices arrays: an fe body's K
+/// and M), one pass over the pattern serves both; otherwise two passes.
+void fmbd_csr_matmat_pair(const fmbd_csr *A, const fmbd_csr *B, int64_t nrhs, const double *X,
+                          int64_t ldx, double *Y, double *Z, int64_t ldy);
 /// @brief A(rows, cols) as a new matrix. rows/cols are increasing-free index lists.
 int fmbd_csr_submatrix(const fmbd_csr *A, int64_t nr, const int64_t *rows, int64_t nc,
                        const int64_t *cols, fmbd_csr **out);

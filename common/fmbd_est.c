@@ -89,11 +89,17 @@ int fmbd_est_base_plain(int64_t ns, int64_t nb, int64_t npool, const double *A,
 }
 
 // Y (ns x nb) = Ks X for X (ns x nb): K X0 restricted to the interior rows (X0 = X scattered to
-// the interior rows of an n x nb block Z that is zero elsewhere); Z, KZ are n x nb scratch
-static void interior_matmat(const fmbd_csr *K, int64_t ns, const int64_t *interior, int64_t nb,
-                            const double *X, double *Y, double *Z, double *KZ) {
+// the interior rows of an n x nb block Z that is zero elsewhere); Z, KZ are n x nb scratch. With
+// M (not NULL), also V = Ms X, in the same pass over the pattern when K and M share it
+// (fmbd_csr_matmat_pair); MZ is then n x nb scratch too.
+static void interior_matmat(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
+                            const int64_t *interior, int64_t nb, const double *X, double *Y,
+                            double *V, double *Z, double *KZ, double *MZ) {
   if (!interior) {
-    fmbd_csr_matmat(K, nb, X, ns, Y, ns);
+    if (M)
+      fmbd_csr_matmat_pair(K, M, nb, X, ns, Y, V, ns);
+    else
+      fmbd_csr_matmat(K, nb, X, ns, Y, ns);
     return;
   }
   int64_t n = K->nrows;
@@ -103,10 +109,14 @@ static void interior_matmat(const fmbd_csr *K, int64_t ns, const int64_t *interi
       Z[interior[i] + n * j] = X[i + ns * j];
     }
   }
-  fmbd_csr_matmat(K, nb, Z, n, KZ, n);
+  if (M)
+    fmbd_csr_matmat_pair(K, M, nb, Z, n, KZ, MZ, n);
+  else
+    fmbd_csr_matmat(K, nb, Z, n, KZ, n);
   for (int64_t j = 0; j < nb; j++) {
     for (int64_t i = 0; i < ns; i++) {
       Y[i + ns * j] = KZ[interior[i] + n * j];
+      if (M) V[i + ns * j] = MZ[interior[i] + n * j];
     }
   }
 }
@@ -117,7 +127,7 @@ int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
                             const double *PhitA, double *Xb, double *Gb) {
   int rc = FMBD_OK;
   int64_t n = K->nrows;
-  double *W = NULL, *C = NULL, *Y = NULL, *Z = NULL, *KZ = NULL;
+  double *W = NULL, *C = NULL, *Y = NULL, *V = NULL, *Z = NULL, *KZ = NULL, *MZ = NULL;
   FMBD_GCHECK(K->ncols == n && M->nrows == n && M->ncols == n && (interior ? ns <= n : ns == n),
               FMBD_ERR_VALUE, "K and M must be square of the same order, with %lld interior rows",
               (long long)ns);
@@ -128,8 +138,10 @@ int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
   size_t nsb = (size_t)(ns * nb) + 1, nb_n = interior ? (size_t)(n * nb) + 1 : 1;
   FMBD_GALLOC(W = fmbd_malloc(sizeof(double) * nsb));
   FMBD_GALLOC(Y = fmbd_malloc(sizeof(double) * nsb));
+  FMBD_GALLOC(V = fmbd_malloc(sizeof(double) * nsb));
   FMBD_GALLOC(Z = fmbd_malloc(sizeof(double) * nb_n));
   FMBD_GALLOC(KZ = fmbd_malloc(sizeof(double) * nb_n));
+  FMBD_GALLOC(MZ = fmbd_malloc(sizeof(double) * nb_n));
   FMBD_GALLOC(C = fmbd_malloc(sizeof(double) * (size_t)(npool * nb + 1)));
   memcpy(W, KsinvA, sizeof(double) * (nsb - 1));
   // W = Ks^-1 A - Phi Lambda^-1 PhitA
@@ -141,21 +153,23 @@ int fmbd_est_base_projected(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
   fmbd_dense_gemm('N', 'N', ns, nb, npool, -1.0, Phi, ns, C, npool, 1.0, W, ns);
   // W -= Phi (Phi' Ms W), twice (classical Gram-Schmidt, reorthogonalised)
   for (int pass = 0; pass < 2 && npool > 0; pass++) {
-    interior_matmat(M, ns, interior, nb, W, Y, Z, KZ);
+    interior_matmat(M, NULL, ns, interior, nb, W, Y, NULL, Z, KZ, NULL);
     fmbd_dense_gemm('T', 'N', npool, nb, ns, 1.0, Phi, ns, Y, ns, 0.0, C, npool);
     fmbd_dense_gemm('N', 'N', ns, nb, npool, -1.0, Phi, ns, C, npool, 1.0, W, ns);
   }
-  interior_matmat(K, ns, interior, nb, W, Y, Z, KZ);
+  // Ks W and Ms W in one pass over the pattern that K and M share (an fe file's, read once)
+  interior_matmat(K, M, ns, interior, nb, W, Y, V, Z, KZ, MZ);
   fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, Y, ns, 0.0, Xb, nb);
   symmetrize(nb, Xb);
-  interior_matmat(M, ns, interior, nb, W, Y, Z, KZ);
-  fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, Y, ns, 0.0, Gb, nb);
+  fmbd_dense_gemm('T', 'N', nb, nb, ns, 1.0, W, ns, V, ns, 0.0, Gb, nb);
   symmetrize(nb, Gb);
 done:
   fmbd_free(W);
   fmbd_free(Y);
+  fmbd_free(V);
   fmbd_free(Z);
   fmbd_free(KZ);
+  fmbd_free(MZ);
   fmbd_free(C);
   return rc;
 }

@@ -137,7 +137,9 @@ static int fe_read_matrices(fmbd_h5 *f, fmbd_fe_body *b) {
     RFAIL("/K", "shape (%lld, %lld) is not square", (long long)b->K->nrows, (long long)b->K->ncols);
   }
   b->ndof = b->K->nrows;
-  FMBD_GCALL(fmbd_h5_read_csr_like(f, "/M", b->K, "/K", &b->M));
+  // M on K's pattern arrays where the file links them (one pattern in memory, as
+  // fmbd_fe_assemble's body; fmbd_fe_body_destroy frees it once)
+  FMBD_GCALL(fmbd_h5_read_csr_like(f, "/M", b->K, "/K", true, &b->M));
   if (b->M->nrows != b->ndof || b->M->ncols != b->ndof) {
     RFAIL("/M", "shape (%lld, %lld), expected (%lld, %lld) from /K", (long long)b->M->nrows,
           (long long)b->M->ncols, (long long)b->ndof, (long long)b->ndof);
@@ -263,7 +265,7 @@ static int fe_read(fmbd_h5 *f, read_what what, fmbd_fe_body **out) {
     }
   }
   if (matrices && fmbd_h5_exists(f, "/M")) {
-    FMBD_GCALL(fmbd_h5_read_csr_like(f, "/M", b->K, "/K", &b->M));
+    FMBD_GCALL(fmbd_h5_read_csr_like(f, "/M", b->K, "/K", false, &b->M));
     if (b->M->nrows != b->ndof || b->M->ncols != b->ndof) {
       RFAIL("/M", "shape (%lld, %lld), expected (%lld, %lld) from /dofs", (long long)b->M->nrows,
             (long long)b->M->ncols, (long long)b->ndof, (long long)b->ndof);

@@ -58,8 +58,18 @@ int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major);
 void fmbd_h5_close(fmbd_h5 **f);
 /// @brief The name given at open/create (borrowed).
 const char *fmbd_h5_name(const fmbd_h5 *f);
-/// @brief SHA-256 hex (64 chars + NUL) of the file's bytes as read (read handles only).
+/// @brief SHA-256 hex (64 chars + NUL) of the file's bytes as read (read handles only; "" for
+/// a handle of fmbd_h5_open_unhashed until fmbd_h5_sha256_now).
 const char *fmbd_h5_sha256(const fmbd_h5 *f);
+/// @brief fmbd_h5_open without the SHA-256 of a regular file (standard input, a FIFO or a
+/// device are hashed as by fmbd_h5_open): for a reader that records the file only in some runs
+/// (cbcheck's cb file, an input of the rflex file it may write).
+int fmbd_h5_open_unhashed(const char *name, fmbd_h5 **out);
+/// @brief The SHA-256 of a read handle's file (as fmbd_h5_sha256), computed now for a handle of
+/// fmbd_h5_open_unhashed (once; an input hashed before in the process is not hashed again).
+/// FMBD_ERR_IO when the file changed (device, inode, size, modification or change time) since
+/// it was opened: the bytes read are then not the ones that would be hashed.
+int fmbd_h5_sha256_now(fmbd_h5 *f, const char **sha);
 
 // --- creating ---------------------------------------------------------------------------
 /// @brief Create a file to be written: "<name>.part" (or an in-memory image for "-"),
@@ -120,9 +130,11 @@ int fmbd_h5_write_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *A, cons
 int fmbd_h5_read_csr(fmbd_h5 *f, const char *path, fmbd_csr **out);
 /// @brief The same, with B the CSR group already read from `like` (may be NULL): where path's
 /// `indices` and `indptr` are the very datasets of like's (hard links, fmbd_h5_write_csr_like)
-/// they are copied from B instead of read (no second inflation); otherwise as fmbd_h5_read_csr.
+/// they are not read again but copied from B, or with `share` are B's arrays themselves (the
+/// same pointers, as fmbd_fe_assemble's M shares K's: free them once, as fmbd_fe_body_destroy
+/// does). Otherwise as fmbd_h5_read_csr.
 int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const char *like,
-                          fmbd_csr **out);
+                          bool share, fmbd_csr **out);
 /// @brief Read rows r0 .. r1-1 of a CSR group (HDF5 hyperslabs: the indptr slice, then the
 /// indices and data slices it points to), so a process of a distributed program holds only its
 /// row block (docs/SCALE.md). *out is (r1 - r0) x ncols with indptr from 0 and the column

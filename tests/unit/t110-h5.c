@@ -3,6 +3,7 @@
 //
 // Values written and read back must be bit-identical (HDF5 stores IEEE doubles and int64
 // exactly), so every numeric comparison here is exact equality.
+#include <fcntl.h>
 #include <hdf5.h>
 #include <math.h>
 #include <stdio.h>
@@ -87,6 +88,21 @@ static void test_dense(void) {
   EXPECT(strlen(fmbd_h5_sha256(f)) == 64, "sha");
   char hex[65];
   EXPECT(fmbd_sha256_file(name, hex) == FMBD_OK && !strcmp(hex, fmbd_h5_sha256(f)), "sha matches");
+  {  // the SHA-256 deferred (fmbd_h5_open_unhashed): the same hash when asked for, refused once
+     // the file changed after it was opened
+    fmbd_h5 *u = NULL;
+    const char *us = NULL;
+    EXPECT(fmbd_h5_open_unhashed(name, &u) == FMBD_OK && !fmbd_h5_sha256(u)[0], "open unhashed");
+    EXPECT(fmbd_h5_sha256_now(u, &us) == FMBD_OK && !strcmp(us, hex) &&
+               !strcmp(fmbd_h5_sha256(u), hex),
+           "deferred sha");
+    fmbd_h5_close(&u);
+    EXPECT(fmbd_h5_open_unhashed(name, &u) == FMBD_OK, "open unhashed again");
+    struct timespec ts[2] = {{0, UTIME_OMIT}, {12345, 0}};  // another modification time
+    EXPECT(utimensat(AT_FDCWD, name, ts, 0) == 0, "touch");
+    EXPECT(fmbd_h5_sha256_now(u, &us) == FMBD_ERR_IO, "changed since it was opened");
+    fmbd_h5_close(&u);
+  }
   for (int r = 0; r <= 4; r++) {
     int64_t d[4] = {-1, -1, -1, -1}, n = 1;
     for (int k = 0; k < r; k++) n *= dims[r][k];
@@ -254,14 +270,23 @@ static void test_csr(void) {
            "linked csr read alone");
     fmbd_csr_destroy(&C);
     B->indices[0] = 1;  // row 0: 1, 4 (still increasing)
-    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", &C) == FMBD_OK && C->indices[0] == 1 &&
-               !memcmp(C->data, vc, sizeof vc),
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", false, &C) == FMBD_OK &&
+               C->indices != B->indices && C->indices[0] == 1 && !memcmp(C->data, vc, sizeof vc),
            "linked csr read like A: the pattern copied");
-    EXPECT(fmbd_h5_read_csr_like(f, "/mats/D", B, "/mats/A", &D) == FMBD_OK && D->indices[0] == 0 &&
-               !memcmp(D->indices, ix, sizeof ix) && !memcmp(D->data, vc, sizeof vc),
-           "separate csr read like A: read from the file");
     fmbd_csr_destroy(&C);
-    fmbd_csr_destroy(&D);
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/C", B, "/mats/A", true, &C) == FMBD_OK &&
+               C->indices == B->indices && C->indptr == B->indptr && C->indices[0] == 1 &&
+               !memcmp(C->data, vc, sizeof vc),
+           "linked csr read like A, shared: A's pattern arrays themselves");
+    for (int share = 0; share < 2; share++) {
+      EXPECT(fmbd_h5_read_csr_like(f, "/mats/D", B, "/mats/A", share, &D) == FMBD_OK &&
+                 D->indices[0] == 0 && D->indices != B->indices &&
+                 !memcmp(D->indices, ix, sizeof ix) && !memcmp(D->data, vc, sizeof vc),
+             "separate csr read like A: read from the file");
+      fmbd_csr_destroy(&D);
+    }
+    C->indptr = C->indices = NULL;  // B's, freed with B
+    fmbd_csr_destroy(&C);
   }
   fmbd_csr_destroy(&B);
   // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0

@@ -94,7 +94,7 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
   // the bits of one fmbd_csr_matvec per column in the same storage: each sum is added in the
   // same order whatever the number of columns a pass carries
   {
-    const int64_t widths[] = {1, 4, 8, 11, 16, 27, 35};
+    const int64_t widths[] = {1, 4, 5, 6, 7, 8, 11, 14, 16, 27, 35};
     double *X2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
     double *Y2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
     double *Z2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
@@ -109,6 +109,32 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
                "matmat of %lld columns (matrix %d) against matvec per column", (long long)w, t);
       }
     }
+    // fmbd_csr_matmat_pair: K and M on one pattern in memory (one pass for both, padded to 8
+    // columns) and on two (two passes): the bits of matvec per column of each
+    fmbd_csr *Ms = NULL;
+    EXPECT(fmbd_csr_duplicate(M, &Ms) == 0, "duplicate");
+    fmbd_free(Ms->indptr);
+    fmbd_free(Ms->indices);
+    Ms->indptr = K->indptr;
+    Ms->indices = K->indices;
+    double *W2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
+    for (int t = 0; t < 2; t++) {
+      const fmbd_csr *B = t ? M : Ms;
+      for (size_t wi = 0; wi < sizeof widths / sizeof widths[0]; wi++) {
+        int64_t w = widths[wi];
+        bool same = true;
+        fmbd_csr_matmat_pair(K, B, w, X2, n, Y2, W2, n);
+        for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(K, X2 + k * n, Z2 + k * n);
+        same = same && memcmp(Y2, Z2, (size_t)(n * w) * sizeof(double)) == 0;
+        for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(M, X2 + k * n, Z2 + k * n);
+        same = same && memcmp(W2, Z2, (size_t)(n * w) * sizeof(double)) == 0;
+        EXPECT(same, "matmat_pair of %lld columns (%s) against matvec per column", (long long)w,
+               t ? "two patterns" : "one pattern");
+      }
+    }
+    Ms->indptr = Ms->indices = NULL;  // K's
+    fmbd_csr_destroy(&Ms);
+    fmbd_free(W2);
     fmbd_free(X2);
     fmbd_free(Y2);
     fmbd_free(Z2);
