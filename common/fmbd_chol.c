@@ -38,6 +38,8 @@ struct fmbd_chol {
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
   int64_t solve_width;       // columns per cholmod_l_solve2 call (0: 64)
+  bool own_solve;            // narrow blocks through own_solve where available (default)
+  double *ow;                // own_solve's workspace: Z (n x 8) and G (largest supernode x 8)
   double sigma;
   double pivot_rtol;
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
@@ -699,6 +701,7 @@ static int analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t
   F->A = A;
   F->B = B;
   F->pivot_rtol = 1e-13;
+  F->own_solve = true;
   F->neg = -1;
   F->failed_row = -1;
   F->st.n = F->n;
@@ -916,6 +919,266 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
   return FMBD_OK;
 }
 
+// --- narrow-block supernodal LL' solves of our own ------------------------------------------
+// CHOLMOD's supernodal solve (t_cholmod_super_solve.c) calls dtrsm and dgemm once per supernode
+// with as many columns as right-hand sides; with the block eigensolver's 4 columns those are
+// BLAS calls of tiny width (OpenBLAS's small-matrix kernels: 15 % of fe2cb's CPU at 51 k dofs,
+// 20 modes, bench/README.md "Fewer and cheaper Lanczos solves"), well below the rate at which
+// the factor streams from memory, which is what bounds a narrow solve (each entry of L is used
+// once per column; 4 columns of the 51 k-dof rod's factor, 180 MB: CHOLMOD 43-65 ms a full
+// solve, here 31-39 ms, streaming L twice 18 ms). Here the same sweeps (forward: column by column
+// of each supernode, the diagonal block's triangle then the rows below; backward: the transposed
+// order) run on a row-major copy Z of the right-hand sides (each row's 4 or 8 values contiguous:
+// one or two 4-wide vectors), 4 columns of a supernode at a time, so that each entry of L is loaded
+// once per sweep and used for every right-hand side in registers:
+//   forward, group of columns j..j+g-1 (g <= 4) of supernode s: the g x g triangle on their
+//   rows, then rows i below: z_i -= L(i,j) z_j + ... + L(i,j+g-1) z_{j+g-1} (vector per row);
+//   backward, the groups in reverse: z_j -= sum_i L(i,j) z_i over the rows below the group
+//   (g vector sums), then the triangle.
+// The supernode's rows are gathered into a contiguous buffer G (its own columns, then the rows
+// of its off-diagonal part; zero for those in the forward sweep, whose sums are added to Z
+// afterwards, as CHOLMOD's dgemm-and-scatter does), so one kernel call covers both parts. Only
+// the lower part of each diagonal block is read (the upper is not kept: release_zero_pages).
+// Compiled for AVX2 and FMA (4-wide vectors of the compiler's vector extensions, each product
+// and sum as one fused multiply-add, the sums in the order written) and chosen when called
+// (__builtin_cpu_supports); elsewhere (another processor, another compiler, FMBD_NO_VECTOR), for
+// single vectors (CHOLMOD's BLAS-2 path is faster: 28 against 37 ms) and for blocks of more
+// than 8 columns (about as fast: two passes here would take 52 + 31 and 2 x 52 ms at 12 and 16
+// columns against CHOLMOD's 86 and 104 ms), CHOLMOD's solve. The results agree with CHOLMOD's to
+// round-off (the same substitutions, the sums in another order and fused: tests/unit/t300
+// compares them, within the triangular solves' error bound).
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#define FMBD_OWN_SOLVE 1
+#include <immintrin.h>
+#ifdef __clang__
+#pragma clang fp contract(off)
+#endif
+typedef double sv4d
+    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
+#define SLD(p) (*(const sv4d *)(p))
+#define SST(p, v) (*(sv4d *)(p) = (v))
+
+#define SFN static inline __attribute__((always_inline, target("avx2,fma")))
+// t - a y, one rounding (FMA)
+SFN sv4d sn_fnma(double a, sv4d y, sv4d t) {
+  return (sv4d)_mm256_fnmadd_pd(_mm256_set1_pd(a), (__m256d)y, (__m256d)t);
+}
+// s + a z, one rounding
+SFN sv4d sn_fma(double a, sv4d z, sv4d s) {
+  return (sv4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
+}
+
+// T[i] -= L[i] Y[0] + L[i + ld] Y[1] + L[i + 2 ld] Y[2] + L[i + 3 ld] Y[3] for i < nr (in that
+// order); rows of nv 4-wide vectors (row stride 4 nv)
+SFN void sn_upd4(int64_t nr, const double *L, int64_t ld, const double *Y, double *T, int nv) {
+  const int w = 4 * nv;
+  sv4d y0[2], y1[2], y2[2], y3[2];
+  for (int v = 0; v < nv; v++) {
+    y0[v] = SLD(Y + 4 * v);
+    y1[v] = SLD(Y + w + 4 * v);
+    y2[v] = SLD(Y + 2 * w + 4 * v);
+    y3[v] = SLD(Y + 3 * w + 4 * v);
+  }
+  const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
+  for (int64_t i = 0; i < nr; i++) {
+    double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d x = sn_fnma(L0[i], y0[v], SLD(t + 4 * v));
+      x = sn_fnma(L1[i], y1[v], x);
+      x = sn_fnma(L2[i], y2[v], x);
+      SST(t + 4 * v, sn_fnma(L3[i], y3[v], x));
+    }
+  }
+}
+
+// the same for g < 4 columns
+SFN void sn_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y, double *T,
+                int nv) {
+  const int w = 4 * nv;
+  for (int64_t i = 0; i < nr; i++) {
+    double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d x = SLD(t + 4 * v);
+      for (int q = 0; q < g; q++) x = sn_fnma(L[i + q * ld], SLD(Y + q * w + 4 * v), x);
+      SST(t + 4 * v, x);
+    }
+  }
+}
+
+// Y[q] -= sum_{i < nr} L[i + q ld] T[i] for q < 4: the even and the odd rows in separate sums
+// (two sets of 4 nv vectors: an FMA's latency is several cycles), added at the end
+SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, double *Y, int nv) {
+  const int w = 4 * nv;
+  sv4d s0[2] = {{0}}, s1[2] = {{0}}, s2[2] = {{0}}, s3[2] = {{0}};
+  sv4d u0[2] = {{0}}, u1[2] = {{0}}, u2[2] = {{0}}, u3[2] = {{0}};
+  const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
+  int64_t i = 0;
+  for (; i + 1 < nr; i += 2) {
+    const double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d z = SLD(t + 4 * v), y = SLD(t + w + 4 * v);
+      s0[v] = sn_fma(L0[i], z, s0[v]);
+      s1[v] = sn_fma(L1[i], z, s1[v]);
+      s2[v] = sn_fma(L2[i], z, s2[v]);
+      s3[v] = sn_fma(L3[i], z, s3[v]);
+      u0[v] = sn_fma(L0[i + 1], y, u0[v]);
+      u1[v] = sn_fma(L1[i + 1], y, u1[v]);
+      u2[v] = sn_fma(L2[i + 1], y, u2[v]);
+      u3[v] = sn_fma(L3[i + 1], y, u3[v]);
+    }
+  }
+  if (i < nr) {
+    const double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d z = SLD(t + 4 * v);
+      s0[v] = sn_fma(L0[i], z, s0[v]);
+      s1[v] = sn_fma(L1[i], z, s1[v]);
+      s2[v] = sn_fma(L2[i], z, s2[v]);
+      s3[v] = sn_fma(L3[i], z, s3[v]);
+    }
+  }
+  for (int v = 0; v < nv; v++) {
+    SST(Y + 4 * v, SLD(Y + 4 * v) - (s0[v] + u0[v]));
+    SST(Y + w + 4 * v, SLD(Y + w + 4 * v) - (s1[v] + u1[v]));
+    SST(Y + 2 * w + 4 * v, SLD(Y + 2 * w + 4 * v) - (s2[v] + u2[v]));
+    SST(Y + 3 * w + 4 * v, SLD(Y + 3 * w + 4 * v) - (s3[v] + u3[v]));
+  }
+}
+
+// the same for g < 4 columns
+SFN void sn_dot(int64_t nr, const double *L, int64_t ld, int g, const double *T, double *Y,
+                int nv) {
+  const int w = 4 * nv;
+  for (int q = 0; q < g; q++) {
+    for (int v = 0; v < nv; v++) {
+      sv4d s = {0};
+      for (int64_t i = 0; i < nr; i++) s = sn_fma(L[i + q * ld], SLD(T + i * w + 4 * v), s);
+      SST(Y + q * w + 4 * v, SLD(Y + q * w + 4 * v) - s);
+    }
+  }
+}
+
+// The sweeps over the supernodes on Z (n rows of 4 nv values, in the factor's order); G: a
+// buffer of the largest supernode's rows.
+SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double *G, int nv) {
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const double *Lx = L->x;
+  const int64_t ns = (int64_t)L->nsuper;
+  const int w = 4 * nv;
+  for (int64_t s = 0; fwd && s < ns; s++) {
+    int64_t k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
+    const double *Ld = Lx + px[s];
+    const SuiteSparse_long *rows = Ls + pi[s];
+    memcpy(G, Z + k1 * w, (size_t)(nscol * w) * sizeof(double));
+    memset(G + nscol * w, 0, (size_t)((nsrow - nscol) * w) * sizeof(double));
+    for (int64_t j = 0; j < nscol; j += 4) {
+      int g = nscol - j < 4 ? (int)(nscol - j) : 4;
+      for (int q = 0; q < g; q++) {  // the g x g triangle
+        double *zq = G + (j + q) * w;
+        const double *lc = Ld + (j + q) * nsrow;
+        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+        for (int r = q + 1; r < g; r++) {
+          double *zr = G + (j + r) * w;
+          for (int v = 0; v < nv; v++)
+            SST(zr + 4 * v, SLD(zr + 4 * v) - lc[j + r] * SLD(zq + 4 * v));
+        }
+      }
+      int64_t i0 = j + g;
+      if (g == 4)
+        sn_upd4(nsrow - i0, Ld + i0 + j * nsrow, nsrow, G + j * w, G + i0 * w, nv);
+      else
+        sn_upd(nsrow - i0, Ld + i0 + j * nsrow, nsrow, g, G + j * w, G + i0 * w, nv);
+    }
+    memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
+    for (int64_t i = nscol; i < nsrow; i++) {
+      double *z = Z + rows[i] * w;
+      for (int v = 0; v < nv; v++) SST(z + 4 * v, SLD(z + 4 * v) + SLD(G + i * w + 4 * v));
+    }
+  }
+  for (int64_t s = ns - 1; bwd && s >= 0; s--) {
+    int64_t k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
+    const double *Ld = Lx + px[s];
+    const SuiteSparse_long *rows = Ls + pi[s];
+    memcpy(G, Z + k1 * w, (size_t)(nscol * w) * sizeof(double));
+    for (int64_t i = nscol; i < nsrow; i++)
+      memcpy(G + i * w, Z + rows[i] * w, (size_t)w * sizeof(double));
+    for (int64_t j = ((nscol - 1) / 4) * 4; j >= 0; j -= 4) {
+      int g = nscol - j < 4 ? (int)(nscol - j) : 4;
+      int64_t i0 = j + g;
+      if (g == 4)
+        sn_dot4(nsrow - i0, Ld + i0 + j * nsrow, nsrow, G + i0 * w, G + j * w, nv);
+      else
+        sn_dot(nsrow - i0, Ld + i0 + j * nsrow, nsrow, g, G + i0 * w, G + j * w, nv);
+      for (int q = g - 1; q >= 0; q--) {  // the g x g triangle, transposed
+        double *zq = G + (j + q) * w;
+        const double *lc = Ld + (j + q) * nsrow;
+        for (int r = q + 1; r < g; r++) {
+          const double *zr = G + (j + r) * w;
+          for (int v = 0; v < nv; v++)
+            SST(zq + 4 * v, SLD(zq + 4 * v) - lc[j + r] * SLD(zr + 4 * v));
+        }
+        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+      }
+    }
+    memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
+  }
+}
+
+__attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_1(const cholmod_factor *L, int fwd,
+                                                                 int bwd, double *Z, double *G) {
+  sn_sweeps(L, fwd, bwd, Z, G, 1);
+}
+__attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_2(const cholmod_factor *L, int fwd,
+                                                                 int bwd, double *Z, double *G) {
+  sn_sweeps(L, fwd, bwd, Z, G, 2);
+}
+#endif
+
+// Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
+// solve); false when not available here (then CHOLMOD's).
+static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
+#ifdef FMBD_OWN_SOLVE
+  const cholmod_factor *L = F->L;
+  if (!F->own_solve || nrhs > 8 || nrhs < 2 || !L->is_super || !L->is_ll ||
+      L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
+    return false;
+  int nv = nrhs > 4 ? 2 : 1, w = 4 * nv;
+  int64_t n = F->n;
+  if (!F->ow) {
+    const SuiteSparse_long *pi = L->pi;
+    int64_t mr = 0;
+    for (size_t s = 0; s < L->nsuper; s++) mr = pi[s + 1] - pi[s] > mr ? pi[s + 1] - pi[s] : mr;
+    F->ow = fmbd_malloc((size_t)(n + mr) * 8 * sizeof(double));
+    if (!F->ow) return false;  // CHOLMOD's then (it reports its own memory failure)
+  }
+  double *Z = F->ow, *G = F->ow + n * 8;
+  const SuiteSparse_long *perm = L->Perm;
+  for (int64_t k = 0; k < n; k++) {  // Z = P X (forward) or X (backward), rows of w
+    int64_t r = fwd ? perm[k] : k;
+    int64_t c = 0;
+    for (; c < nrhs; c++) Z[k * w + c] = X[r + c * ldx];
+    for (; c < w; c++) Z[k * w + c] = 0.0;
+  }
+  if (nv == 1)
+    sn_sweeps_avx2_1(L, fwd, bwd, Z, G);
+  else
+    sn_sweeps_avx2_2(L, fwd, bwd, Z, G);
+  for (int64_t k = 0; k < n; k++) {  // X = P' Z (backward) or Z (forward)
+    int64_t r = bwd ? perm[k] : k;
+    for (int64_t c = 0; c < nrhs; c++) X[r + c * ldx] = Z[k * w + c];
+  }
+  return true;
+#else
+  (void)F;
+  (void)fwd;
+  (void)bwd;
+  (void)nrhs;
+  (void)X;
+  (void)ldx;
+  return false;
+#endif
+}
+
 // X <- the solves sys[0], then sys[1], ... (CHOLMOD_A, or CHOLMOD_P/L/Lt/Pt) applied in turn
 static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, double *X, int64_t ldx) {
   if (F->dropped) {
@@ -931,11 +1194,40 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
              (long long)F->n);
   double t0 = fmbd_wall_s();
+  if (own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
+                sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
+    F->st.t_solve_s += fmbd_wall_s() - t0;
+    return FMBD_OK;
+  }
   // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
   const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
+  double *pt = NULL;  // the permutations done here, a column at a time through pt (n)
+  for (int k = 0; k < nsys; k++) {
+    if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
+      pt = fmbd_malloc((size_t)F->n * sizeof(double));
+      FMBD_CHECK(pt, FMBD_ERR_NOMEM, "out of memory");
+      break;
+    }
+  }
   for (int64_t c0 = 0; c0 < nrhs; c0 += block) {
     int64_t nc = nrhs - c0 < block ? nrhs - c0 : block;
     for (int k = 0; k < nsys; k++) {
+      if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
+        // CHOLMOD_Pt (cholmod_l_solve2, CHOLMOD 3.0.14) reads a right-hand side block with a
+        // leading dimension above n as if it were n: columns after the first came out wrong
+        // (tests/unit/t300, own_solves: its halves against the library's own)
+        const SuiteSparse_long *perm = F->L->Perm;
+        for (int64_t j = 0; j < nc; j++) {
+          double *x = X + (c0 + j) * ldx;
+          memcpy(pt, x, (size_t)F->n * sizeof(double));
+          if (sys[k] == CHOLMOD_P) {
+            for (int64_t i = 0; i < F->n; i++) x[i] = pt[perm[i]];
+          } else {
+            for (int64_t i = 0; i < F->n; i++) x[perm[i]] = pt[i];
+          }
+        }
+        continue;
+      }
       cholmod_dense Bw;
       memset(&Bw, 0, sizeof Bw);
       Bw.nrow = (size_t)F->n;
@@ -948,6 +1240,7 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
       Bw.dtype = CHOLMOD_DOUBLE;
       g_cholmod_msg[0] = 0;
       if (!cholmod_l_solve2(sys[k], F->L, &Bw, NULL, &F->X, NULL, &F->Y, &F->E, &F->c)) {
+        fmbd_free(pt);
         return cholmod_fail(F, "solve");
       }
       const double *x = F->X->x;
@@ -957,6 +1250,7 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
       }
     }
   }
+  fmbd_free(pt);
   F->st.t_solve_s += fmbd_wall_s() - t0;
   return FMBD_OK;
 }
@@ -978,12 +1272,19 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
   return rc;
 }
 
+void fmbd_chol_set_own_solve(fmbd_chol *F, bool on) {
+  if (F) F->own_solve = on;
+}
+
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
   if (F) F->solve_width = w > 0 ? w : 0;
 }
 
 void fmbd_chol_release_workspace(fmbd_chol *F) {
-  if (!F || !F->started) return;
+  if (!F) return;
+  fmbd_free(F->ow);
+  F->ow = NULL;
+  if (!F->started) return;
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
@@ -993,6 +1294,8 @@ int fmbd_chol_drop_numeric(fmbd_chol *F) {
   FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
              FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
   if (F->dropped) return FMBD_OK;
+  fmbd_free(F->ow);
+  F->ow = NULL;
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
@@ -1045,6 +1348,7 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
     cholmod_l_free_sparse(&F->S, &F->c);
     cholmod_l_finish(&F->c);
   }
+  fmbd_free(F->ow);
   fmbd_free(F->Lx);
   fmbd_free(F->iperm);
   fmbd_free(F->col2super);

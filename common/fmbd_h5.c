@@ -726,7 +726,7 @@ done:
 // (chunked still), keeping 1 M-dof matrices and mode sets quick to write. FMBD_H5_DEFLATE=N
 // (0..9) in the environment forces level N for every chunked dataset (0: no compression).
 #define FLOAT_DEFLATE_MAX ((hsize_t)1 << 22)
-// ... and only when they compress: the first chunk's worth of values (shuffled, deflate 1, as
+// ... and only when they compress: the first values (TRIAL_ELEMS below) (shuffled, deflate 1, as
 // HDF5 will) must shrink by FLOAT_DEFLATE_MIN_RATIO, else the dataset is stored uncompressed.
 // A stiffness matrix's values compress 1.12:1 (the 51 k-dof rod of bench/cbcheck.sh): storing
 // them plain costs 3.5 MB of a 37 MB fe file and saves their inflation at every read (cbcheck's
@@ -741,10 +741,18 @@ static int deflate_level(hid_t ftype, hsize_t nelem) {
 }
 #define CHUNK_TARGET_ELEMS 131072  // 1 MiB of doubles: fits HDF5's default 1 MiB chunk cache
 
-// The ratio by which deflate 1 shrinks the first CHUNK_TARGET_ELEMS of the doubles x[0..n),
-// shuffled first (as HDF5's shuffle filter does) or not; 0 when the trial itself cannot run
+// The compression trials below read the first TRIAL_ELEMS values (128 KiB, four of deflate's
+// 32 KiB windows): a whole chunk's 1 MiB took 20-25 ms a dataset, 0.1 s of fe2cb's 0.12 s
+// write at 51 k dofs (five dense blocks, none of which compresses); the first 16,384 values
+// gave ratios within 0.01-0.05 of the whole chunk's on the rod's cb blocks (1.03-1.14:1), K
+// (1.11-1.14), M (5.6 and 8.1) and the node coordinates (1.12-1.19), on the same side of the
+// thresholds below (bench/README.md "fe2cb's fixed costs")
+#define TRIAL_ELEMS 16384
+
+// The ratio by which deflate 1 shrinks the first TRIAL_ELEMS of the doubles x[0..n), shuffled
+// first (as HDF5's shuffle filter does) or not; 0 when the trial itself cannot run
 static double float_ratio(const double *x, hsize_t n, bool shuffle) {
-  if (n > CHUNK_TARGET_ELEMS) n = CHUNK_TARGET_ELEMS;
+  if (n > TRIAL_ELEMS) n = TRIAL_ELEMS;
   size_t nb = (size_t)n * sizeof(double);
   uLongf zn = compressBound((uLong)nb);
   unsigned char *sh = shuffle ? fmbd_malloc(nb) : NULL, *z = fmbd_malloc((size_t)zn);
@@ -766,7 +774,7 @@ static double float_ratio(const double *x, hsize_t n, bool shuffle) {
 }
 
 // Whether doubles like x[0..n) are worth HDF5's shuffle + deflate (FLOAT_DEFLATE_MIN_RATIO on
-// the first CHUNK_TARGET_ELEMS of them); true when the trial itself cannot run
+// the first TRIAL_ELEMS of them); true when the trial itself cannot run
 static bool floats_compress(const double *x, hsize_t n) {
   double r = float_ratio(x, n, true);
   return r == 0.0 || r >= FLOAT_DEFLATE_MIN_RATIO;
@@ -777,8 +785,8 @@ static bool floats_compress(const double *x, hsize_t n) {
 // of that read (bench/README.md, cbcheck: "The fe file's CSR arrays"). Index arrays: shuffle +
 // deflate 2 (51 k-dof rod, /K/indices of 3.9 M values: 1.26 MB, inflated in 0.030 s CPU, where
 // deflate 4 gave 1.15 MB in 0.073 s). Values: deflate 1 without shuffle when that shrinks the
-// first chunk CSR_DEFLATE_MIN_RATIO times (a consistent mass: Ms (x) I3 repeats whole doubles,
-// which LZ77 finds and shuffle hides: 8.4:1, inflated in 0.032 s, against 5.5:1 in 0.065 s
+// first TRIAL_ELEMS values CSR_DEFLATE_MIN_RATIO times (a consistent mass: Ms (x) I3 repeats whole
+// doubles, which LZ77 finds and shuffle hides: 8.4:1, inflated in 0.032 s, against 5.5:1 in 0.065 s
 // shuffled), else shuffle + deflate 1 if that does, else none (a stiffness: 1.1-1.25:1, read
 // plain in 0.004 s against 0.10 s inflated); beyond FLOAT_DEFLATE_MAX values none, as for any
 // float dataset. FMBD_H5_DEFLATE still overrides all of it.
@@ -1267,17 +1275,24 @@ int fmbd_h5_read_csr_like(fmbd_h5 *f, const char *path, const fmbd_csr *B, const
       same = same_object(f, p, q);
     }
   }
-  FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
   if (same && share) {  // B's arrays themselves: one pattern in memory
-    fmbd_free(A->indptr);
-    fmbd_free(A->indices);
+    // only the values allocated: an index block allocated and freed here (32 MB at 51 k dofs,
+    // mmapped) would raise glibc's mmap threshold to its size, and the later arrays of that
+    // size (fe2cb's parked Ks and Ms) would come from the heap and stay resident when freed:
+    // fe2cb's LL' peak 241 -> 271 MB (bench/README.md "fe2cb's fixed costs")
+    FMBD_GALLOC(A = fmbd_calloc(1, sizeof *A));
+    A->nrows = shape[0];
+    A->ncols = shape[1];
     A->indptr = B->indptr;
     A->indices = B->indices;
     shared = true;
+    FMBD_GALLOC(A->data = fmbd_malloc((size_t)(nnz ? nnz : 1) * sizeof(double)));
   } else if (same) {
+    FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
     memcpy(A->indptr, B->indptr, (size_t)(shape[0] + 1) * sizeof(int64_t));
     memcpy(A->indices, B->indices, (size_t)nnz * sizeof(int64_t));
   } else {
+    FMBD_GCALL(fmbd_csr_create(shape[0], shape[1], nnz, &A));
     FMBD_GCALL(join(p, sizeof p, path, "indptr"));
     at = p;
     FMBD_GCALL(read_exact(f, p, H5T_NATIVE_INT64, shape[0] + 1, A->indptr));
