@@ -423,9 +423,66 @@ static void dense_supernode(void) {
   free(r);
 }
 
+// A = L D L' with L the unit lower triangle of ones, so A_ij = D_0 + ... + D_min(i,j), on one
+// dense supernode of n = 100 columns (the LDL' panel's recursion several levels deep). In the
+// natural order every operation of the LDL' is on small integers, exact: D comes back exactly,
+// and a zero in D (at row 70, in the panel's right half) must stop the factorisation there.
+// In CHOLMOD's own ordering the pivots are not exact, but Sylvester's law fixes their signs'
+// count: the number of -1 in D.
+static void exact_pivots(void) {
+  const int64_t n = 100, zero_at = 70;
+  double *D = malloc((size_t)n * sizeof(double));
+  int64_t nneg = 0;
+  for (int64_t k = 0; k < n; k++) {
+    D[k] = (k % 3 == 1) ? -1.0 : 1.0;
+    nneg += D[k] < 0.0;
+  }
+  int64_t *ident = malloc((size_t)n * sizeof(int64_t));
+  for (int64_t k = 0; k < n; k++) ident[k] = k;
+  for (int pass = 0; pass < 2; pass++) {
+    // pass 0: D as above; pass 1: D[zero_at] = 0
+    double d70 = D[zero_at];
+    if (pass == 1) D[zero_at] = 0.0;
+    fmbd_csr *A = NULL;
+    EXPECT(fmbd_csr_create(n, n, n * n, &A) == 0, "allocation");
+    for (int64_t i = 0; i < n; i++) {
+      A->indptr[i] = i * n;
+      for (int64_t j = 0; j < n; j++) {
+        double v = 0.0;
+        for (int64_t k = 0; k <= (i < j ? i : j); k++) v += D[k];
+        A->indices[i * n + j] = j;
+        A->data[i * n + j] = v;
+      }
+    }
+    A->indptr[n] = n * n;
+    fmbd_chol *F = NULL;
+    EXPECT(fmbd_chol_analyze_perm(A, NULL, FMBD_CHOL_LDLT, ident, &F) == 0, "natural analyse");
+    int rc = F ? fmbd_chol_factor(F, 0.0) : -1;
+    if (pass == 0) {
+      EXPECT(rc == 0 && fmbd_chol_negative_pivots(F) == nneg, "natural order: rc %d, %lld of %lld",
+             rc, (long long)(F ? fmbd_chol_negative_pivots(F) : -1), (long long)nneg);
+      fmbd_chol_destroy(&F);
+      EXPECT(fmbd_chol_analyze(A, NULL, FMBD_CHOL_LDLT, &F) == 0, "analyse");
+      rc = F ? fmbd_chol_factor(F, 0.0) : -1;
+      EXPECT(rc == 0 && fmbd_chol_negative_pivots(F) == nneg, "own order: rc %d, %lld of %lld", rc,
+             (long long)(F ? fmbd_chol_negative_pivots(F) : -1), (long long)nneg);
+    } else {
+      EXPECT(rc == FMBD_ERR_SINGULAR && F && fmbd_chol_failed_row(F) == zero_at,
+             "zero pivot: rc %d at row %lld, expected %lld", rc,
+             (long long)(F ? fmbd_chol_failed_row(F) : -1), (long long)zero_at);
+    }
+    fmbd_chol_destroy(&F);
+    fmbd_csr_destroy(&A);
+    D[zero_at] = d70;
+  }
+  free(D);
+  free(ident);
+}
+
 int main(void) {
   inertia_3d();
   dense_supernode();
+  exact_pivots();
   const int64_t n = 500;
   const double h = 1.0 / (double)(n + 1);
   fmbd_csr *K = tridiag(n, 2.0 / h, -1.0 / h, 2.0 / h);
