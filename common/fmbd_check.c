@@ -228,7 +228,8 @@ int fmbd_check_open(const char *cb_path, const fmbd_check_opts *o, fmbd_check **
   fmbd_check *c = fmbd_calloc(1, sizeof *c);
   FMBD_CHECK(c, FMBD_ERR_NOMEM, "out of memory");
   c->opts = *o;
-  FMBD_GCALL(fmbd_h5_open(cb_path, &c->cbf));
+  // its SHA-256 only when an rflex file records it (fmbd_check_write_rflex)
+  FMBD_GCALL(fmbd_h5_open_unhashed(cb_path, &c->cbf));
   FMBD_GCALL(fmbd_h5_check_format(c->cbf, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR));
   FMBD_GCALL(fmbd_cb_read(c->cbf, &c->cb));
   FMBD_GCALL(fmbd_fe_read(c->cbf, &c->desc));
@@ -451,8 +452,10 @@ int fmbd_check_write_rflex(fmbd_check *c, const char *path, const fmbd_rflex *rf
                            const fmbd_check_record *rec, double wall_s, double cpu_s) {
   int rc = FMBD_OK;
   fmbd_h5 *out = NULL;
+  const char *cb_sha = NULL;
+  FMBD_GCALL(fmbd_h5_sha256_now(c->cbf, &cb_sha));
   FMBD_GCALL(fmbd_h5_create(path, FMBD_RFLEX_FORMAT, FMBD_RFLEX_VERSION, &out));
-  FMBD_GCALL(fmbd_h5_add_input(out, fmbd_h5_name(c->cbf), fmbd_h5_sha256(c->cbf)));
+  FMBD_GCALL(fmbd_h5_add_input(out, fmbd_h5_name(c->cbf), cb_sha));
   if (c->fe_name) {
     FMBD_GCALL(fmbd_h5_add_input(out, c->fe_name, c->fe_sha));
   }

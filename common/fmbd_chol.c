@@ -21,6 +21,8 @@
 
 // orderings of matrices of this order and more: METIS alone (fmbd_chol_analyze_perm)
 enum { METIS_ONLY_N = 50000 };
+// the supernodal LDL' panel's leaf width and product chunk (ldl_panel)
+enum { LDL_LEAF = 16, LDL_KC = 256, LDL_CB = 64 };
 
 struct fmbd_chol {
   int kind;
@@ -36,12 +38,14 @@ struct fmbd_chol {
   cholmod_factor *L;
   cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
   int64_t solve_width;       // columns per cholmod_l_solve2 call (0: 64)
+  bool own_solve;            // narrow blocks through own_solve where available (default)
+  double *ow;                // own_solve's workspace: Z (n x 8) and G (largest supernode x 8)
   double sigma;
   double pivot_rtol;
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
   double *Lx;    // L->xsize values: D on the diagonal, unit-L below
   bool lx_zero;  // Lx as calloc gave it (not yet touched: zero pages, not resident)
-  int64_t *iperm, *col2super, *map, *head, *next, *lpos;
+  int64_t *iperm, *col2super, *map, *head, *next, *lpos, *runs;
   double *wC, *wW;  // update workspaces
   int64_t sizeC, sizeW;
   int64_t neg;  // negative pivots of the last LDLT factorisation
@@ -326,11 +330,16 @@ static double release_zero_pages(const cholmod_factor *L, double *x) {
 // --- supernodal LDL' without pivoting ---------------------------------------------------------
 // Left-looking over CHOLMOD's supernodes (Ng and Peyton 1993; the structure of CHOLMOD's
 // t_cholmod_super_numeric.c, written here for D): for each supernode s, assemble its columns of
-// P (A - sigma B) P', subtract the updates L_d D_d L_d(rows of s)' of every descendant d (a dense
-// product and a scatter), factor the dense diagonal block as L11 D L11' (blocked, unpivoted),
-// then L21 = A21 L11^-T D^-1 (dtrsm). Without pivoting the D of a symmetric indefinite matrix is
-// the same as the simplicial LDL' one; its signs give the inertia (Sylvester). BLAS-3 throughout,
-// so the Sturm count costs about one Cholesky factorisation instead of 10-20.
+// P (A - sigma B) P', subtract the updates L_d D_d L_d(rows of s)' of every descendant d (dense
+// products by column blocks, each scattered into s while it is in cache), then factor the
+// panel of s (diagonal block and rows below) as [L11; L21] D L11' (ldl_panel: recursive,
+// unpivoted). Without pivoting the D of a symmetric indefinite matrix is the same as the
+// simplicial LDL' one; its signs give the inertia of the matrix factored (Sylvester). BLAS-3
+// throughout, so the Sturm count costs about one Cholesky factorisation instead of 10-20.
+// What guards the count: a zero or NaN pivot stops it (FMBD_ERR_SINGULAR); the largest |L|
+// entry (element growth, which an unpivoted LDL' of an indefinite matrix does not bound) is
+// logged with the count; the eigensolver places the shift in a clear gap of its converged
+// pairs, so a count that disagrees makes it solve again, never pass silently.
 static int super_ldl_setup(fmbd_chol *F) {
   int rc = FMBD_OK;
   cholmod_factor *L = F->L;
@@ -348,13 +357,14 @@ static int super_ldl_setup(fmbd_chol *F) {
   FMBD_GALLOC(F->next = fmbd_malloc((size_t)(ns + 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->lpos = fmbd_malloc((size_t)(ns + 1) * sizeof(int64_t)));
   for (int64_t k = 0; k < n; k++) F->iperm[perm ? perm[k] : k] = k;
-  int64_t maxC = 1, maxW = 1;
+  int64_t maxC = 1, maxW = 1, maxR = 1;
   for (int64_t d = 0; d < ns; d++) {
     int64_t ncol = super[d + 1] - super[d], nrow = pi[d + 1] - pi[d], off = nrow - ncol;
+    if (off > maxR) maxR = off;
     for (int64_t k = super[d]; k < super[d + 1]; k++) F->col2super[k] = d;
-    if (off * off > maxC) maxC = off * off;
+    if (off * (off < LDL_CB ? off : LDL_CB) > maxC) maxC = off * (off < LDL_CB ? off : LDL_CB);
     if (off * ncol > maxW) maxW = off * ncol;
-    if (ncol * 64 > maxW) maxW = ncol * 64;  // the panel product inside a diagonal block
+    if (ncol * LDL_KC > maxW) maxW = ncol * LDL_KC;  // the panel's products (ldl_panel)
   }
   F->sizeC = maxC;
   F->sizeW = maxW;
@@ -362,6 +372,7 @@ static int super_ldl_setup(fmbd_chol *F) {
            (long long)ns, (double)L->xsize, (double)maxC, (double)maxW);
   FMBD_GALLOC(F->wC = fmbd_malloc((size_t)maxC * sizeof(double)));
   FMBD_GALLOC(F->wW = fmbd_malloc((size_t)maxW * sizeof(double)));
+  FMBD_GALLOC(F->runs = fmbd_malloc((size_t)(2 * maxR + 2) * sizeof(int64_t)));
 done:
   return rc;
 }
@@ -380,55 +391,86 @@ static void gemm_lower(int64_t m, int64_t n, int64_t k, double alpha, const doub
   }
 }
 
-// blocked unpivoted LDL' of the n x n lower triangle of A (leading dimension lda); D on the
-// diagonal, unit L below it; nothing above the diagonal is read, and only the corners of the
-// trailing updates' column blocks are written there. Returns the index of a zero or NaN
-// pivot, or -1.
-static int64_t dense_ldl(int64_t n, double *A, int64_t lda, double *W, int64_t *neg) {
-  const int64_t nb = 64;
-  for (int64_t j0 = 0; j0 < n; j0 += nb) {
-    int64_t jb = n - j0 < nb ? n - j0 : nb;
-    for (int64_t j = j0; j < j0 + jb; j++) {
-      // column j (rows j..n-1) minus the panel columns j0..j-1
-      for (int64_t k = j0; k < j; k++) {
-        double t = A[j + k * lda] * A[k + k * lda];
-        if (t == 0.0) continue;
+// --- a supernode's columns: unpivoted LDL' of its nsrow x nscol panel -----------------------
+// the leaf of ldl_panel: columns one by one (left-looking), each less the earlier leaf columns
+// times D (a dgemv where the column is long, plain loops where it is short); returns the index
+// of a zero or NaN pivot, or -1
+static int64_t ldl_leaf(int64_t m, int64_t n, double *A, int64_t lda, int64_t *neg, double *lmax) {
+  double t[LDL_LEAF];
+  for (int64_t j = 0; j < n; j++) {
+    double *aj = A + j * lda;
+    for (int64_t k = 0; k < j; k++) t[k] = A[j + k * lda] * A[k + k * lda];
+    if (j > 0 && m - j >= 64) {
+      cblas_dgemv(CblasColMajor, CblasNoTrans, (int)(m - j), (int)j, -1.0, A + j, (int)lda, t, 1,
+                  1.0, aj + j, 1);
+    } else {
+      for (int64_t k = 0; k < j; k++) {
         const double *lk = A + k * lda;
-        double *aj = A + j * lda;
-        for (int64_t i = j; i < n; i++) aj[i] -= lk[i] * t;
+        for (int64_t i = j; i < m; i++) aj[i] -= lk[i] * t[k];
       }
-      double d = A[j + j * lda];
-      if (d == 0.0 || d != d) return j;
-      *neg += d < 0.0;
-      double r = 1.0 / d;
-      for (int64_t i = j + 1; i < n; i++) A[i + j * lda] *= r;
     }
-    int64_t n2 = n - j0 - jb;
-    if (n2 > 0) {
-      // trailing block -= L21 D1 L21' (its lower triangle)
-      double *L21 = A + (j0 + jb) + j0 * lda;
-      for (int64_t k = 0; k < jb; k++) {
-        double dk = A[(j0 + k) + (j0 + k) * lda];
-        for (int64_t i = 0; i < n2; i++) W[i + k * n2] = L21[i + k * lda] * dk;
-      }
-      double *A22 = A + (j0 + jb) + (j0 + jb) * lda;
-      gemm_lower(n2, n2, jb, -1.0, W, n2, L21, lda, 1.0, A22, lda);
+    double d = aj[j];
+    if (d == 0.0 || d != d) return j;
+    *neg += d < 0.0;
+    double r = 1.0 / d, big = *lmax;
+    for (int64_t i = j + 1; i < m; i++) {
+      double v = aj[i] * r;
+      aj[i] = v;
+      big = fabs(v) > big ? fabs(v) : big;
     }
+    *lmax = big;
   }
   return -1;
 }
 
+// The panel A (m x n, m >= n, leading dimension lda: the diagonal block and the rows below it)
+// factored in place as the lower trapezoid [L11; L21] with D on the diagonal, by halves
+// (recursive blocking, as Gustavson's recursive Cholesky, IBM J. Res. Dev. 41(6), 1997): the
+// left half, then the right half's columns (rows at and below their diagonal) less
+// L(below, left) D L(right, left)' by dgemm, then the right half. The rows below the diagonal
+// block, which a dtrsm and a scaling by D^-1 solved before, are solved within the same
+// products, so all flops but the leaves' (LDL_LEAF columns at most) go through dgemm: the
+// panel stage of the 188 k-dof rod's LDL' 2.3 -> 1.8 s (bench/README.md, "The Sturm check's
+// LDL'"). Nothing above the diagonal is read. W: the right half's rows of the left half times
+// D, by chunks of LDL_KC columns (nscol x LDL_KC values at most). Returns the index of a zero
+// or NaN pivot, or -1.
+static int64_t ldl_panel(int64_t m, int64_t n, double *A, int64_t lda, double *W, int64_t *neg,
+                         double *lmax) {
+  if (n <= LDL_LEAF) return ldl_leaf(m, n, A, lda, neg, lmax);
+  int64_t n1 = n / 2, n2 = n - n1;
+  int64_t bad = ldl_panel(m, n1, A, lda, W, neg, lmax);
+  if (bad >= 0) return bad;
+  // A(n1:m, n1:n) -= L(n1:m, 0:n1) D L(n1:n, 0:n1)', lower trapezoid
+  for (int64_t k0 = 0; k0 < n1; k0 += LDL_KC) {
+    int64_t kb = n1 - k0 < LDL_KC ? n1 - k0 : LDL_KC;
+    for (int64_t c = 0; c < kb; c++) {
+      const double *lc = A + n1 + (k0 + c) * lda;
+      double dc = A[(k0 + c) + (k0 + c) * lda];
+      for (int64_t r = 0; r < n2; r++) W[r + c * n2] = lc[r] * dc;
+    }
+    gemm_lower(m - n1, n2, kb, -1.0, A + n1 + k0 * lda, lda, W, n2, 1.0, A + n1 + n1 * lda, lda);
+  }
+  bad = ldl_panel(m - n1, n2, A + n1 + n1 * lda, lda, W, neg, lmax);
+  return bad >= 0 ? n1 + bad : -1;
+}
+
 // P (A - sigma B) P' put into the zeroed factor before the supernodal loop, for a matrix stored
 // as its lower triangle (fmbd_csr_keep_lower: a full row, which the loop reads per column, is
-// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices, found
-// in the ascending row list of its column's supernode (the order the loop's descendant
-// updates rely on too). The same sums (0 + a - sigma b) as the loop's assembly; the values
-// come from the lower triangle instead of the column's own row.
+// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices. The rows
+// are visited in pivot order (row j = perm[k] for k = 0, 1, ...), supernode by supernode, so
+// that every place is found without a search: an entry in column k (its other index a >= k)
+// through `map`, set to the rows of k's supernode; one in an earlier column a < k (row k of
+// a's supernode t) through a cursor in t's ascending row list, which only moves forward since
+// k increases (`lpos`, set afresh by the loop afterwards). The writes of the first kind go
+// down the factor's columns in order. The same sums (0 + a - sigma b) as the loop's assembly;
+// the values come from the lower triangle instead of the column's own row.
 static int ldl_prefill(fmbd_chol *F, double sigma) {
   cholmod_factor *L = F->L;
-  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s, *perm = L->Perm;
+  int64_t nsuper = (int64_t)L->nsuper, *map = F->map, *cur = F->lpos, *c2s = F->col2super;
+  const int64_t *iperm = F->iperm;
   const fmbd_csr *mat[2] = {F->A, sigma != 0.0 ? F->B : NULL};
-  // B on A's index arrays (fe2cb's Ms on Ks's): one search serves both entries, which then
+  // B on A's index arrays (fe2cb's Ms on Ks's): one place serves both entries, which then
   // get the same operations in the same order as in two passes (each position holds one
   // entry of each)
   const fmbd_csr *Bs = mat[1];
@@ -440,31 +482,73 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
   for (int m = 0; m < 2; m++) {
     const fmbd_csr *A = mat[m];
     if (!A) continue;
-    for (int64_t j = 0; j < F->n; j++) {
-      for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
-        int64_t a = F->iperm[A->indices[p]], b = F->iperm[j];
-        int64_t c = a < b ? a : b, r = a < b ? b : a, sn = F->col2super[c];
-        int64_t lo = pi[sn], hi = pi[sn + 1] - 1;
-        while (lo < hi) {
-          int64_t mid = lo + (hi - lo) / 2;
-          if (Ls[mid] < r)
-            lo = mid + 1;
-          else
-            hi = mid;
-        }
-        FMBD_CHECK(Ls[lo] == r, FMBD_ERR_INTERNAL, "entry (%lld, %lld) not in the LDL' pattern",
-                   (long long)r, (long long)c);
-        double *x = F->Lx + px[sn] + (c - super[sn]) * (pi[sn + 1] - pi[sn]) + (lo - pi[sn]);
-        if (m == 0) {
-          *x += A->data[p];
-          if (both) *x -= sigma * Bs->data[p];
-        } else {
-          *x -= sigma * A->data[p];
+    for (int64_t t = 0; t < nsuper; t++) cur[t] = pi[t];
+    for (int64_t s = 0; s < nsuper; s++) {
+      int64_t k1 = super[s], psi = pi[s], nsrow = pi[s + 1] - psi;
+      double *Lsx = F->Lx + px[s];
+      for (int64_t i = 0; i < nsrow; i++) map[Ls[psi + i]] = i;
+      for (int64_t k = k1; k < super[s + 1]; k++) {
+        int64_t j = perm ? perm[k] : k;
+        for (int64_t p = A->indptr[j]; p < A->indptr[j + 1] && A->indices[p] <= j; p++) {
+          int64_t a = iperm[A->indices[p]];
+          double *x;
+          if (a >= k1) {
+            // column min(a, k) of s, row max(a, k)
+            int64_t c = a < k ? a : k, r = a < k ? k : a, q = map[r];
+            FMBD_CHECK(q >= 0 && q < nsrow && Ls[psi + q] == r, FMBD_ERR_INTERNAL,
+                       "entry (%lld, %lld) not in the LDL' pattern", (long long)r, (long long)c);
+            x = Lsx + (c - k1) * nsrow + q;
+          } else {
+            // column a of an earlier supernode t, row k
+            int64_t t = c2s[a], q = cur[t], e = pi[t + 1];
+            while (q < e && Ls[q] < k) q++;
+            cur[t] = q;
+            FMBD_CHECK(q < e && Ls[q] == k, FMBD_ERR_INTERNAL,
+                       "entry (%lld, %lld) not in the LDL' pattern", (long long)k, (long long)a);
+            x = F->Lx + px[t] + (a - super[t]) * (e - pi[t]) + (q - pi[t]);
+          }
+          if (m == 0) {
+            *x += A->data[p];
+            if (both) *x -= sigma * Bs->data[p];
+          } else {
+            *x -= sigma * A->data[p];
+          }
         }
       }
     }
   }
   return FMBD_OK;
+}
+
+// Lsx (supernode s, columns k1.., nsrow rows, map: row -> place) -= C (nr2 x nr1, lower
+// trapezoid), C's rows being the rows rows[0..nr2-1] of s (rows[0..nr1-1] also its columns).
+// The rows come in runs of consecutive places (volume-weighted mean 78 rows at 51 k dofs): the
+// runs are found once (run starts and their places in `runs`, 2 (nr2 + 1) values), then each
+// column subtracts run by run, contiguous on both sides
+static void scatter_update(int64_t nr1, int64_t nr2, const double *C, const SuiteSparse_long *rows,
+                           const int64_t *map, int64_t k1, double *Lsx, int64_t nsrow,
+                           int64_t *runs) {
+  int64_t *start = runs, *place = runs + nr2 + 1, nrun = 0;
+  for (int64_t ii = 0; ii < nr2; ii++) {
+    int64_t t = map[rows[ii]];
+    if (nrun == 0 || t != place[nrun - 1] + (ii - start[nrun - 1])) {
+      start[nrun] = ii;
+      place[nrun++] = t;
+    }
+  }
+  start[nrun] = nr2;
+  int64_t q = 0;
+  for (int64_t jj = 0; jj < nr1; jj++) {
+    while (start[q + 1] <= jj) q++;
+    double *col = Lsx + (rows[jj] - k1) * nsrow;
+    const double *c = C + jj * nr2;
+    for (int64_t r = q; r < nrun; r++) {
+      int64_t i0 = r == q ? jj : start[r], len = start[r + 1] - i0;
+      double *dst = col + place[r] + (i0 - start[r]);
+      const double *src = c + i0;
+      for (int64_t i = 0; i < len; i++) dst[i] -= src[i];
+    }
+  }
 }
 
 static int super_ldl_factor(fmbd_chol *F, double sigma) {
@@ -475,6 +559,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
   int64_t *map = F->map, *head = F->head, *next = F->next, *lpos = F->lpos, *c2s = F->col2super;
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
+  double lmax = 0.0;  // largest |L| entry below the diagonal
   bool prefill = A->lower || (B && B->lower);
   if (prefill) {
     FMBD_CALL(ldl_prefill(F, sigma));
@@ -520,10 +605,11 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
         double dc = Ldx[c + c * ndrow];
         for (int64_t r = 0; r < nr1; r++) W[r + c * nr1] = Ldx[r1 + r + c * ndrow] * dc;
       }
-      gemm_lower(nr2, nr1, ndcol, 1.0, Ldx + r1, ndrow, W, nr1, 0.0, C, nr2);
-      for (int64_t jj = 0; jj < nr1; jj++) {
-        double *col = Lsx + (Ls[p1 + jj] - k1) * nsrow;
-        for (int64_t ii = jj; ii < nr2; ii++) col[map[Ls[p1 + ii]]] -= C[ii + jj * nr2];
+      // by column blocks of C, each scattered while it is in cache
+      for (int64_t c0 = 0; c0 < nr1; c0 += LDL_CB) {
+        int64_t w = nr1 - c0 < LDL_CB ? nr1 - c0 : LDL_CB;
+        gemm_lower(nr2 - c0, w, ndcol, 1.0, Ldx + r1 + c0, ndrow, W + c0, nr1, 0.0, C, nr2 - c0);
+        scatter_update(w, nr2 - c0, C, Ls + p1 + c0, map, k1, Lsx, nsrow, F->runs);
       }
       lpos[d] = p2;
       if (p2 < pdend) {
@@ -534,21 +620,13 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
       d = dnext;
     }
     // --- the diagonal block and the rows below it ---
-    int64_t bad = dense_ldl(nscol, Lsx, nsrow, F->wW, &neg);
+    int64_t bad = ldl_panel(nsrow, nscol, Lsx, nsrow, F->wW, &neg, &lmax);
     if (bad >= 0) {
       F->failed_row = perm ? perm[k1 + bad] : k1 + bad;
       FMBD_FAIL(FMBD_ERR_SINGULAR, "zero pivot in LDL' at row %lld (shift %.17g is an eigenvalue)",
                 (long long)F->failed_row, sigma);
     }
-    int64_t noff = nsrow - nscol;
-    if (noff > 0) {
-      double *A21 = Lsx + nscol;
-      cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasUnit, (int)noff,
-                  (int)nscol, 1.0, Lsx, (int)nsrow, A21, (int)nsrow);
-      for (int64_t c = 0; c < nscol; c++) {
-        double r = 1.0 / Lsx[c + c * nsrow];
-        for (int64_t i = 0; i < noff; i++) A21[i + c * nsrow] *= r;
-      }
+    if (nsrow > nscol) {
       lpos[s] = psi + nscol;
       int64_t t = c2s[Ls[psi + nscol]];
       next[s] = head[t];
@@ -556,6 +634,9 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
     }
   }
   F->neg = neg;
+  fmbd_log(FMBD_LOG_DEBUG,
+           "LDL' of the matrix shifted by %.9g: %lld negative pivots, largest |L| %.3g", sigma,
+           (long long)neg, lmax);
   return FMBD_OK;
 }
 
@@ -620,6 +701,7 @@ static int analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t
   F->A = A;
   F->B = B;
   F->pivot_rtol = 1e-13;
+  F->own_solve = true;
   F->neg = -1;
   F->failed_row = -1;
   F->st.n = F->n;
@@ -837,6 +919,266 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
   return FMBD_OK;
 }
 
+// --- narrow-block supernodal LL' solves of our own ------------------------------------------
+// CHOLMOD's supernodal solve (t_cholmod_super_solve.c) calls dtrsm and dgemm once per supernode
+// with as many columns as right-hand sides; with the block eigensolver's 4 columns those are
+// BLAS calls of tiny width (OpenBLAS's small-matrix kernels: 15 % of fe2cb's CPU at 51 k dofs,
+// 20 modes, bench/README.md "Fewer and cheaper Lanczos solves"), well below the rate at which
+// the factor streams from memory, which is what bounds a narrow solve (each entry of L is used
+// once per column; 4 columns of the 51 k-dof rod's factor, 180 MB: CHOLMOD 43-65 ms a full
+// solve, here 31-39 ms, streaming L twice 18 ms). Here the same sweeps (forward: column by column
+// of each supernode, the diagonal block's triangle then the rows below; backward: the transposed
+// order) run on a row-major copy Z of the right-hand sides (each row's 4 or 8 values contiguous:
+// one or two 4-wide vectors), 4 columns of a supernode at a time, so that each entry of L is loaded
+// once per sweep and used for every right-hand side in registers:
+//   forward, group of columns j..j+g-1 (g <= 4) of supernode s: the g x g triangle on their
+//   rows, then rows i below: z_i -= L(i,j) z_j + ... + L(i,j+g-1) z_{j+g-1} (vector per row);
+//   backward, the groups in reverse: z_j -= sum_i L(i,j) z_i over the rows below the group
+//   (g vector sums), then the triangle.
+// The supernode's rows are gathered into a contiguous buffer G (its own columns, then the rows
+// of its off-diagonal part; zero for those in the forward sweep, whose sums are added to Z
+// afterwards, as CHOLMOD's dgemm-and-scatter does), so one kernel call covers both parts. Only
+// the lower part of each diagonal block is read (the upper is not kept: release_zero_pages).
+// Compiled for AVX2 and FMA (4-wide vectors of the compiler's vector extensions, each product
+// and sum as one fused multiply-add, the sums in the order written) and chosen when called
+// (__builtin_cpu_supports); elsewhere (another processor, another compiler, FMBD_NO_VECTOR), for
+// single vectors (CHOLMOD's BLAS-2 path is faster: 28 against 37 ms) and for blocks of more
+// than 8 columns (about as fast: two passes here would take 52 + 31 and 2 x 52 ms at 12 and 16
+// columns against CHOLMOD's 86 and 104 ms), CHOLMOD's solve. The results agree with CHOLMOD's to
+// round-off (the same substitutions, the sums in another order and fused: tests/unit/t300
+// compares them, within the triangular solves' error bound).
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#define FMBD_OWN_SOLVE 1
+#include <immintrin.h>
+#ifdef __clang__
+#pragma clang fp contract(off)
+#endif
+typedef double sv4d
+    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
+#define SLD(p) (*(const sv4d *)(p))
+#define SST(p, v) (*(sv4d *)(p) = (v))
+
+#define SFN static inline __attribute__((always_inline, target("avx2,fma")))
+// t - a y, one rounding (FMA)
+SFN sv4d sn_fnma(double a, sv4d y, sv4d t) {
+  return (sv4d)_mm256_fnmadd_pd(_mm256_set1_pd(a), (__m256d)y, (__m256d)t);
+}
+// s + a z, one rounding
+SFN sv4d sn_fma(double a, sv4d z, sv4d s) {
+  return (sv4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
+}
+
+// T[i] -= L[i] Y[0] + L[i + ld] Y[1] + L[i + 2 ld] Y[2] + L[i + 3 ld] Y[3] for i < nr (in that
+// order); rows of nv 4-wide vectors (row stride 4 nv)
+SFN void sn_upd4(int64_t nr, const double *L, int64_t ld, const double *Y, double *T, int nv) {
+  const int w = 4 * nv;
+  sv4d y0[2], y1[2], y2[2], y3[2];
+  for (int v = 0; v < nv; v++) {
+    y0[v] = SLD(Y + 4 * v);
+    y1[v] = SLD(Y + w + 4 * v);
+    y2[v] = SLD(Y + 2 * w + 4 * v);
+    y3[v] = SLD(Y + 3 * w + 4 * v);
+  }
+  const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
+  for (int64_t i = 0; i < nr; i++) {
+    double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d x = sn_fnma(L0[i], y0[v], SLD(t + 4 * v));
+      x = sn_fnma(L1[i], y1[v], x);
+      x = sn_fnma(L2[i], y2[v], x);
+      SST(t + 4 * v, sn_fnma(L3[i], y3[v], x));
+    }
+  }
+}
+
+// the same for g < 4 columns
+SFN void sn_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y, double *T,
+                int nv) {
+  const int w = 4 * nv;
+  for (int64_t i = 0; i < nr; i++) {
+    double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d x = SLD(t + 4 * v);
+      for (int q = 0; q < g; q++) x = sn_fnma(L[i + q * ld], SLD(Y + q * w + 4 * v), x);
+      SST(t + 4 * v, x);
+    }
+  }
+}
+
+// Y[q] -= sum_{i < nr} L[i + q ld] T[i] for q < 4: the even and the odd rows in separate sums
+// (two sets of 4 nv vectors: an FMA's latency is several cycles), added at the end
+SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, double *Y, int nv) {
+  const int w = 4 * nv;
+  sv4d s0[2] = {{0}}, s1[2] = {{0}}, s2[2] = {{0}}, s3[2] = {{0}};
+  sv4d u0[2] = {{0}}, u1[2] = {{0}}, u2[2] = {{0}}, u3[2] = {{0}};
+  const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
+  int64_t i = 0;
+  for (; i + 1 < nr; i += 2) {
+    const double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d z = SLD(t + 4 * v), y = SLD(t + w + 4 * v);
+      s0[v] = sn_fma(L0[i], z, s0[v]);
+      s1[v] = sn_fma(L1[i], z, s1[v]);
+      s2[v] = sn_fma(L2[i], z, s2[v]);
+      s3[v] = sn_fma(L3[i], z, s3[v]);
+      u0[v] = sn_fma(L0[i + 1], y, u0[v]);
+      u1[v] = sn_fma(L1[i + 1], y, u1[v]);
+      u2[v] = sn_fma(L2[i + 1], y, u2[v]);
+      u3[v] = sn_fma(L3[i + 1], y, u3[v]);
+    }
+  }
+  if (i < nr) {
+    const double *t = T + i * w;
+    for (int v = 0; v < nv; v++) {
+      sv4d z = SLD(t + 4 * v);
+      s0[v] = sn_fma(L0[i], z, s0[v]);
+      s1[v] = sn_fma(L1[i], z, s1[v]);
+      s2[v] = sn_fma(L2[i], z, s2[v]);
+      s3[v] = sn_fma(L3[i], z, s3[v]);
+    }
+  }
+  for (int v = 0; v < nv; v++) {
+    SST(Y + 4 * v, SLD(Y + 4 * v) - (s0[v] + u0[v]));
+    SST(Y + w + 4 * v, SLD(Y + w + 4 * v) - (s1[v] + u1[v]));
+    SST(Y + 2 * w + 4 * v, SLD(Y + 2 * w + 4 * v) - (s2[v] + u2[v]));
+    SST(Y + 3 * w + 4 * v, SLD(Y + 3 * w + 4 * v) - (s3[v] + u3[v]));
+  }
+}
+
+// the same for g < 4 columns
+SFN void sn_dot(int64_t nr, const double *L, int64_t ld, int g, const double *T, double *Y,
+                int nv) {
+  const int w = 4 * nv;
+  for (int q = 0; q < g; q++) {
+    for (int v = 0; v < nv; v++) {
+      sv4d s = {0};
+      for (int64_t i = 0; i < nr; i++) s = sn_fma(L[i + q * ld], SLD(T + i * w + 4 * v), s);
+      SST(Y + q * w + 4 * v, SLD(Y + q * w + 4 * v) - s);
+    }
+  }
+}
+
+// The sweeps over the supernodes on Z (n rows of 4 nv values, in the factor's order); G: a
+// buffer of the largest supernode's rows.
+SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double *G, int nv) {
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const double *Lx = L->x;
+  const int64_t ns = (int64_t)L->nsuper;
+  const int w = 4 * nv;
+  for (int64_t s = 0; fwd && s < ns; s++) {
+    int64_t k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
+    const double *Ld = Lx + px[s];
+    const SuiteSparse_long *rows = Ls + pi[s];
+    memcpy(G, Z + k1 * w, (size_t)(nscol * w) * sizeof(double));
+    memset(G + nscol * w, 0, (size_t)((nsrow - nscol) * w) * sizeof(double));
+    for (int64_t j = 0; j < nscol; j += 4) {
+      int g = nscol - j < 4 ? (int)(nscol - j) : 4;
+      for (int q = 0; q < g; q++) {  // the g x g triangle
+        double *zq = G + (j + q) * w;
+        const double *lc = Ld + (j + q) * nsrow;
+        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+        for (int r = q + 1; r < g; r++) {
+          double *zr = G + (j + r) * w;
+          for (int v = 0; v < nv; v++)
+            SST(zr + 4 * v, SLD(zr + 4 * v) - lc[j + r] * SLD(zq + 4 * v));
+        }
+      }
+      int64_t i0 = j + g;
+      if (g == 4)
+        sn_upd4(nsrow - i0, Ld + i0 + j * nsrow, nsrow, G + j * w, G + i0 * w, nv);
+      else
+        sn_upd(nsrow - i0, Ld + i0 + j * nsrow, nsrow, g, G + j * w, G + i0 * w, nv);
+    }
+    memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
+    for (int64_t i = nscol; i < nsrow; i++) {
+      double *z = Z + rows[i] * w;
+      for (int v = 0; v < nv; v++) SST(z + 4 * v, SLD(z + 4 * v) + SLD(G + i * w + 4 * v));
+    }
+  }
+  for (int64_t s = ns - 1; bwd && s >= 0; s--) {
+    int64_t k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s];
+    const double *Ld = Lx + px[s];
+    const SuiteSparse_long *rows = Ls + pi[s];
+    memcpy(G, Z + k1 * w, (size_t)(nscol * w) * sizeof(double));
+    for (int64_t i = nscol; i < nsrow; i++)
+      memcpy(G + i * w, Z + rows[i] * w, (size_t)w * sizeof(double));
+    for (int64_t j = ((nscol - 1) / 4) * 4; j >= 0; j -= 4) {
+      int g = nscol - j < 4 ? (int)(nscol - j) : 4;
+      int64_t i0 = j + g;
+      if (g == 4)
+        sn_dot4(nsrow - i0, Ld + i0 + j * nsrow, nsrow, G + i0 * w, G + j * w, nv);
+      else
+        sn_dot(nsrow - i0, Ld + i0 + j * nsrow, nsrow, g, G + i0 * w, G + j * w, nv);
+      for (int q = g - 1; q >= 0; q--) {  // the g x g triangle, transposed
+        double *zq = G + (j + q) * w;
+        const double *lc = Ld + (j + q) * nsrow;
+        for (int r = q + 1; r < g; r++) {
+          const double *zr = G + (j + r) * w;
+          for (int v = 0; v < nv; v++)
+            SST(zq + 4 * v, SLD(zq + 4 * v) - lc[j + r] * SLD(zr + 4 * v));
+        }
+        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+      }
+    }
+    memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
+  }
+}
+
+__attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_1(const cholmod_factor *L, int fwd,
+                                                                 int bwd, double *Z, double *G) {
+  sn_sweeps(L, fwd, bwd, Z, G, 1);
+}
+__attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_2(const cholmod_factor *L, int fwd,
+                                                                 int bwd, double *Z, double *G) {
+  sn_sweeps(L, fwd, bwd, Z, G, 2);
+}
+#endif
+
+// Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
+// solve); false when not available here (then CHOLMOD's).
+static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
+#ifdef FMBD_OWN_SOLVE
+  const cholmod_factor *L = F->L;
+  if (!F->own_solve || nrhs > 8 || nrhs < 2 || !L->is_super || !L->is_ll ||
+      L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
+    return false;
+  int nv = nrhs > 4 ? 2 : 1, w = 4 * nv;
+  int64_t n = F->n;
+  if (!F->ow) {
+    const SuiteSparse_long *pi = L->pi;
+    int64_t mr = 0;
+    for (size_t s = 0; s < L->nsuper; s++) mr = pi[s + 1] - pi[s] > mr ? pi[s + 1] - pi[s] : mr;
+    F->ow = fmbd_malloc((size_t)(n + mr) * 8 * sizeof(double));
+    if (!F->ow) return false;  // CHOLMOD's then (it reports its own memory failure)
+  }
+  double *Z = F->ow, *G = F->ow + n * 8;
+  const SuiteSparse_long *perm = L->Perm;
+  for (int64_t k = 0; k < n; k++) {  // Z = P X (forward) or X (backward), rows of w
+    int64_t r = fwd ? perm[k] : k;
+    int64_t c = 0;
+    for (; c < nrhs; c++) Z[k * w + c] = X[r + c * ldx];
+    for (; c < w; c++) Z[k * w + c] = 0.0;
+  }
+  if (nv == 1)
+    sn_sweeps_avx2_1(L, fwd, bwd, Z, G);
+  else
+    sn_sweeps_avx2_2(L, fwd, bwd, Z, G);
+  for (int64_t k = 0; k < n; k++) {  // X = P' Z (backward) or Z (forward)
+    int64_t r = bwd ? perm[k] : k;
+    for (int64_t c = 0; c < nrhs; c++) X[r + c * ldx] = Z[k * w + c];
+  }
+  return true;
+#else
+  (void)F;
+  (void)fwd;
+  (void)bwd;
+  (void)nrhs;
+  (void)X;
+  (void)ldx;
+  return false;
+#endif
+}
+
 // X <- the solves sys[0], then sys[1], ... (CHOLMOD_A, or CHOLMOD_P/L/Lt/Pt) applied in turn
 static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, double *X, int64_t ldx) {
   if (F->dropped) {
@@ -852,11 +1194,40 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
              (long long)F->n);
   double t0 = fmbd_wall_s();
+  if (own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
+                sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
+    F->st.t_solve_s += fmbd_wall_s() - t0;
+    return FMBD_OK;
+  }
   // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
   const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
+  double *pt = NULL;  // the permutations done here, a column at a time through pt (n)
+  for (int k = 0; k < nsys; k++) {
+    if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
+      pt = fmbd_malloc((size_t)F->n * sizeof(double));
+      FMBD_CHECK(pt, FMBD_ERR_NOMEM, "out of memory");
+      break;
+    }
+  }
   for (int64_t c0 = 0; c0 < nrhs; c0 += block) {
     int64_t nc = nrhs - c0 < block ? nrhs - c0 : block;
     for (int k = 0; k < nsys; k++) {
+      if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
+        // CHOLMOD_Pt (cholmod_l_solve2, CHOLMOD 3.0.14) reads a right-hand side block with a
+        // leading dimension above n as if it were n: columns after the first came out wrong
+        // (tests/unit/t300, own_solves: its halves against the library's own)
+        const SuiteSparse_long *perm = F->L->Perm;
+        for (int64_t j = 0; j < nc; j++) {
+          double *x = X + (c0 + j) * ldx;
+          memcpy(pt, x, (size_t)F->n * sizeof(double));
+          if (sys[k] == CHOLMOD_P) {
+            for (int64_t i = 0; i < F->n; i++) x[i] = pt[perm[i]];
+          } else {
+            for (int64_t i = 0; i < F->n; i++) x[perm[i]] = pt[i];
+          }
+        }
+        continue;
+      }
       cholmod_dense Bw;
       memset(&Bw, 0, sizeof Bw);
       Bw.nrow = (size_t)F->n;
@@ -869,6 +1240,7 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
       Bw.dtype = CHOLMOD_DOUBLE;
       g_cholmod_msg[0] = 0;
       if (!cholmod_l_solve2(sys[k], F->L, &Bw, NULL, &F->X, NULL, &F->Y, &F->E, &F->c)) {
+        fmbd_free(pt);
         return cholmod_fail(F, "solve");
       }
       const double *x = F->X->x;
@@ -878,6 +1250,7 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
       }
     }
   }
+  fmbd_free(pt);
   F->st.t_solve_s += fmbd_wall_s() - t0;
   return FMBD_OK;
 }
@@ -899,12 +1272,19 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
   return rc;
 }
 
+void fmbd_chol_set_own_solve(fmbd_chol *F, bool on) {
+  if (F) F->own_solve = on;
+}
+
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
   if (F) F->solve_width = w > 0 ? w : 0;
 }
 
 void fmbd_chol_release_workspace(fmbd_chol *F) {
-  if (!F || !F->started) return;
+  if (!F) return;
+  fmbd_free(F->ow);
+  F->ow = NULL;
+  if (!F->started) return;
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
@@ -914,6 +1294,8 @@ int fmbd_chol_drop_numeric(fmbd_chol *F) {
   FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
              FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
   if (F->dropped) return FMBD_OK;
+  fmbd_free(F->ow);
+  F->ow = NULL;
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
@@ -966,6 +1348,7 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
     cholmod_l_free_sparse(&F->S, &F->c);
     cholmod_l_finish(&F->c);
   }
+  fmbd_free(F->ow);
   fmbd_free(F->Lx);
   fmbd_free(F->iperm);
   fmbd_free(F->col2super);
@@ -973,6 +1356,7 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
   fmbd_free(F->head);
   fmbd_free(F->next);
   fmbd_free(F->lpos);
+  fmbd_free(F->runs);
   fmbd_free(F->wC);
   fmbd_free(F->wW);
   fmbd_free(F->posA);

@@ -25,6 +25,7 @@
 #ifndef FMBD_CHOL_H
 #define FMBD_CHOL_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "fmbd_csr.h"
@@ -92,6 +93,12 @@ enum { FMBD_CHOL_FWD = 1, FMBD_CHOL_BWD = 2 };
 /// X <- P' L^-T X (so that BWD after FWD is fmbd_chol_solve). Block of nrhs columns, in place.
 /// A forward half counts as one solve in the statistics.
 int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64_t ldx);
+
+/// @brief Solves of blocks of 1 to 8 right-hand sides with a supernodal LL' factor go through
+/// the library's own sweeps over the factor (4-wide vectors, AVX2; fmbd_chol.c "narrow-block
+/// supernodal LL' solves") where the processor has them, else through CHOLMOD's (on: the
+/// default). Off: always CHOLMOD's (the tests' reference). The results agree to round-off.
+void fmbd_chol_set_own_solve(fmbd_chol *F, bool on);
 
 /// @brief Solve at most w right-hand sides per CHOLMOD call (0: the default, 64). CHOLMOD keeps
 /// two n x w workspaces; narrower calls read the factor more often. Each column's solution may

@@ -22,7 +22,10 @@
 //   block), a thick-restart block Lanczos (block Krylov-Schur) with locking on the symmetric
 //   form L^-1 P M P' L^-T of the same operator replaces ARPACK: blocks of 4 vectors below 60
 //   pairs, 16 from 60 on, one multi-right-hand-side solve per block (fmbd_eig.c has the method
-//   and its references). Same checks below; bench/README.md has the measured gain.
+//   and its references). Same checks below; bench/README.md has the measured gain. In count
+//   mode the run also computes a margin of nev/10 (at least 3) pairs above the nev wanted ones
+//   (both paths); the block path converges the wanted pairs to tol and the margin ones to
+//   max(tol, 1e-8): they only place the Sturm shift and give next_lambda.
 // - Every pair is checked by its residual ||K x - lambda M x|| / max(||K x||, |sigma| ||M x||)
 //   (the second term keeps rigid-body pairs, K x ~ 0, meaningful).
 // - Sturm check: an LDL' factorisation of K - s M (no pivoting; supernodal, fmbd_chol) counts

@@ -58,8 +58,18 @@ int fmbd_h5_check_format(fmbd_h5 *f, const char *format, int major);
 void fmbd_h5_close(fmbd_h5 **f);
 /// @brief The name given at open/create (borrowed).
 const char *fmbd_h5_name(const fmbd_h5 *f);
-/// @brief SHA-256 hex (64 chars + NUL) of the file's bytes as read (read handles only).
+/// @brief SHA-256 hex (64 chars + NUL) of the file's bytes as read (read handles only; "" for
+/// a handle of fmbd_h5_open_unhashed until fmbd_h5_sha256_now).
 const char *fmbd_h5_sha256(const fmbd_h5 *f);
+/// @brief fmbd_h5_open without the SHA-256 of a regular file (standard input, a FIFO or a
+/// device are hashed as by fmbd_h5_open): for a reader that records the file only in some runs
+/// (cbcheck's cb file, an input of the rflex file it may write).
+int fmbd_h5_open_unhashed(const char *name, fmbd_h5 **out);
+/// @brief The SHA-256 of a read handle's file (as fmbd_h5_sha256), computed now for a handle of
+/// fmbd_h5_open_unhashed (once; an input hashed before in the process is not hashed again).
+/// FMBD_ERR_IO when the file changed (device, inode, size, modification or change time) since
+/// it was opened: the bytes read are then not the ones that would be hashed.
+int fmbd_h5_sha256_now(fmbd_h5 *f, const char **sha);
 
 // --- creating ---------------------------------------------------------------------------
 /// @brief Create a file to be written: "<name>.part" (or an in-memory image for "-"),

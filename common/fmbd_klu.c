@@ -40,6 +40,11 @@ struct fmbd_klu {
   SuiteSparse_long *uWi;
   double *uW, *uX;
   int64_t singular_col;
+  // own triangular solves on the extracted factor (own_extract): valid while `own`
+  int own;
+  SuiteSparse_long *oLp, *oLi, *oUp, *oUi, *oP, *oQ;
+  double *oLx, *oUx, *oUi_d, *oy;  // oUi_d: 1 / U's diagonal; oy: work
+  int64_t ocap_l, ocap_u;          // capacities of the L and U arrays
 };
 
 // FMBD_SPARSE_LU = klu | umfpack | auto (unset or empty: auto)
@@ -149,6 +154,77 @@ static int klu_full(fmbd_klu *F, double *ax) {
   return FMBD_OK;
 }
 
+// The factor of a refactorisation in compressed columns of our own, for solves that multiply
+// by the inverted diagonal of U instead of dividing (own_solve): KLU's usolve divides by U's
+// diagonal at each column, a division on the critical path of the back substitution (half of
+// usolve's time in perf annotate on the 100-link chain; bench/README.md, "The predictor's
+// order"). Only for one diagonal block (no block triangular form: no off-diagonal part) and
+// no row scaling (a refactorisation without it, above): x = Q U^-1 L^-1 P b exactly as KLU
+// solves it, but for round-off. FMBD_KLU_OWN_SOLVE=0: KLU's own solve.
+static void own_extract(fmbd_klu *F) {
+  static int off = -1;
+  if (off < 0) off = getenv("FMBD_KLU_OWN_SOLVE") && !strcmp(getenv("FMBD_KLU_OWN_SOLVE"), "0");
+  F->own = 0;
+  if (off || !F->num || !F->sym || F->sym->nblocks != 1 || F->num->Rs) return;
+  const int64_t n = F->n, lnz = F->num->lnz, unz = F->num->unz;
+  if (!F->oLp) {
+    size_t m1 = (size_t)n + 1;
+    F->oLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oP = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oUi_d = fmbd_malloc(sizeof(double) * m1);
+    F->oy = fmbd_malloc(sizeof(double) * m1);
+    if (!F->oLp || !F->oUp || !F->oP || !F->oQ || !F->oUi_d || !F->oy) return;
+  }
+  if (lnz > F->ocap_l) {
+    fmbd_free(F->oLi), fmbd_free(F->oLx);
+    F->oLi = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)lnz);
+    F->oLx = fmbd_malloc(sizeof(double) * (size_t)lnz);
+    F->ocap_l = F->oLi && F->oLx ? lnz : 0;
+    if (!F->ocap_l) return;
+  }
+  if (unz > F->ocap_u) {
+    fmbd_free(F->oUi), fmbd_free(F->oUx);
+    F->oUi = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)unz);
+    F->oUx = fmbd_malloc(sizeof(double) * (size_t)unz);
+    F->ocap_u = F->oUi && F->oUx ? unz : 0;
+    if (!F->ocap_u) return;
+  }
+  if (!klu_l_extract(F->num, F->sym, F->oLp, F->oLi, F->oLx, F->oUp, F->oUi, F->oUx, NULL, NULL,
+                     NULL, F->oP, F->oQ, NULL, NULL, &F->kc))
+    return;
+  // klu_l_extract puts L's unit diagonal first in each column and U's diagonal last: checked
+  // here, the solve skips them (U's inverted)
+  for (int64_t k = 0; k < n; k++) {
+    SuiteSparse_long l0 = F->oLp[k], u1 = F->oUp[k + 1];
+    if (l0 >= F->oLp[k + 1] || F->oLi[l0] != k || u1 <= F->oUp[k] || F->oUi[u1 - 1] != k ||
+        F->oUx[u1 - 1] == 0)
+      return;
+    F->oUi_d[k] = 1 / F->oUx[u1 - 1];
+  }
+  F->own = 1;
+}
+
+// x = Q U^-1 L^-1 P b in place (own_extract)
+static void own_solve(fmbd_klu *F, double *b) {
+  const int64_t n = F->n;
+  double *y = F->oy;
+  const SuiteSparse_long *Lp = F->oLp, *Li = F->oLi, *Up = F->oUp, *Ui = F->oUi;
+  const double *Lx = F->oLx, *Ux = F->oUx, *Ud = F->oUi_d;
+  for (int64_t k = 0; k < n; k++) y[k] = b[F->oP[k]];
+  for (int64_t k = 0; k < n; k++) {
+    double yk = y[k];
+    for (SuiteSparse_long p = Lp[k] + 1; p < Lp[k + 1]; p++) y[Li[p]] -= Lx[p] * yk;
+  }
+  for (int64_t k = n - 1; k >= 0; k--) {
+    double yk = y[k] * Ud[k];
+    y[k] = yk;
+    for (SuiteSparse_long p = Up[k]; p < Up[k + 1] - 1; p++) y[Ui[p]] -= Ux[p] * yk;
+  }
+  for (int64_t k = 0; k < n; k++) b[F->oQ[k]] = y[k];
+}
+
 int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
   double *ax = (double *)Ax;  // KLU's prototypes are not const-qualified; it only reads Ax
   F->singular_col = -1;
@@ -157,6 +233,7 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     // with the old pivots; its supernodal kernel is BLAS-3 and pivots anew each time)
     umf_free_numeric(F);
     if (F->num) klu_l_free_numeric(&F->num, &F->kc);
+    F->own = 0;
     long st = umfpack_dl_numeric(F->Ap, F->Ai, Ax, F->usym, &F->unum, F->uctl, F->uinfo);
     if (st == UMFPACK_OK) {
       double r = F->uinfo[UMFPACK_RCOND];
@@ -172,12 +249,29 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     return klu_full(F, ax);
   }
   if (F->num) {
+    // the refactorisation without KLU's row scaling (scale -1: no scale factors, no checks of
+    // the fixed pattern). Scaling serves the choice of pivots, which a refactorisation does
+    // not make (it keeps those of the last full factorisation, made with KLU's default
+    // scaling); elimination in a fixed order is invariant to row scaling but for round-off.
+    // Saves the scale pass over A (klu_l_scale, 4 % of the 100-link chain's run) and the
+    // scaling in each solve (bench/README.md, "The predictor's order"). The rcond test below
+    // then reads the unscaled U. FMBD_KLU_RESCALE=1: KLU's default (rescale at each one)
+    static int resc = -1;
+    if (resc < 0) resc = getenv("FMBD_KLU_RESCALE") && !strcmp(getenv("FMBD_KLU_RESCALE"), "1");
+    int sc = F->kc.scale;
+    if (!resc) F->kc.scale = -1;
     int ok = (int)klu_l_refactor(F->Ap, F->Ai, ax, F->sym, F->num, &F->kc);
+    F->kc.scale = sc;
     if (ok && F->kc.status == KLU_OK) ok = (int)klu_l_rcond(F->sym, F->num, &F->kc);
     if (!ok || F->kc.status != KLU_OK || !(F->kc.rcond > RCOND_MIN))
       klu_l_free_numeric(&F->num, &F->kc);
+    else
+      own_extract(F);
   }
-  if (!F->num) FMBD_CALL(klu_full(F, ax));
+  if (!F->num) {
+    F->own = 0;
+    FMBD_CALL(klu_full(F, ax));
+  }
   return FMBD_OK;
 }
 
@@ -190,6 +284,10 @@ int fmbd_klu_solve(fmbd_klu *F, double *b) {
     return FMBD_OK;
   }
   FMBD_CHECK(F->num, FMBD_ERR_VALUE, "KLU solve without a factor");
+  if (F->own) {
+    own_solve(F, b);
+    return FMBD_OK;
+  }
   int ok = (int)klu_l_solve(F->sym, F->num, (SuiteSparse_long)F->n, 1, b, &F->kc);
   FMBD_CHECK(ok && F->kc.status == KLU_OK, FMBD_ERR_EXTERNAL, "KLU solve failed (status %ld)",
              (long)F->kc.status);
@@ -207,6 +305,9 @@ int64_t fmbd_klu_singular_col(const fmbd_klu *F) {
   return F->singular_col;
 }
 
+int fmbd_klu_own_solves(const fmbd_klu *F) {
+  return F && F->own;
+}
 int fmbd_klu_is_umfpack(const fmbd_klu *F) {
   return F && F->umf;
 }
@@ -215,6 +316,7 @@ void fmbd_klu_drop_factor(fmbd_klu *F) {
   if (!F) return;
   if (F->num) klu_l_free_numeric(&F->num, &F->kc);
   umf_free_numeric(F);
+  F->own = 0;
 }
 
 void fmbd_klu_destroy(fmbd_klu **Fp) {
@@ -226,6 +328,8 @@ void fmbd_klu_destroy(fmbd_klu **Fp) {
   if (F->usym) umfpack_dl_free_symbolic(&F->usym);
   fmbd_free(F->Ap), fmbd_free(F->Ai);
   fmbd_free(F->uWi), fmbd_free(F->uW), fmbd_free(F->uX);
+  fmbd_free(F->oLp), fmbd_free(F->oLi), fmbd_free(F->oLx), fmbd_free(F->oUp), fmbd_free(F->oUi);
+  fmbd_free(F->oUx), fmbd_free(F->oP), fmbd_free(F->oQ), fmbd_free(F->oUi_d), fmbd_free(F->oy);
   fmbd_free(F);
   *Fp = NULL;
 }

@@ -57,6 +57,10 @@ int64_t fmbd_klu_singular_col(const fmbd_klu *F);
 /// @brief 1 when the engine is UMFPACK, 0 for KLU.
 int fmbd_klu_is_umfpack(const fmbd_klu *F);
 
+/// @brief 1 when the current factor is solved by fmbd_klu's own triangular solves (a KLU
+/// refactorisation of one diagonal block, unscaled), 0 when by KLU's or UMFPACK's.
+int fmbd_klu_own_solves(const fmbd_klu *F);
+
 /// @brief Forget the numeric factor (the next fmbd_klu_factor factors afresh).
 void fmbd_klu_drop_factor(fmbd_klu *F);
 

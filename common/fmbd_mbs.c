@@ -102,11 +102,15 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
     }
     fmbd_free(m->eq);
   }
-  double *arrs[] = {m->x,      m->xd,    m->xdd,  m->a,    m->lam,   m->xn,    m->xdn,    m->xddn,
-                    m->an,     m->lamn,  m->xddp, m->res,  m->rhs,   m->scale, m->nscale, m->ascale,
-                    m->floor_, m->wk,    m->bres, m->bblk, m->bwork, m->Ax,    m->rscale, m->lamp,
-                    m->xddpp,  m->lampp, m->itx,  m->ity,  m->tx,    m->dyp};
+  double *arrs[] = {m->x,      m->xd,     m->xdd,  m->a,    m->lam,  m->xn,    m->xdn,
+                    m->xddn,   m->an,     m->lamn, m->res,  m->rhs,  m->scale, m->nscale,
+                    m->ascale, m->floor_, m->wk,   m->bres, m->bblk, m->bwork, m->Ax,
+                    m->rscale, m->itx,    m->ity,  m->tx,   m->dyp};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++) fmbd_free(arrs[i]);
+  for (int k = 0; k < PRED_NH; k++) {
+    fmbd_free(m->xddh[k]);
+    fmbd_free(m->lamh[k]);
+  }
   fmbd_free(m->dpos);
   if (m->bpos) {
     for (int i = 0; i < m->nb; i++) fmbd_free(m->bpos[i]);

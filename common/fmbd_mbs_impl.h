@@ -233,6 +233,10 @@ typedef struct meq {
 
 typedef struct mbs_schur mbs_schur;  // fmbd_mbs_schur.c
 
+// x'' and lambda of this many accepted steps before t_n are kept for the predictor
+#define PRED_NH 5
+#define PRED_MIN 2
+#define PRED_MAX 4
 struct fmbd_mbs {
   int nb, nbcap;
   mbody *b;
@@ -254,15 +258,22 @@ struct fmbd_mbs {
   double t;
   double *x, *xd, *xdd, *a, *lam;       // lam: physical multipliers (m)
   double *xn, *xdn, *xddn, *an, *lamn;  // state at the start of the step
-  double *xddp;                         // x'' one step before
-  double *lamp;                         // lam one step before
-  double *itx;    // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
-  double *ity;    // 1 / Newton tolerance of each kept multiplier's increment (fmbd_mbs_step.c)
-  double *tx;     // Newton tolerance of each coordinate in this attempt (1 / itx)
-  double *dyp;    // the multipliers' increments of the last Newton iteration
-  bool jw_ok;     // the equations' jw formed from the last evaluated matrix
-  int64_t *dpos;  // position of each coordinate's diagonal entry in Ax (-1: not formed there)
-  double *xddpp, *lampp;  // x'', lam two steps before (the predictor)
+  // x'' and lam of the accepted steps before t_n (the predictor, fmbd_mbs_step.c): [k] is
+  // k + 1 steps before, hh[k] the step that ended there (t_n-k - t_n-k-1 for k = 0), nh of
+  // them held
+  double *xddh[PRED_NH], *lamh[PRED_NH], hh[PRED_NH];
+  int nh;
+  // the predictor's orders PRED_MIN..PRED_MAX: average log error for x'' [0] and lambda [1]
+  // over the last accepted steps, and how many steps were scored (fmbd_mbs_step.c)
+  double pred_lerr[2][PRED_MAX - PRED_MIN + 1];
+  int64_t pred_n;
+  bool pred_rigid;  // rigid bodies only: the order is chosen (else quadratic, fmbd_mbs_step.c)
+  double *itx;      // 1 / Newton tolerance of each coordinate in this attempt (fmbd_mbs_step.c)
+  double *ity;      // 1 / Newton tolerance of each kept multiplier's increment (fmbd_mbs_step.c)
+  double *tx;       // Newton tolerance of each coordinate in this attempt (1 / itx)
+  double *dyp;      // the multipliers' increments of the last Newton iteration
+  bool jw_ok;       // the equations' jw formed from the last evaluated matrix
+  int64_t *dpos;    // position of each coordinate's diagonal entry in Ax (-1: not formed there)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;
@@ -273,7 +284,7 @@ struct fmbd_mbs {
   double *bwork;        // per-body workspace
   // --- generalized alpha ---
   double am, af, beta, gamma;
-  double h_next, h_fact, h_prop, h_prev, h_prev2;
+  double h_next, h_fact, h_prop;
   double err_prev[2];  // scaled local errors of the last two accepted steps (0: none yet)
   int64_t k_out;
   int64_t worst_i;  // largest scaled residual of the last iterate
@@ -304,10 +315,9 @@ struct fmbd_mbs {
 // and the conditioning of the iteration matrix); physics unchanged since G p = 0
 #define PMASS 0.25
 
-// predictor x''_{n+1} by linear extrapolation (1) or constant (0); refresh the iteration
-// matrix when the Newton contraction rate exceeds THETA_REFACTOR (measured on t500-t502:
-// 0.1 with extrapolation halves the iterations of 0.5 at a few more factorisations)
-#define PRED_EXTRAP 1
+// refresh the iteration matrix when the Newton contraction rate exceeds THETA_REFACTOR
+// (measured on t500-t502: 0.1 with extrapolation halves the iterations of 0.5 at a few more
+// factorisations); the predictor's extrapolation: fmbd_mbs_step.c, pred_order
 #ifndef THETA_REFACTOR
 #define THETA_REFACTOR 0.1
 #endif

@@ -521,9 +521,8 @@ static int init_dimensions(fmbd_mbs *m) {
   neq += m->nd + m->nb;
   m->neq = neq;
   size_t nn = (size_t)n;
-  double **arrs[] = {&m->x,     &m->xd,     &m->xdd,    &m->a,      &m->xn,
-                     &m->xdn,   &m->xddn,   &m->an,     &m->xddp,   &m->res,
-                     &m->scale, &m->nscale, &m->ascale, &m->floor_, &m->rscale};
+  double **arrs[] = {&m->x,  &m->xd,  &m->xdd,   &m->a,      &m->xn,     &m->xdn,    &m->xddn,
+                     &m->an, &m->res, &m->scale, &m->nscale, &m->ascale, &m->floor_, &m->rscale};
   for (size_t i = 0; i < sizeof arrs / sizeof arrs[0]; i++)
     FMBD_GALLOC(*arrs[i] = fmbd_calloc(nn, sizeof(double)));
   size_t mx = (size_t)m->maxn, n6 = mx - 1;
@@ -746,9 +745,10 @@ static int init_redundancy(fmbd_mbs *m) {
   m->N = m->n + kept;
   FMBD_GALLOC(m->lam = fmbd_calloc((size_t)kept + 1, sizeof(double)));
   FMBD_GALLOC(m->lamn = fmbd_calloc((size_t)kept + 1, sizeof(double)));
-  FMBD_GALLOC(m->lamp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
-  FMBD_GALLOC(m->lampp = fmbd_calloc((size_t)kept + 1, sizeof(double)));
-  FMBD_GALLOC(m->xddpp = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
+  for (int k = 0; k < PRED_NH; k++) {
+    FMBD_GALLOC(m->lamh[k] = fmbd_calloc((size_t)kept + 1, sizeof(double)));
+    FMBD_GALLOC(m->xddh[k] = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
+  }
   FMBD_GALLOC(m->itx = fmbd_calloc((size_t)m->n + 1, sizeof(double)));
   FMBD_GALLOC(m->rhs = fmbd_calloc((size_t)m->N, sizeof(double)));
   FMBD_GCALL(mbs_build_pattern(m));
@@ -919,6 +919,9 @@ int fmbd_mbs_init(fmbd_mbs *m, const fmbd_mbs_settings *s) {
   m->h_prop = 0;
   m->err_prev[0] = m->err_prev[1] = 0;
   m->k_out = 0;
+  m->pred_rigid = true;  // the predictor's order chosen only for rigid bodies (fmbd_mbs_step.c)
+  for (int ib = 0; ib < m->nb; ib++)
+    if (m->b[ib].n != 7) m->pred_rigid = false;
   m->st.coordinates = m->n;
   m->st.equations = m->m;
   m->st.redundant = m->nred;

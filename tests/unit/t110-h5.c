@@ -3,6 +3,7 @@
 //
 // Values written and read back must be bit-identical (HDF5 stores IEEE doubles and int64
 // exactly), so every numeric comparison here is exact equality.
+#include <fcntl.h>
 #include <hdf5.h>
 #include <math.h>
 #include <stdio.h>
@@ -87,6 +88,21 @@ static void test_dense(void) {
   EXPECT(strlen(fmbd_h5_sha256(f)) == 64, "sha");
   char hex[65];
   EXPECT(fmbd_sha256_file(name, hex) == FMBD_OK && !strcmp(hex, fmbd_h5_sha256(f)), "sha matches");
+  {  // the SHA-256 deferred (fmbd_h5_open_unhashed): the same hash when asked for, refused once
+     // the file changed after it was opened
+    fmbd_h5 *u = NULL;
+    const char *us = NULL;
+    EXPECT(fmbd_h5_open_unhashed(name, &u) == FMBD_OK && !fmbd_h5_sha256(u)[0], "open unhashed");
+    EXPECT(fmbd_h5_sha256_now(u, &us) == FMBD_OK && !strcmp(us, hex) &&
+               !strcmp(fmbd_h5_sha256(u), hex),
+           "deferred sha");
+    fmbd_h5_close(&u);
+    EXPECT(fmbd_h5_open_unhashed(name, &u) == FMBD_OK, "open unhashed again");
+    struct timespec ts[2] = {{0, UTIME_OMIT}, {12345, 0}};  // another modification time
+    EXPECT(utimensat(AT_FDCWD, name, ts, 0) == 0, "touch");
+    EXPECT(fmbd_h5_sha256_now(u, &us) == FMBD_ERR_IO, "changed since it was opened");
+    fmbd_h5_close(&u);
+  }
   for (int r = 0; r <= 4; r++) {
     int64_t d[4] = {-1, -1, -1, -1}, n = 1;
     for (int k = 0; k < r; k++) n *= dims[r][k];

@@ -4,7 +4,11 @@
 // engine solves A x = b for a known x (b = A x computed here), again after new values (a second
 // factorisation on the same analysis), reports a numerically zero column as singular with that
 // column's index, and refuses to solve once the factor is dropped; KLU again with its analysis
-// forced with and without the block triangular form (FMBD_KLU_BTF).
+// forced with and without the block triangular form (FMBD_KLU_BTF). The second factorisation
+// is KLU's refactorisation, unscaled, whose factor fmbd_klu solves by its own triangular
+// solves where it is one block (checked where BTF is forced off: with BTF, KLU splits this
+// matrix into blocks and solves it itself); a full factorisation (the first, and the recovery
+// after a singular one) is solved by KLU.
 // SPDX-License-Identifier: MIT
 //
 // Tolerance: LU with partial (threshold) pivoting is backward stable, |A x^ - b| <= c n eps
@@ -72,7 +76,7 @@ static void solve_check(fmbd_klu *F, const char *eng, double scale) {
   EXPECT(res < 1e-13, "%s: relative residual %g (scale %g)", eng, res, scale);
 }
 
-static void engine(const char *name, int umf) {
+static void engine(const char *name, int umf, int own) {
   setenv("FMBD_SPARSE_LU", name, 1);
   build(1);
   fmbd_klu *F = NULL;
@@ -80,7 +84,12 @@ static void engine(const char *name, int umf) {
   if (!F) return;
   EXPECT(fmbd_klu_is_umfpack(F) == umf, "%s: engine %d", name, fmbd_klu_is_umfpack(F));
   solve_check(F, name, 1);
-  solve_check(F, name, 2.5);  // new values, same analysis
+  EXPECT(!fmbd_klu_own_solves(F), "%s: own solves after a full factorisation", name);
+  solve_check(F, name, 2.5);  // new values, same analysis (KLU: the refactorisation)
+  if (own >= 0)
+    EXPECT(fmbd_klu_own_solves(F) == own, "%s: own solves %d after a refactorisation", name,
+           fmbd_klu_own_solves(F));
+  solve_check(F, name, 0.7);  // and another
   // a numerically zero column (pattern kept): singular, at that column
   const int64_t zc = 42;
   build(1);
@@ -100,15 +109,15 @@ static void engine(const char *name, int umf) {
 }
 
 int main(void) {
-  engine("klu", 0);
-  engine("umfpack", 1);
-  engine("", 0);  // automatic: order 200 is below the UMFPACK threshold
+  engine("klu", 0, -1);
+  engine("umfpack", 1, 0);
+  engine("", 0, -1);  // automatic: order 200 is below the UMFPACK threshold
   // KLU's analysis with and without its block triangular form, each forced (the automatic
   // choice, the smaller predicted factor, ran above): the same checks on both orderings
   setenv("FMBD_KLU_BTF", "1", 1);
-  engine("klu", 0);
+  engine("klu", 0, 0);
   setenv("FMBD_KLU_BTF", "0", 1);
-  engine("klu", 0);
+  engine("klu", 0, 1);
   unsetenv("FMBD_KLU_BTF");
   unsetenv("FMBD_SPARSE_LU");
   TEST_EXIT();
