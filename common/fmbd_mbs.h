@@ -104,7 +104,8 @@
 //   |lambda_k| / beta'), i over the coordinates of equation k whose diagonal A_ii of the
 //   iteration matrix is formed (the force that moves each of them by its tolerance), where
 //   tx_i = max(newton_tol min(nscale_i, ascale_i/beta'), 1e3 eps max(|x_i|, rscale_i)),
-//   rscale_i = nscale_i for the frame coordinates, L_ref (L_ref sqrt(m) for modal
+//   rscale_i = nscale_i for R, max(1, L_ref / (2 gyr)) for Euler parameters (gyr: the body's
+//   radius of gyration; R's floor in displacement), L_ref (L_ref sqrt(m) for modal
 //   coordinates) for elastic ones, which the constraints' round-off reaches via the frame:
 //   newton_tol is relative to the size of the coordinate AND of its acceleration (an error
 //   dx in x is an error beta' dx in x''; bounding only dx leaves a spurious force that, at

@@ -697,6 +697,17 @@ static void init_scales(fmbd_mbs *m) {
       // pendulum of held modes, examples/nlink, stalled with increments of link1's first mode
       // at 1.7e-15 against the floor 1e3 eps nscale = 1.0e-15, residuals at 1e-16)
       m->rscale[k] = i >= 7 ? m->Lref * QUNIT(b) : m->nscale[k];
+      // an Euler parameter likewise: a change de turns the body by 2 de and moves its mass
+      // (radius of gyration gyr) by 2 gyr de, and its points' positions R + A s carry R's
+      // round-off eps Lref, so the joints and forces cannot resolve e below eps Lref / (2 gyr):
+      // the same floor in displacement as R's (1e3 eps Lref). Its floor 1e3 eps |e| = 1e3 eps
+      // was 230x finer on a long chain (Lref 40 m, gyr 0.087 m), the acceleration bound
+      // newton_tol ascale beta h^2 below it at h = 1e-3 s, and at 1,965 of 2,000 steps of the
+      // 100-link chain the last iterate's worst coordinate was an Euler parameter at that
+      // floor; with this one 3.2 instead of 4.0 Newton iterations a step, the tips 1.3e-9 m
+      // from the old floor's newton_tol 1e-10 run, the step's own error 1.3e-5 m (h against h / 2)
+      // (bench/README.md, "An Euler parameter's round-off floor")
+      if (i >= 3 && i < 7 && b->gyr > 0) m->rscale[k] = fmax(1, m->Lref / (2 * b->gyr));
     }
   }
   for (int64_t e = 0; e < neq; e++) {
