@@ -505,13 +505,23 @@ static void parking_close(parking *pk) {
 typedef struct {
   parking *pk;
   fmbd_chol *F;
+  bool keep;  // the Sturm check follows: the factor's values are kept for its LDL'
 } ks_back;
 static int ks_back_fn(void *ctx) {
   ks_back *b = ctx;
   // the factor is not read after the Lanczos run (the projections came first, the Sturm check
   // makes its own): its values go, in place of which Ks's come back; should the eigensolver
-  // solve again (a residual above its bound: one more run), fmbd_chol factors Ks again first
-  FMBD_CALL(fmbd_chol_drop_numeric(b->F));
+  // solve again (a residual above its bound: one more run), fmbd_chol factors Ks again first.
+  // With a Sturm check to follow, the values' block is kept for its LDL' (no fresh pages to
+  // fault), but for as many bytes as Ks's values, given back (bench/README.md "The LL'
+  // factor's block for the LDL'")
+  if (b->keep) {
+    size_t back = 0;
+    for (int i = 0; i < b->pk->n; i++) back += b->pk->a[i].count * sizeof(double);
+    FMBD_CALL(fmbd_chol_drop_numeric_keep(b->F, back));
+  } else {
+    FMBD_CALL(fmbd_chol_drop_numeric(b->F));
+  }
   return unpark(b->pk, true);
 }
 
@@ -954,15 +964,15 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     // Ks's values are not read by the Lanczos iterations (fmbd_eig_opts.need_k: back for the
     // residual check) nor by the projections: parked since the LL' until the Sturm check; the
     // dense path and an iteration over almost all of Ks's spectrum read them
-    ks_back kb = {&pk_ks, F};
+    ks_back kb = {&pk_ks, F, o.eig.sturm};
     if (!(ns > o.eig.dense_max && (o.fmax_hz > 0.0 || nev + 2 < ns)))
       FMBD_GCALL(unpark(&pk_ks, false));
     if (pk_ks.n) {
       o2.eig.need_k = ks_back_fn;
       o2.eig.need_k_ctx = &kb;
     }
-    // Ks's values stay in memory from the residual check on: the factor's values are gone by
-    // then (ks_back_fn), and the Sturm check reads them
+    // Ks's values stay in memory from the residual check on (beside the factor's values when
+    // the Sturm check follows: ks_back_fn), and the Sturm check reads them
     FMBD_GCALL(modes(Ks, Ms, F, &o2, nev, lmax, false, &er));
     if (o.fmax_hz > 0.0 && er.nev == 0) {
       FMBD_GFAIL(FMBD_ERR_VALUE, "--fmax %g Hz lies below the first fixed-interface mode (%.6g Hz)",
@@ -979,9 +989,9 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
     if (o.eig.sturm && !er.dense) {
       FMBD_GALLOC(perm = fmbd_malloc((size_t)ns * sizeof(int64_t)));
       FMBD_GCALL(fmbd_chol_get_perm(F, perm));
-      // the factor's values go (if the residual check has not dropped them); its analysis
-      // serves the Sturm check's LDL' (the same pattern and ordering: fmbd_chol_analyze_like)
-      FMBD_GCALL(fmbd_chol_drop_numeric(F));
+      // the factor's values go, their block kept for the Sturm check's LDL', which takes it
+      // with the analysis (the same pattern and ordering: fmbd_chol_analyze_like)
+      FMBD_GCALL(fmbd_chol_drop_numeric_keep(F, 0));
 #ifdef __GLIBC__
       malloc_trim(0);  // the factor's freed blocks below glibc's mmap threshold stay resident
 #endif

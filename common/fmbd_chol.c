@@ -32,6 +32,8 @@ struct fmbd_chol {
   int started;
   int released;          // fmbd_chol_release_matrix called: no refactorisation
   int dropped;           // fmbd_chol_drop_numeric called: the next solve factors again
+  double *kept;          // fmbd_chol_drop_numeric_keep: the LL' value block (kept_n doubles),
+  size_t kept_n;         // owned here until fmbd_chol_analyze_like hands it to an LDLT
   cholmod_sparse *S;     // upper triangle (stype = +1) of the union pattern, CSC: the analysis
                          // (and the values of the simplicial LDL'); LLT and LDLT free it after
   int64_t *posA, *posB;  // position in S of each upper entry of A / B (CSR order)
@@ -45,6 +47,8 @@ struct fmbd_chol {
   // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
   double *Lx;    // L->xsize values: D on the diagonal, unit-L below
   bool lx_zero;  // Lx as calloc gave it (not yet touched: zero pages, not resident)
+  bool lx_kept;  // Lx is an LL' factor's block (fmbd_chol_analyze_like): resident, save the
+                 // pages of zeros that release_zero_pages gave back
   int64_t *iperm, *col2super, *map, *head, *next, *lpos, *runs;
   double *wC, *wW;  // update workspaces
   int64_t sizeC, sizeW;
@@ -477,8 +481,22 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
   bool both =
       Bs && Bs->indptr == F->A->indptr && Bs->indices == F->A->indices && Bs->lower == F->A->lower;
   if (both) mat[1] = NULL;
-  if (!F->lx_zero) memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
-  F->lx_zero = false;
+  if (F->lx_kept) {
+    // the rows on and below each column's diagonal cleared; above it, only the nonzeros
+    // (reading a page given back maps the shared zero page: no memory, no clearing)
+    for (int64_t s = 0; s < nsuper; s++) {
+      int64_t nsrow = pi[s + 1] - pi[s];
+      for (int64_t c = 0; c < super[s + 1] - super[s]; c++) {
+        double *col = F->Lx + px[s] + c * nsrow;
+        for (int64_t i = 0; i < c; i++)
+          if (col[i] != 0.0) col[i] = 0.0;
+        memset(col + c, 0, (size_t)(nsrow - c) * sizeof(double));
+      }
+    }
+  } else if (!F->lx_zero) {
+    memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
+  }
+  F->lx_zero = F->lx_kept = false;
   for (int m = 0; m < 2; m++) {
     const fmbd_csr *A = mat[m];
     if (!A) continue;
@@ -565,7 +583,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
     FMBD_CALL(ldl_prefill(F, sigma));
     input_formed();  // the loop below reads only the factor
   }
-  F->lx_zero = false;
+  F->lx_zero = F->lx_kept = false;
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
@@ -672,12 +690,27 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
   return analyze(A, B, kind, perm, NULL, out);
 }
 
-int fmbd_chol_analyze_like(const fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B, int kind,
+int fmbd_chol_analyze_like(fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B, int kind,
                            fmbd_chol **out) {
   *out = NULL;
   FMBD_CHECK(like && like->L && like->L->Perm, FMBD_ERR_INTERNAL,
              "analysis like a factor without a permutation");
-  return analyze(A, B, kind, (const int64_t *)like->L->Perm, like, out);
+  FMBD_CALL(analyze(A, B, kind, (const int64_t *)like->L->Perm, like, out));
+  fmbd_chol *F = *out;
+  if (F->kind == FMBD_CHOL_LDLT && like->kept && like->kept_n == (size_t)F->L->xsize) {
+    // the LL' values' block (the same supernodes, so the same size) becomes the LDL' factor:
+    // its pages are resident, where a fresh block's are faulted and zeroed by the kernel on
+    // first touch (bench/README.md "The LL' factor's block for the LDL'"); ldl_prefill clears
+    // it. The calloc'd block super_ldl_setup made was never touched: no pages to give back.
+    fmbd_free(F->Lx);
+    F->Lx = like->kept;
+    F->lx_zero = false;
+    F->lx_kept = true;
+    fmbd_log(FMBD_LOG_DEBUG, "LDL': factored into the LL' factor's block");
+    like->kept = NULL;
+    like->kept_n = 0;
+  }
+  return FMBD_OK;
 }
 
 // fmbd_chol_analyze_perm; like: an earlier factor whose symbolic factor is copied where it is
@@ -1187,6 +1220,9 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
                FMBD_ERR_INTERNAL, "solve after fmbd_chol_drop_numeric without the matrix");
     fmbd_log(FMBD_LOG_DEBUG, "LL': factored again after its values were dropped");
     F->dropped = 0;
+    fmbd_free(F->kept);  // CHOLMOD makes its own block
+    F->kept = NULL;
+    F->kept_n = 0;
     FMBD_CALL(fmbd_chol_factor(F, F->sigma));
   }
   FMBD_CHECK(F->L && F->st.n_factor > 0 && F->failed_row < 0 && F->kind != FMBD_CHOL_LDLT,
@@ -1290,6 +1326,36 @@ void fmbd_chol_release_workspace(fmbd_chol *F) {
   cholmod_l_free_dense(&F->E, &F->c);
 }
 
+int fmbd_chol_drop_numeric_keep(fmbd_chol *F, size_t give_back) {
+  FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
+             FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
+  if (F->dropped || !F->L->x || F->kept) return fmbd_chol_drop_numeric(F);
+#ifdef MADV_DONTNEED
+  long pg = sysconf(_SC_PAGESIZE);
+  size_t bytes = (size_t)F->L->xsize * sizeof(double);
+  if (pg > 0 && give_back > 0) {
+    // the block's last pages back to the system (private anonymous memory: touched again, a
+    // page is a fresh zero page; ldl_prefill clears the block anyway)
+    uintptr_t lo = (uintptr_t)F->L->x + (give_back < bytes ? bytes - give_back : 0);
+    uintptr_t hi = ((uintptr_t)F->L->x + bytes) & ~(uintptr_t)(pg - 1);
+    lo &= ~(uintptr_t)(pg - 1);
+    if (lo < (uintptr_t)F->L->x) lo += (uintptr_t)pg;
+    if (hi > lo) (void)madvise((void *)lo, hi - lo, MADV_DONTNEED);
+  }
+#else
+  (void)give_back;
+#endif
+  // the block leaves CHOLMOD's factor (allocated through fmbd_malloc: route_suitesparse_memory)
+  // and is F's until fmbd_chol_analyze_like takes it or fmbd_chol_destroy frees it
+  // (cholmod_change_factor needs a block to free: a one-value stand-in)
+  double *stand_in = fmbd_malloc(sizeof(double));
+  FMBD_CHECK(stand_in, FMBD_ERR_NOMEM, "out of memory");
+  F->kept = F->L->x;
+  F->kept_n = (size_t)F->L->xsize;
+  F->L->x = stand_in;
+  return fmbd_chol_drop_numeric(F);
+}
+
 int fmbd_chol_drop_numeric(fmbd_chol *F) {
   FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
              FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
@@ -1350,6 +1416,7 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
   }
   fmbd_free(F->ow);
   fmbd_free(F->Lx);
+  fmbd_free(F->kept);
   fmbd_free(F->iperm);
   fmbd_free(F->col2super);
   fmbd_free(F->map);

@@ -26,6 +26,7 @@
 #define FMBD_CHOL_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "fmbd_csr.h"
@@ -67,8 +68,10 @@ int fmbd_chol_analyze_perm(const fmbd_csr *A, const fmbd_csr *B, int kind, const
 /// @brief fmbd_chol_analyze_perm with the ordering of the analysed factor like; where like is an
 /// LLT of the same A whose values were dropped (fmbd_chol_drop_numeric) and the new factor an
 /// LDLT with B NULL or on A's index arrays, like's symbolic factor is copied instead of
-/// analysed again (the same result; fe2cb's Sturm check). like is only read.
-int fmbd_chol_analyze_like(const fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B, int kind,
+/// analysed again (the same result; fe2cb's Sturm check). Where like holds its LL' value block
+/// (fmbd_chol_drop_numeric_keep) and the new factor is an LDLT of the same size, the block
+/// becomes the new factor's (no fresh pages) and like no longer holds it.
+int fmbd_chol_analyze_like(fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B, int kind,
                            fmbd_chol **out);
 /// @brief The permutation of an analysed factor into perm (n entries, caller allocates).
 int fmbd_chol_get_perm(const fmbd_chol *F, int64_t *perm);
@@ -129,6 +132,12 @@ void fmbd_chol_release_matrix(fmbd_chol *F);
 /// is 1.1 GB of the 188 k dofs body's peak). A later solve first factors A (- sigma B) again,
 /// so their arrays must then be in memory.
 int fmbd_chol_drop_numeric(fmbd_chol *F);
+/// @brief fmbd_chol_drop_numeric, but the value block is kept in F (not freed) for the next
+/// fmbd_chol_analyze_like(F, ..., FMBD_CHOL_LDLT) to factor into: its pages stay resident
+/// (fe2cb's Sturm check), but for about give_back bytes at its end, given back to the system
+/// to make room for arrays read meanwhile. fmbd_chol_destroy frees it if no LDLT took it, and
+/// a solve that factors again first.
+int fmbd_chol_drop_numeric_keep(fmbd_chol *F, size_t give_back);
 
 /// @brief Number of negative pivots of the last LDLT factorisation (-1 for LLT or before a
 /// factorisation). With B positive definite: the number of eigenvalues below sigma.

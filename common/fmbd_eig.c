@@ -1090,7 +1090,7 @@ done:
   return rc;
 }
 
-int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const fmbd_chol *like,
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *like,
                          fmbd_eig_result *res, bool *ok) {
   int rc = FMBD_OK;
   fmbd_chol *ldl = NULL;

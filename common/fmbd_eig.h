@@ -140,7 +140,7 @@ void fmbd_eig_result_free(fmbd_eig_result *res);
 ///                 the last pair to place the shift (then solve again with o->sturm = true)
 /// @param[in] like  a factor of K's pattern whose analysis (ordering, and where it allows the
 ///                  symbolic factor: fmbd_chol_analyze_like) the LDL' reuses, or NULL
-int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, const fmbd_chol *like,
+int fmbd_eig_sturm_check(const fmbd_csr *K, const fmbd_csr *M, fmbd_chol *like,
                          fmbd_eig_result *res, bool *ok);
 
 /// @brief Relative residual ||K x - lambda M x|| / max(||K x||, |scale| ||M x||) of one pair.

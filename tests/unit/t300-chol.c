@@ -160,21 +160,38 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
   for (int64_t i = 0; i < n * nc; i++) ew = fmax(ew, fabs(Y[i] - Z[i])), yw = fmax(yw, fabs(Y[i]));
   EXPECT(ew <= 1e-13 * yw && s2.n_solves == s1.n_solves + nc, "solve by 3 columns differs by %.3g",
          ew / yw);
+  // values dropped with their block kept (fmbd_chol_drop_numeric_keep): a solve factors again
+  // (the kept block freed: one owner), the same solution
   fmbd_chol_destroy(&F1);
-  fmbd_chol_destroy(&F2);
-  // Sturm counts: exact, from the lower storage (assembled before the supernodal loop)
-  fmbd_chol *Fs = NULL;
+  EXPECT(fmbd_chol_create_llt(Kl, &F1) == 0 && fmbd_chol_drop_numeric_keep(F1, 0) == 0, "keep");
+  memcpy(Z, X, (size_t)(n * nc) * sizeof(double));
+  EXPECT(F1 && fmbd_chol_solve(F1, nc, Z, n) == 0 &&
+             memcmp(Y, Z, (size_t)(n * nc) * sizeof(double)) == 0,
+         "solve after the values were dropped (block kept) differs");
+  fmbd_chol_destroy(&F1);
+  // Sturm counts: exact, from the lower storage (assembled before the supernodal loop); Fk
+  // factors into F2's LL' block (fmbd_chol_analyze_like after fmbd_chol_drop_numeric_keep, 3
+  // pages of it given back): the same counts
+  fmbd_chol *Fs = NULL, *Fk = NULL;
   EXPECT(fmbd_chol_analyze(Kl, Ml, FMBD_CHOL_LDLT, &Fs) == 0, "LDL' analyse");
+  EXPECT(fmbd_chol_drop_numeric_keep(F2, 3 * 4096) == 0 &&
+             fmbd_chol_analyze_like(F2, Kl, Ml, FMBD_CHOL_LDLT, &Fk) == 0,
+         "LDL' analyse like the LL', into its block");
+  fmbd_chol_destroy(&F2);
   int64_t idx[] = {1, 30, 700, 1200};
-  for (size_t t = 0; Fs && t < sizeof idx / sizeof idx[0]; t++) {
+  for (size_t t = 0; Fs && Fk && t < sizeof idx / sizeof idx[0]; t++) {
     int64_t k = idx[t];
     while (k < n && ex[k] - ex[k - 1] < 1e-9 * ex[k]) k++;
     double sgm = 0.5 * (ex[k - 1] + ex[k]);
     EXPECT(fmbd_chol_factor(Fs, sgm) == 0 && fmbd_chol_negative_pivots(Fs) == k,
            "lower-stored count below %.6g: %lld, exact %lld", sgm,
            (long long)fmbd_chol_negative_pivots(Fs), (long long)k);
+    EXPECT(fmbd_chol_factor(Fk, sgm) == 0 && fmbd_chol_negative_pivots(Fk) == k,
+           "count below %.6g in the LL' block: %lld, exact %lld", sgm,
+           (long long)fmbd_chol_negative_pivots(Fk), (long long)k);
   }
   fmbd_chol_destroy(&Fs);
+  fmbd_chol_destroy(&Fk);
   Ml->indptr = Ml->indices = NULL;  // Kl's
   fmbd_csr_destroy(&Ml);
   fmbd_csr_destroy(&Kl);
