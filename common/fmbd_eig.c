@@ -417,11 +417,11 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t nstr
   // caller's count) only place the Sturm shift and give next_lambda: located to a relative
   // 1e-8 (a Ritz value theta with ||B s|| <= 1e-8 theta has an eigenvalue within 1e-8 theta:
   // the residual bound of symmetric matrices, Parlett, The Symmetric Eigenvalue Problem,
-  // chapter 4), far inside the 1e-6 relative gap
-  // the shift needs on either side (fmbd_eig_solve, fmbd_eig_sturm_check), so a shift midway
-  // cannot pass over them; a missed eigenvalue is the Sturm count's to find, as before. The
-  // last of 23 pairs to 1e-12 took 104 solves at 20 modes of the 51 k-dof rod, with the 3
-  // margin pairs to 1e-8 88 (bench/README.md "Fewer and cheaper Lanczos solves").
+  // chapter 4), far inside the 1e-6 relative gap the shift needs on either side (fmbd_eig_solve,
+  // fmbd_eig_sturm_check), so a shift midway cannot pass over them; a missed eigenvalue is the
+  // Sturm count's to find, as before. The last of 23 pairs to 1e-12 took 104 solves at 20 modes of
+  // the 51 k-dof rod, with the 3 margin pairs to 1e-8 88 (bench/README.md "Fewer and cheaper
+  // Lanczos solves").
   double tol_x = fmax(tol, 1e-8);
   // Rayleigh-Ritz (and the convergence test) after every block, not only when the basis is
   // full, where it costs little against the block's solve: 9 ma^3 flops for the eigenvectors

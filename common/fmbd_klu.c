@@ -3,6 +3,7 @@
 #include "fmbd_klu.h"
 
 #include <klu.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 #include <umfpack.h>
@@ -161,13 +162,24 @@ static int klu_full(fmbd_klu *F, double *ax) {
 // order"). Only for one diagonal block (no block triangular form: no off-diagonal part) and
 // no row scaling (a refactorisation without it, above): x = Q U^-1 L^-1 P b exactly as KLU
 // solves it, but for round-off. FMBD_KLU_OWN_SOLVE=0: KLU's own solve.
+// the index and value arrays of one triangle grown to nz entries (*cap: their capacity, 0
+// when an allocation failed); false when they could not be
+static bool own_grow(SuiteSparse_long **i, double **x, int64_t *cap, int64_t nz) {
+  if (nz <= *cap) return true;
+  fmbd_free(*i), fmbd_free(*x);
+  *i = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)nz);
+  *x = fmbd_malloc(sizeof(double) * (size_t)nz);
+  *cap = *i && *x ? nz : 0;
+  return *cap > 0;
+}
+
 static void own_extract(fmbd_klu *F) {
   static int off = -1;
   if (off < 0) off = getenv("FMBD_KLU_OWN_SOLVE") && !strcmp(getenv("FMBD_KLU_OWN_SOLVE"), "0");
   F->own = 0;
   if (off || !F->num || !F->sym || F->sym->nblocks != 1 || F->num->Rs) return;
   const int64_t n = F->n, lnz = F->num->lnz, unz = F->num->unz;
-  if (!F->oLp) {
+  if (!F->oy) {  // the per-column arrays: all or none
     size_t m1 = (size_t)n + 1;
     F->oLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
     F->oUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
@@ -175,22 +187,15 @@ static void own_extract(fmbd_klu *F) {
     F->oQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
     F->oUi_d = fmbd_malloc(sizeof(double) * m1);
     F->oy = fmbd_malloc(sizeof(double) * m1);
-    if (!F->oLp || !F->oUp || !F->oP || !F->oQ || !F->oUi_d || !F->oy) return;
+    if (!F->oLp || !F->oUp || !F->oP || !F->oQ || !F->oUi_d || !F->oy) {
+      fmbd_free(F->oLp), fmbd_free(F->oUp), fmbd_free(F->oP), fmbd_free(F->oQ);
+      fmbd_free(F->oUi_d), fmbd_free(F->oy);
+      F->oLp = F->oUp = F->oP = F->oQ = NULL, F->oUi_d = F->oy = NULL;
+      return;
+    }
   }
-  if (lnz > F->ocap_l) {
-    fmbd_free(F->oLi), fmbd_free(F->oLx);
-    F->oLi = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)lnz);
-    F->oLx = fmbd_malloc(sizeof(double) * (size_t)lnz);
-    F->ocap_l = F->oLi && F->oLx ? lnz : 0;
-    if (!F->ocap_l) return;
-  }
-  if (unz > F->ocap_u) {
-    fmbd_free(F->oUi), fmbd_free(F->oUx);
-    F->oUi = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)unz);
-    F->oUx = fmbd_malloc(sizeof(double) * (size_t)unz);
-    F->ocap_u = F->oUi && F->oUx ? unz : 0;
-    if (!F->ocap_u) return;
-  }
+  if (!own_grow(&F->oLi, &F->oLx, &F->ocap_l, lnz) || !own_grow(&F->oUi, &F->oUx, &F->ocap_u, unz))
+    return;
   if (!klu_l_extract(F->num, F->sym, F->oLp, F->oLi, F->oLx, F->oUp, F->oUi, F->oUx, NULL, NULL,
                      NULL, F->oP, F->oQ, NULL, NULL, &F->kc))
     return;

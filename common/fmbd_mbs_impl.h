@@ -233,10 +233,11 @@ typedef struct meq {
 
 typedef struct mbs_schur mbs_schur;  // fmbd_mbs_schur.c
 
-// x'' and lambda of this many accepted steps before t_n are kept for the predictor
-#define PRED_NH 5
+// the predictor's orders (fmbd_mbs_step.c, pred_order); x'' and lambda of PRED_NH accepted
+// steps before t_n are kept for it, as many as its highest order reads
 #define PRED_MIN 2
 #define PRED_MAX 4
+#define PRED_NH PRED_MAX
 struct fmbd_mbs {
   int nb, nbcap;
   mbody *b;

@@ -130,9 +130,6 @@ static double mult_norm(fmbd_mbs *m, const double *dy) {
 // Newton increment as much smaller); the quadruple pendulum's links carry the rod's 1 kHz
 // mode, on which higher orders extrapolate worse (its iterations a step: quadratic 3.41,
 // fourth order 3.53). FMBD_MBS_PRED = 2, 3 or 4 forces one order.
-#ifndef STALL_THETA
-#define STALL_THETA 0.5
-#endif
 static int pred_forced(void) {
   static int o = -1;
   if (o < 0) {
@@ -198,6 +195,10 @@ static void pred_score(fmbd_mbs *m, double h) {
   }
   m->pred_n++;
 }
+
+// the contraction rate from which increments within tolerance are taken as round-off
+// stagnation once a factor of the attempt is in use (attempt's convergence test)
+#define STALL_THETA 0.5
 
 // One attempt of a step of size h from the saved state. Returns FMBD_OK with *conv and *err
 // (scaled local error, 0 for fixed steps) or an error code (singular matrix at the smallest
