@@ -479,8 +479,14 @@ static int64_t panel(int64_t m, int64_t n, double *A, int64_t lda, double *W, bo
   int64_t bad = panel(m, n1, A, lda, W, ll, neg, lmax);
   if (bad >= 0) return bad;
   if (ll) {
-    // A(n1:m, n1:n) -= L(n1:m, 0:n1) L(n1:n, 0:n1)', lower trapezoid
-    gemm_lower(m - n1, n2, n1, -1.0, A + n1, lda, A + n1, lda, 1.0, A + n1 + n1 * lda, lda);
+    // A(n1:m, n1:n) -= L(n1:m, 0:n1) L(n1:n, 0:n1)', lower trapezoid: the triangle by dsyrk
+    // (nothing written above the diagonal: the LL' block's upper triangles stay zero, as
+    // CHOLMOD's), the rows below by dgemm
+    cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, (int)n2, (int)n1, -1.0, A + n1, (int)lda,
+                1.0, A + n1 + n1 * lda, (int)lda);
+    if (m > n)
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)(m - n), (int)n2, (int)n1, -1.0,
+                  A + n, (int)lda, A + n1, (int)lda, 1.0, A + n + n1 * lda, (int)lda);
   } else {
     // A(n1:m, n1:n) -= L(n1:m, 0:n1) D L(n1:n, 0:n1)', lower trapezoid
     for (int64_t k0 = 0; k0 < n1; k0 += LDL_KC) {
