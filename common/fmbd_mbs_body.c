@@ -27,9 +27,9 @@ static inline v2d ld2(const double *p) {
   return v;
 }
 #endif
-// y += alpha A x (leading dimension lda)
-static void matvec_add(int m, int n, const double *restrict A, int lda, const double *restrict x,
-                       double alpha, double *restrict y) {
+// y += alpha A x (leading dimension lda): the portable form
+static void matvec_add_base(int m, int n, const double *restrict A, int lda,
+                            const double *restrict x, double alpha, double *restrict y) {
   int j = 0;
   for (; j + 4 <= n; j += 4) {
     double x0 = alpha * x[j], x1 = alpha * x[j + 1], x2 = alpha * x[j + 2], x3 = alpha * x[j + 3];
@@ -52,10 +52,111 @@ static void matvec_add(int m, int n, const double *restrict A, int lda, const do
     for (int i = 0; i < m; i++) y[i] += xj * a[i];
   }
 }
+
+// The same sums four rows to a vector (AVX, 4 doubles) and eight columns to a pass (y loaded and
+// stored once per eight columns instead of four), chosen when called where the processor has
+// AVX2 (__builtin_cpu_supports; fmbd_csr.c's 8-column kernels do the same): the full-coupling
+// products SS q (9 nm x nm) and SSx q' (3 nm x nm) are most of a full-coupling evaluation
+// (bench/README.md, "The modal body's per-step cost"). Every entry gets the portable form's
+// operations in its order, so the results are the same bits: y_i + x0 a0_i, then + x1 a1_i, ...
+// in column order for the rows the portable form takes in pairs (every row but an odd last
+// one), y_i + (x0 a0_i + ... + x3 a3_i) per four columns for an odd last row, y_i + xj aj_i for
+// the columns after the last four; alpha x_j formed as there; no FMA (GCC compiles -std=c11 with
+// -ffp-contract=off and the target attribute names no FMA; clang is told so below)
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#define MBS_VEC4 1
+#ifdef __clang__
+#pragma clang fp contract(off)
+#endif
+typedef double v4d
+    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
+#define LD4(p) (*(const v4d *)(p))
+#define ST4(p, v) (*(v4d *)(p) = (v))
+// four columns starting at column c of the pass at j: alpha x, the column, its broadcast
+#define MV_X4(c)                                                                    \
+  const double x##c = alpha * x[j + c], *restrict a##c = A + (size_t)lda * (j + c); \
+  const v4d X##c = {x##c, x##c, x##c, x##c}
+#define MV_T(c) +X##c *LD4(a##c + i)
+#define MV_S(c) +x##c *a##c[i]
+// eight columns at j: the rows in fours, then in ones (a pair), then an odd last row
+__attribute__((target("avx2"))) static void mv_cols8(int m, int j, const double *restrict A,
+                                                     int lda, const double *restrict x,
+                                                     double alpha, double *restrict y) {
+  MV_X4(0);
+  MV_X4(1);
+  MV_X4(2);
+  MV_X4(3);
+  MV_X4(4);
+  MV_X4(5);
+  MV_X4(6);
+  MV_X4(7);
+  const int me = m & ~1, m4 = m & ~3;
+  int i = 0;
+  for (; i < m4; i += 4)
+    ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2) MV_T(3) MV_T(4) MV_T(5) MV_T(6) MV_T(7));
+  for (; i < me; i++) y[i] = y[i] MV_S(0) MV_S(1) MV_S(2) MV_S(3) MV_S(4) MV_S(5) MV_S(6) MV_S(7);
+  if (m & 1) {
+    i = m - 1;
+    y[i] += x0 * a0[i] + x1 * a1[i] + x2 * a2[i] + x3 * a3[i];
+    y[i] += x4 * a4[i] + x5 * a5[i] + x6 * a6[i] + x7 * a7[i];
+  }
+}
+// the same, four columns
+__attribute__((target("avx2"))) static void mv_cols4(int m, int j, const double *restrict A,
+                                                     int lda, const double *restrict x,
+                                                     double alpha, double *restrict y) {
+  MV_X4(0);
+  MV_X4(1);
+  MV_X4(2);
+  MV_X4(3);
+  const int me = m & ~1, m4 = m & ~3;
+  int i = 0;
+  for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2) MV_T(3));
+  for (; i < me; i++) y[i] = y[i] MV_S(0) MV_S(1) MV_S(2) MV_S(3);
+  if (m & 1) {
+    i = m - 1;
+    y[i] += x0 * a0[i] + x1 * a1[i] + x2 * a2[i] + x3 * a3[i];
+  }
+}
+__attribute__((target("avx2"))) static void matvec_add_avx2(int m, int n, const double *restrict A,
+                                                            int lda, const double *restrict x,
+                                                            double alpha, double *restrict y) {
+  const int m4 = m & ~3;
+  int j = 0;
+  for (; j + 8 <= n; j += 8) mv_cols8(m, j, A, lda, x, alpha, y);
+  for (; j + 4 <= n; j += 4) mv_cols4(m, j, A, lda, x, alpha, y);
+  for (; j < n; j++) {
+    const double xj = alpha * x[j];
+    const double *restrict a = A + (size_t)lda * j;
+    const v4d Xj = {xj, xj, xj, xj};
+    int i = 0;
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) + Xj * LD4(a + i));
+    for (; i < m; i++) y[i] += xj * a[i];
+  }
+}
+#undef MV_X4
+#undef MV_T
+#undef MV_S
+#endif
+// y += alpha A x (leading dimension lda)
+static void matvec_add(int m, int n, const double *restrict A, int lda, const double *restrict x,
+                       double alpha, double *restrict y) {
+#ifdef MBS_VEC4
+  if (m >= 4 && __builtin_cpu_supports("avx2")) {
+    matvec_add_avx2(m, n, A, lda, x, alpha, y);
+    return;
+  }
+#endif
+  matvec_add_base(m, n, A, lda, x, alpha, y);
+}
 // the same, for the other files of the multibody core (fmbd_mbs_impl.h)
 void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
                     double *y) {
   matvec_add(m, n, A, lda, x, alpha, y);
+}
+void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const double *x, double alpha,
+                             double *y) {
+  matvec_add_base(m, n, A, lda, x, alpha, y);
 }
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {

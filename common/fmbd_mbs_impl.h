@@ -385,6 +385,10 @@ int mbs_body_consts(mbody *b);
 // overlap y
 void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
                     double *y);
+// the same by the portable form only (what processors without AVX2 run; the AVX2 form gives the
+// same bits: tests/unit/t513)
+void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const double *x, double alpha,
+                             double *y);
 // b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
 // (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
 #define PK_SIZE (9 + 12 + 6 + 12)
