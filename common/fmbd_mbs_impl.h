@@ -389,6 +389,10 @@ void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, dou
 // same bits: tests/unit/t513)
 void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const double *x, double alpha,
                              double *y);
+// the second-order inertia sums of a modal body's energy and momentum (fmbd_mbs_query.c):
+// J += sum_kl q_k q_l SS_kl (transposed: J_ab += q_k q_l SS_ba,kl, pairs with q_k q_l = 0 left
+// out; none for a partial body), Mwfqd += sum_k q'_k (sum_l q_l SSx_lk + XSx_k), k outer, l inner
+void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd);
 // b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
 // (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
 #define PK_SIZE (9 + 12 + 6 + 12)
