@@ -72,8 +72,8 @@ typedef double v4d
     __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
 #define LD4(p) (*(const v4d *)(p))
 #define ST4(p, v) (*(v4d *)(p) = (v))
-// four columns starting at column c of the pass at j: alpha x, the column, its broadcast
-#define MV_X4(c)                                                                    \
+// column j + c of a pass: alpha x_j+c, the column and alpha x_j+c broadcast
+#define MV_COL(c)                                                                   \
   const double x##c = alpha * x[j + c], *restrict a##c = A + (size_t)lda * (j + c); \
   const v4d X##c = {x##c, x##c, x##c, x##c}
 #define MV_T(c) +X##c *LD4(a##c + i)
@@ -82,14 +82,14 @@ typedef double v4d
 __attribute__((target("avx2"))) static void mv_cols8(int m, int j, const double *restrict A,
                                                      int lda, const double *restrict x,
                                                      double alpha, double *restrict y) {
-  MV_X4(0);
-  MV_X4(1);
-  MV_X4(2);
-  MV_X4(3);
-  MV_X4(4);
-  MV_X4(5);
-  MV_X4(6);
-  MV_X4(7);
+  MV_COL(0);
+  MV_COL(1);
+  MV_COL(2);
+  MV_COL(3);
+  MV_COL(4);
+  MV_COL(5);
+  MV_COL(6);
+  MV_COL(7);
   const int me = m & ~1, m4 = m & ~3;
   int i = 0;
   for (; i < m4; i += 4)
@@ -105,10 +105,10 @@ __attribute__((target("avx2"))) static void mv_cols8(int m, int j, const double 
 __attribute__((target("avx2"))) static void mv_cols4(int m, int j, const double *restrict A,
                                                      int lda, const double *restrict x,
                                                      double alpha, double *restrict y) {
-  MV_X4(0);
-  MV_X4(1);
-  MV_X4(2);
-  MV_X4(3);
+  MV_COL(0);
+  MV_COL(1);
+  MV_COL(2);
+  MV_COL(3);
   const int me = m & ~1, m4 = m & ~3;
   int i = 0;
   for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2) MV_T(3));
@@ -125,16 +125,29 @@ __attribute__((target("avx2"))) static void matvec_add_avx2(int m, int n, const 
   int j = 0;
   for (; j + 8 <= n; j += 8) mv_cols8(m, j, A, lda, x, alpha, y);
   for (; j + 4 <= n; j += 4) mv_cols4(m, j, A, lda, x, alpha, y);
-  for (; j < n; j++) {
-    const double xj = alpha * x[j];
-    const double *restrict a = A + (size_t)lda * j;
-    const v4d Xj = {xj, xj, xj, xj};
+  // the last 1-3 columns, one at a time in the portable form (every row y_i + xj aj_i), here
+  // together in one pass over the rows (y stored once, not once per column)
+  if (j + 3 == n) {
+    MV_COL(0);
+    MV_COL(1);
+    MV_COL(2);
     int i = 0;
-    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) + Xj * LD4(a + i));
-    for (; i < m; i++) y[i] += xj * a[i];
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2));
+    for (; i < m; i++) y[i] = y[i] MV_S(0) MV_S(1) MV_S(2);
+  } else if (j + 2 == n) {
+    MV_COL(0);
+    MV_COL(1);
+    int i = 0;
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1));
+    for (; i < m; i++) y[i] = y[i] MV_S(0) MV_S(1);
+  } else if (j + 1 == n) {
+    MV_COL(0);
+    int i = 0;
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0));
+    for (; i < m; i++) y[i] = y[i] MV_S(0);
   }
 }
-#undef MV_X4
+#undef MV_COL
 #undef MV_T
 #undef MV_S
 #endif
