@@ -157,6 +157,7 @@ typedef struct mbody {
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
   double *XX;    // 9 nm: XS_k + XS_k' (+ 0 if partial; mbs_body_consts): a partial body's J
+  double *XT;    // 9 nm: XS_k' (mbs_body_consts): H_k = XS_k' + P_k with full coupling
   double *pk;    // partial coupling: PK_SIZE x nm constant arrays (mbs_body_consts), else NULL
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
