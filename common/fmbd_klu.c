@@ -173,6 +173,23 @@ static bool own_grow(SuiteSparse_long **i, double **x, int64_t *cap, int64_t nz)
   return *cap > 0;
 }
 
+// a triangle's columns compacted in place without their exactly zero entries, the diagonal
+// kept (first in each column when diag_first, else last)
+static void own_drop0(int64_t n, SuiteSparse_long *Xp, SuiteSparse_long *Xi, double *Xx,
+                      int diag_first) {
+  SuiteSparse_long w = 0, p0 = Xp[0];
+  for (int64_t k = 0; k < n; k++) {
+    const SuiteSparse_long p1 = Xp[k + 1], d = diag_first ? p0 : p1 - 1;
+    Xp[k] = w;
+    for (SuiteSparse_long p = p0; p < p1; p++) {
+      if (Xx[p] == 0 && p != d) continue;
+      Xi[w] = Xi[p], Xx[w] = Xx[p], w++;
+    }
+    p0 = p1;
+  }
+  Xp[n] = w;
+}
+
 static void own_extract(fmbd_klu *F) {
   static int off = -1;
   if (off < 0) off = getenv("FMBD_KLU_OWN_SOLVE") && !strcmp(getenv("FMBD_KLU_OWN_SOLVE"), "0");
@@ -207,6 +224,21 @@ static void own_extract(fmbd_klu *F) {
         F->oUx[u1 - 1] == 0)
       return;
     F->oUi_d[k] = 1 / F->oUx[u1 - 1];
+  }
+  // the entries that are exactly zero in this factor dropped (kept: L's unit diagonal first and
+  // U's diagonal last, which the solve skips): subtracting 0 y_k changes no value, so the solve
+  // gives the same numbers (but the sign of a zero) with fewer operations. A mechanism moving in
+  // a plane (every chain of the bench: revolute joints about z) leaves its out-of-plane
+  // unknowns (R_z, e1, e2, the joints' z and axis equations) decoupled from the in-plane ones,
+  // and all the fill that would couple them is zero: 53-56 % of L + U at 2, 10 and 100 links
+  // (bench/README.md, "Exact zeros in the extracted factor"). The pattern analysed is that of
+  // every motion; the zeros are found again at each refactorisation, so a motion leaving the
+  // plane keeps its entries. FMBD_KLU_DROP0=0 keeps them.
+  static int keep0 = -1;
+  if (keep0 < 0) keep0 = getenv("FMBD_KLU_DROP0") && !strcmp(getenv("FMBD_KLU_DROP0"), "0");
+  if (!keep0) {
+    own_drop0(n, F->oLp, F->oLi, F->oLx, 1);
+    own_drop0(n, F->oUp, F->oUi, F->oUx, 0);
   }
   F->own = 1;
 }
