@@ -326,7 +326,7 @@ static void red_prepare(fmbd_klu *F, const double *Ax, double **kax) {
     int64_t z = 0;
     for (int64_t c = 0; c < n; c++)
       for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++) z += Ax[p] == 0 && F->Ai[p] != c;
-    if (z < RED_MIN * (double)nnz) return;
+    if (nnz == 0 || z < RED_MIN * (double)nnz) return;
     F->rAp = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)(n + 1));
     F->rAi = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)nnz);
     F->rmap = fmbd_malloc(sizeof(int64_t) * (size_t)nnz);
