@@ -214,8 +214,7 @@ static inline void rows_pair(const fmbd_csr *A, const double *bd, int w, int sx,
 
 // the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
 // yt (row-major, stride w)
-static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
-                              int64_t ldy) {
+static inline void rows_lower_rm(const fmbd_csr *A, int w, const double *xt, double *yt) {
   memset(yt, 0, (size_t)A->nrows * (size_t)w * sizeof(double));
   for (int64_t i = 0; i < A->nrows; i++) {
     double s[NB] = {0};
@@ -233,6 +232,10 @@ static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double
     double *y = yt + i * w;
     for (int k = 0; k < w; k++) y[k] += s[k];
   }
+}
+static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
+                              int64_t ldy) {
+  rows_lower_rm(A, w, xt, yt);
   for (int64_t i = 0; i < A->nrows; i++) {
     for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * w + k];
   }
@@ -329,6 +332,33 @@ static inline __attribute__((always_inline)) void vrows8_lower(const fmbd_csr *A
   }
 }
 
+// 4 columns row-major in and out (fmbd_csr_matmat_rows4): one 4-wide sum, lower or full
+__attribute__((target("avx2"))) static void rows4_avx2(const fmbd_csr *A, const double *xt,
+                                                       double *yt) {
+  const int64_t *ip = A->indptr, *ix = A->indices;
+  const double *d = A->data;
+  int64_t n = A->nrows;
+  if (!A->lower) {
+    for (int64_t i = 0; i < n; i++) {
+      v4d s = {0};
+      for (int64_t p = ip[i]; p < ip[i + 1]; p++) s += d[p] * LD4(xt + ix[p] * 4);
+      ST4(yt + i * 4, s);
+    }
+    return;
+  }
+  memset(yt, 0, (size_t)n * 4 * sizeof(double));
+  for (int64_t i = 0; i < n; i++) {
+    v4d s = {0}, xi = LD4(xt + i * 4);
+    for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
+      int64_t j = ix[p];
+      double a = d[p];
+      s += a * LD4(xt + j * 4);
+      if (j != i) ST4(yt + j * 4, LD4(yt + j * 4) + a * xi);
+    }
+    ST4(yt + i * 4, LD4(yt + i * 4) + s);
+  }
+}
+
 __attribute__((target("avx512f"))) static void rows8_full_avx512(const fmbd_csr *A,
                                                                  const double *xt, int w, double *Y,
                                                                  int64_t ldy) {
@@ -389,6 +419,27 @@ static void rows8_pair(const fmbd_csr *A, const double *bd, const double *xt, in
   }
 #endif
   rows_pair(A, bd, w, NB, xt, Y, Z, ldy);
+}
+
+void fmbd_csr_matmat_rows4(const fmbd_csr *A, const double *xt, double *yt) {
+#ifdef FMBD_VEC8
+  if (__builtin_cpu_supports("avx2")) {
+    rows4_avx2(A, xt, yt);
+    return;
+  }
+#endif
+  if (A->lower) {
+    rows_lower_rm(A, 4, xt, yt);
+    return;
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[4] = {0};
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      const double *x = xt + A->indices[p] * 4;
+      for (int k = 0; k < 4; k++) s[k] += A->data[p] * x[k];
+    }
+    for (int k = 0; k < 4; k++) yt[i * 4 + k] = s[k];
+  }
 }
 
 static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt, double *Y, int64_t ldy) {

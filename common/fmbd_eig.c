@@ -481,13 +481,9 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t nstr
       // W = C Q = L^-1 P M P' L^-T Q; narrow blocks solve on one BLAS thread, as the
       // single-vector path does (their triangular solves are memory-bound: a second thread
       // only spins; 51 k dofs, 20 modes, blocks of 4: 3.0 s CPU on 2 threads, see bench/README.md)
-      memcpy(Y, V + m * n, (size_t)(n * p) * sizeof(double));
+      // (fmbd_chol_apply_op: the halves and the M product in one call)
       int th1 = p < 16 ? fmbd_blas_set_threads(1) : -1;
-      rc = fmbd_chol_solve_half(F, FMBD_CHOL_BWD, p, Y, n);
-      double tm = fmbd_wall_s();
-      fmbd_csr_matmat(M, p, Y, n, W, n);
-      t_mprod += fmbd_wall_s() - tm;
-      if (rc == FMBD_OK) rc = fmbd_chol_solve_half(F, FMBD_CHOL_FWD, p, W, n);
+      rc = fmbd_chol_apply_op(F, M, p, V + m * n, n, W, n, Y, &t_mprod);
       if (th1 > 1) fmbd_blas_set_threads(th1);
       FMBD_GCALL(rc);
       solves += p;
