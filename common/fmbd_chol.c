@@ -1395,6 +1395,10 @@ void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
   if (F) F->solve_width = w > 0 ? w : 0;
 }
 
+int64_t fmbd_chol_solve_width(const fmbd_chol *F) {
+  return F ? F->solve_width : 0;
+}
+
 void fmbd_chol_release_workspace(fmbd_chol *F) {
   if (!F) return;
   fmbd_free(F->ow);

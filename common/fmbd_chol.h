@@ -117,6 +117,8 @@ void fmbd_chol_set_own_solve(fmbd_chol *F, bool on);
 /// two n x w workspaces; narrower calls read the factor more often. Each column's solution may
 /// change at round-off with w (the BLAS kernels' blocking).
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
+/// @brief The width set by fmbd_chol_set_solve_width (0: the default).
+int64_t fmbd_chol_solve_width(const fmbd_chol *F);
 /// @brief Free CHOLMOD's solve workspaces (n x nrhs of the largest solve so far, kept for
 /// reuse): before a stage whose solves are narrower (fe2cb's projections after the Lanczos
 /// run's wide back solve; peak memory). The next solve allocates them again.

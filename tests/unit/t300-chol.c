@@ -94,7 +94,7 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
   // the bits of one fmbd_csr_matvec per column in the same storage: each sum is added in the
   // same order whatever the number of columns a pass carries
   {
-    const int64_t widths[] = {1, 4, 5, 6, 7, 8, 11, 14, 16, 27, 35};
+    const int64_t widths[] = {1, 4, 5, 6, 7, 8, 10, 11, 12, 13, 14, 16, 27, 35};
     double *X2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
     double *Y2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
     double *Z2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
