@@ -46,6 +46,15 @@ struct fmbd_klu {
   SuiteSparse_long *oLp, *oLi, *oUp, *oUi, *oP, *oQ;
   double *oLx, *oUx, *oUi_d, *oy;  // oUi_d: 1 / U's diagonal; oy: work
   int64_t ocap_l, ocap_u;          // capacities of the L and U arrays
+  // the pattern without the entries found exactly zero (red_pattern): KLU's analysis and
+  // factor are of it while red > 0 (Ap, Ai then point to rAp, rAi, and fAp, fAi hold the
+  // caller's); red 0: not yet decided, -1: the caller's pattern for good
+  int red, nred;
+  SuiteSparse_long *kAp, *kAi;  // the pattern KLU is given: Ap, Ai or rAp, rAi
+  SuiteSparse_long *rAp, *rAi;
+  int64_t *rmap;         // the kept entries' positions in the caller's Ax
+  double *rAx;           // their values
+  unsigned char *rkeep;  // per caller's entry: kept
 };
 
 // FMBD_SPARSE_LU = klu | umfpack | auto (unset or empty: auto)
@@ -72,13 +81,17 @@ static int klu_sym(fmbd_klu *F) {
   if (F->sym) return FMBD_OK;
   const char *e = getenv("FMBD_KLU_BTF");
   int force = e && (!strcmp(e, "0") || !strcmp(e, "1")) ? e[0] - '0' : -1;
+  // the pattern without its zeros (red_prepare): the form chosen for the whole pattern. Both
+  // tried, BTF's maximum transversal on the 1000-link chain's reduced pattern took 9 % of the
+  // run (three analyses over 0.4 s) and was not chosen
+  if (force < 0 && F->red > 0) force = F->btf;
   klu_l_symbolic *best = NULL;
   for (int btf = 1; btf >= 0; btf--) {
     if (force >= 0 && btf != force) continue;
     klu_l_defaults(&F->kc);
     F->kc.halt_if_singular = 1;
     F->kc.btf = btf;
-    klu_l_symbolic *S = klu_l_analyze((SuiteSparse_long)F->n, F->Ap, F->Ai, &F->kc);
+    klu_l_symbolic *S = klu_l_analyze((SuiteSparse_long)F->n, F->kAp, F->kAi, &F->kc);
     if (!S) {
       if (best) klu_l_free_symbolic(&best, &F->kc);
       FMBD_FAIL(F->kc.status == KLU_OUT_OF_MEMORY ? FMBD_ERR_NOMEM : FMBD_ERR_EXTERNAL,
@@ -108,6 +121,7 @@ int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu *
   FMBD_GALLOC(F->Ai = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)(nnz ? nnz : 1)));
   for (int64_t i = 0; i <= n; i++) F->Ap[i] = (SuiteSparse_long)Ap[i];
   for (int64_t i = 0; i < nnz; i++) F->Ai[i] = (SuiteSparse_long)Ai[i];
+  F->kAp = F->Ap, F->kAi = F->Ai;
   F->umf = n > 0 && engine_umf(n, nnz);
   if (!F->umf) {
     FMBD_GCALL(klu_sym(F));
@@ -143,7 +157,7 @@ static void umf_free_numeric(fmbd_klu *F) {
 // and UMFPACK's on a singular factor, where it finds the zero pivot's column)
 static int klu_full(fmbd_klu *F, double *ax) {
   FMBD_CALL(klu_sym(F));
-  F->num = klu_l_factor(F->Ap, F->Ai, ax, F->sym, &F->kc);
+  F->num = klu_l_factor(F->kAp, F->kAi, ax, F->sym, &F->kc);
   if (!F->num || F->kc.status != KLU_OK) {
     int64_t col = (int64_t)F->kc.singular_col;
     F->singular_col = col >= 0 && col < F->n ? col : -1;
@@ -171,6 +185,23 @@ static bool own_grow(SuiteSparse_long **i, double **x, int64_t *cap, int64_t nz)
   *x = fmbd_malloc(sizeof(double) * (size_t)nz);
   *cap = *i && *x ? nz : 0;
   return *cap > 0;
+}
+
+// a triangle's columns compacted in place without their exactly zero entries, the diagonal
+// kept (first in each column when diag_first, else last)
+static void own_drop0(int64_t n, SuiteSparse_long *Xp, SuiteSparse_long *Xi, double *Xx,
+                      int diag_first) {
+  SuiteSparse_long w = 0, p0 = Xp[0];
+  for (int64_t k = 0; k < n; k++) {
+    const SuiteSparse_long p1 = Xp[k + 1], d = diag_first ? p0 : p1 - 1;
+    Xp[k] = w;
+    for (SuiteSparse_long p = p0; p < p1; p++) {
+      if (Xx[p] == 0 && p != d) continue;
+      Xi[w] = Xi[p], Xx[w] = Xx[p], w++;
+    }
+    p0 = p1;
+  }
+  Xp[n] = w;
 }
 
 static void own_extract(fmbd_klu *F) {
@@ -208,6 +239,22 @@ static void own_extract(fmbd_klu *F) {
       return;
     F->oUi_d[k] = 1 / F->oUx[u1 - 1];
   }
+  // the entries that are exactly zero in this factor dropped (kept: L's unit diagonal first and
+  // U's diagonal last, which the solve skips): subtracting 0 y_k changes no value, so the solve
+  // gives the same numbers (but the sign of a zero) with fewer operations. A mechanism moving in
+  // a plane (every chain of the bench: revolute joints about z) leaves its out-of-plane
+  // unknowns (R_z, e1, e2, the joints' z and axis equations) decoupled from the in-plane ones,
+  // and all the fill that would couple them is zero: 53-56 % of L + U at 2, 10 and 100 links
+  // analysed on the whole pattern (bench/README.md, "Exact zeros of the planar chains"; fewer
+  // once the analysis is of the pattern without A's zeros, red_prepare below, which a motion
+  // leaving the plane can undo). The zeros are found again at each refactorisation, so a value
+  // turning nonzero keeps its entry. FMBD_KLU_DROP0=0 keeps them.
+  static int keep0 = -1;
+  if (keep0 < 0) keep0 = getenv("FMBD_KLU_DROP0") && !strcmp(getenv("FMBD_KLU_DROP0"), "0");
+  if (!keep0) {
+    own_drop0(n, F->oLp, F->oLi, F->oLx, 1);
+    own_drop0(n, F->oUp, F->oUi, F->oUx, 0);
+  }
   F->own = 1;
 }
 
@@ -228,6 +275,86 @@ static void own_solve(fmbd_klu *F, double *b) {
     for (SuiteSparse_long p = Up[k]; p < Up[k + 1] - 1; p++) y[Ui[p]] -= Ux[p] * yk;
   }
   for (int64_t k = 0; k < n; k++) b[F->oQ[k]] = y[k];
+}
+
+// The pattern without its exactly zero entries. The caller's pattern is that of every state; at a
+// given one many of its entries may be exactly zero for good: a mechanism moving in a plane (every
+// chain of the bench: revolute joints about z) has its out-of-plane unknowns (R_z, e1, e2 and
+// the joints' z and axis equations) decoupled from the in-plane ones, the entries coupling them
+// exactly zero; with a rigid body's own zeros (the off-diagonal of its m 1 block, ...) two thirds
+// of A's entries at 10 and 100 links, and through the fill 53-56 % of L + U's (bench/README.md,
+// "Exact zeros of the planar chains"). KLU's analysis and its factorisations then work on the
+// entries that are not zero: at the first factorisation the entries of Ax found exactly zero (but
+// the diagonal) are dropped, if they are at least RED_MIN of them, and KLU analyses what remains.
+// At each later factorisation the dropped entries are checked: one that is no longer zero is taken
+// back and the kept pattern analysed again (a motion leaving the plane, or the velocity terms of a
+// start from rest); after RED_MAX such analyses the caller's pattern serves for good. The values
+// factorised are the caller's, the dropped ones being zero: the same matrix, another ordering.
+// FMBD_KLU_DROP0=0: the caller's pattern always
+#define RED_MIN 0.1
+#define RED_MAX 4
+
+// the kept pattern (rkeep) in rAp, rAi, rmap
+static void red_build(fmbd_klu *F) {
+  int64_t w = 0;
+  for (int64_t c = 0; c < F->n; c++) {
+    F->rAp[c] = (SuiteSparse_long)w;
+    for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++)
+      if (F->rkeep[p]) F->rAi[w] = F->Ai[p], F->rmap[w] = p, w++;
+  }
+  F->rAp[F->n] = (SuiteSparse_long)w;
+  F->kAp = F->rAp, F->kAi = F->rAi;
+}
+
+// the analysis and factor of another pattern: forgotten
+static void red_forget(fmbd_klu *F) {
+  if (F->num) klu_l_free_numeric(&F->num, &F->kc);
+  if (F->sym) klu_l_free_symbolic(&F->sym, &F->kc);
+  F->own = 0;
+}
+
+// before a KLU factorisation of Ax: the pattern's reduction decided or checked; *kax the
+// values KLU is given
+static void red_prepare(fmbd_klu *F, const double *Ax, double **kax) {
+  *kax = (double *)Ax;
+  if (F->red < 0) return;
+  const int64_t n = F->n, nnz = F->Ap[n];
+  if (F->red == 0) {
+    F->red = -1;
+    const char *e = getenv("FMBD_KLU_DROP0");
+    if (e && !strcmp(e, "0")) return;
+    int64_t z = 0;
+    for (int64_t c = 0; c < n; c++)
+      for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++) z += Ax[p] == 0 && F->Ai[p] != c;
+    if (nnz == 0 || z < RED_MIN * (double)nnz) return;
+    F->rAp = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)(n + 1));
+    F->rAi = fmbd_malloc(sizeof(SuiteSparse_long) * (size_t)nnz);
+    F->rmap = fmbd_malloc(sizeof(int64_t) * (size_t)nnz);
+    F->rAx = fmbd_malloc(sizeof(double) * (size_t)nnz);
+    F->rkeep = fmbd_malloc((size_t)nnz);
+    if (!F->rAp || !F->rAi || !F->rmap || !F->rAx || !F->rkeep) return;  // freed at destroy
+    for (int64_t c = 0; c < n; c++)
+      for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++)
+        F->rkeep[p] = Ax[p] != 0 || F->Ai[p] == c;
+    F->red = 1;
+    red_build(F);
+    red_forget(F);
+  } else {
+    bool grow = false;
+    for (int64_t p = 0; p < nnz; p++)
+      if (!F->rkeep[p] && Ax[p] != 0) F->rkeep[p] = 1, grow = true;
+    if (grow) {
+      red_forget(F);
+      if (++F->nred > RED_MAX) {
+        F->red = -1, F->kAp = F->Ap, F->kAi = F->Ai;
+        return;
+      }
+      red_build(F);
+    }
+  }
+  const int64_t nk = F->rAp[n];
+  for (int64_t k = 0; k < nk; k++) F->rAx[k] = Ax[F->rmap[k]];
+  *kax = F->rAx;
 }
 
 int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
@@ -253,6 +380,7 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     // nonsingular factor after all, that factor serves the solves until the next factorisation
     return klu_full(F, ax);
   }
+  red_prepare(F, Ax, &ax);
   if (F->num) {
     // the refactorisation without KLU's row scaling (scale -1: no scale factors, no checks of
     // the fixed pattern). Scaling serves the choice of pivots, which a refactorisation does
@@ -265,7 +393,7 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     if (resc < 0) resc = getenv("FMBD_KLU_RESCALE") && !strcmp(getenv("FMBD_KLU_RESCALE"), "1");
     int sc = F->kc.scale;
     if (!resc) F->kc.scale = -1;
-    int ok = (int)klu_l_refactor(F->Ap, F->Ai, ax, F->sym, F->num, &F->kc);
+    int ok = (int)klu_l_refactor(F->kAp, F->kAi, ax, F->sym, F->num, &F->kc);
     F->kc.scale = sc;
     if (ok && F->kc.status == KLU_OK) ok = (int)klu_l_rcond(F->sym, F->num, &F->kc);
     if (!ok || F->kc.status != KLU_OK || !(F->kc.rcond > RCOND_MIN))
@@ -313,6 +441,9 @@ int64_t fmbd_klu_singular_col(const fmbd_klu *F) {
 int fmbd_klu_own_solves(const fmbd_klu *F) {
   return F && F->own;
 }
+int64_t fmbd_klu_dropped(const fmbd_klu *F) {
+  return F && F->red > 0 ? (int64_t)(F->Ap[F->n] - F->rAp[F->n]) : 0;
+}
 int fmbd_klu_is_umfpack(const fmbd_klu *F) {
   return F && F->umf;
 }
@@ -332,6 +463,7 @@ void fmbd_klu_destroy(fmbd_klu **Fp) {
   umf_free_numeric(F);
   if (F->usym) umfpack_dl_free_symbolic(&F->usym);
   fmbd_free(F->Ap), fmbd_free(F->Ai);
+  fmbd_free(F->rAp), fmbd_free(F->rAi), fmbd_free(F->rmap), fmbd_free(F->rAx), fmbd_free(F->rkeep);
   fmbd_free(F->uWi), fmbd_free(F->uW), fmbd_free(F->uX);
   fmbd_free(F->oLp), fmbd_free(F->oLi), fmbd_free(F->oLx), fmbd_free(F->oUp), fmbd_free(F->oUi);
   fmbd_free(F->oUx), fmbd_free(F->oP), fmbd_free(F->oQ), fmbd_free(F->oUi_d), fmbd_free(F->oy);

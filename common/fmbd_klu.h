@@ -11,6 +11,10 @@
 // possible: fmbd_klu_factor refactors with the previous pivot order (klu_l_refactor) and
 // falls back to a full factorisation with fresh partial pivoting (klu_l_factor) when the
 // refactor fails or KLU's reciprocal condition estimate drops below rcond_min (default 1e-13).
+// Entries of the pattern that the first factorisation's values hold exactly zero (a mechanism
+// moving in a plane: the coupling of its in-plane and out-of-plane unknowns) are left out of
+// KLU's analysis while they stay zero, and taken back when they do not (fmbd_klu_dropped);
+// FMBD_KLU_DROP0=0 keeps the whole pattern.
 //
 // Two engines behind this interface. KLU (left-looking, no supernodes) suits the small,
 // circuit-like multibody matrices; for large systems (a full FE body's [M Cq'; Cq 0], order
@@ -60,6 +64,10 @@ int fmbd_klu_is_umfpack(const fmbd_klu *F);
 /// @brief 1 when the current factor is solved by fmbd_klu's own triangular solves (a KLU
 /// refactorisation of one diagonal block, unscaled), 0 when by KLU's or UMFPACK's.
 int fmbd_klu_own_solves(const fmbd_klu *F);
+
+/// @brief The entries of the analysed pattern that KLU does not see: those found exactly zero at
+/// the first factorisation and zero since (0: the whole pattern; fmbd_klu.c, red_prepare).
+int64_t fmbd_klu_dropped(const fmbd_klu *F);
 
 /// @brief Forget the numeric factor (the next fmbd_klu_factor factors afresh).
 void fmbd_klu_drop_factor(fmbd_klu *F);

@@ -8,7 +8,13 @@
 // is KLU's refactorisation, unscaled, whose factor fmbd_klu solves by its own triangular
 // solves where it is one block (checked where BTF is forced off: with BTF, KLU splits this
 // matrix into blocks and solves it itself); a full factorisation (the first, and the recovery
-// after a singular one) is solved by KLU.
+// after a singular one) is solved by KLU. A refactorisation whose values hold exact zeros in the
+// pattern (K's off-diagonals in 15 of 16 columns: fill of the factor that is exactly zero) is
+// solved by the own solves with those entries dropped, to the same residual bound. A first
+// factorisation with those zeros has KLU analyse the pattern without them (fmbd_klu_dropped);
+// each later one that has some of them nonzero again takes those back (the dropped count falls),
+// and after five such the caller's whole pattern is used (none dropped): every solve to the
+// same bound.
 // SPDX-License-Identifier: MIT
 //
 // Tolerance: LU with partial (threshold) pivoting is backward stable, |A x^ - b| <= c n eps
@@ -29,6 +35,10 @@
 static int64_t Ap[N + 1], Ai[5 * N];
 static double Ax[5 * N];
 
+// build: K's off-diagonals exactly zero (pattern kept) in the columns c with c % 16 >= holes
+// (0: none)
+static int holes;
+
 // pattern and values by columns (rows sorted); scale multiplies K's values
 static void build(double scale) {
   int64_t nz = 0;
@@ -44,6 +54,9 @@ static void build(double scale) {
     }
   }
   Ap[N] = nz;
+  for (int64_t c = 0; c < NK && holes; c++)
+    for (int64_t p = Ap[c]; p < Ap[c + 1] && c % 16 >= holes; p++)
+      if (Ai[p] != c && Ai[p] < NK) Ax[p] = 0;
 }
 
 static double residual(const double *x, const double *b) {
@@ -90,6 +103,14 @@ static void engine(const char *name, int umf, int own) {
     EXPECT(fmbd_klu_own_solves(F) == own, "%s: own solves %d after a refactorisation", name,
            fmbd_klu_own_solves(F));
   solve_check(F, name, 0.7);  // and another
+  EXPECT(fmbd_klu_dropped(F) == 0, "%s: %lld entries dropped without zeros in the values", name,
+         (long long)fmbd_klu_dropped(F));
+  holes = 1;  // a refactorisation with exact zeros in its values (own solves: dropped)
+  solve_check(F, name, 1.3);
+  if (own >= 0)
+    EXPECT(fmbd_klu_own_solves(F) == own, "%s: own solves %d with zeros in the values", name,
+           fmbd_klu_own_solves(F));
+  holes = 0;
   // a numerically zero column (pattern kept): singular, at that column
   const int64_t zc = 42;
   build(1);
@@ -108,7 +129,42 @@ static void engine(const char *name, int umf, int own) {
   EXPECT(!F, "%s: destroy", name);
 }
 
+// the pattern without the first factorisation's zeros, taken back where they turn nonzero
+static void reduced(void) {
+  setenv("FMBD_SPARSE_LU", "klu", 1);
+  build(1);
+  fmbd_klu *F = NULL;
+  EXPECT(fmbd_klu_analyze(N, Ap, Ai, &F) == FMBD_OK && F, "reduced: analyze");
+  if (!F) return;
+  holes = 1;
+  solve_check(F, "reduced", 1);
+  int64_t d = fmbd_klu_dropped(F);
+  // K's off-diagonals in the columns c % 16 >= 1: 2 each but at the ends
+  EXPECT(d >= 2 * (NK * 15 / 16 - 2) && d <= 2 * (NK * 15 / 16 + 1),
+         "reduced: %lld entries dropped", (long long)d);
+  solve_check(F, "reduced", 2.5);  // the same zeros: refactorised on the reduced pattern
+  EXPECT(fmbd_klu_dropped(F) == d, "reduced: %lld dropped after a refactorisation",
+         (long long)fmbd_klu_dropped(F));
+  for (int h = 2; h <= 6; h++) {  // the columns c % 16 == h - 1 nonzero again: taken back
+    holes = h;
+    solve_check(F, "reduced", 1 + 0.1 * h);
+    int64_t dn = fmbd_klu_dropped(F);
+    if (h < 6)
+      EXPECT(dn < d && dn > 0, "reduced: holes %d: %lld dropped (before %lld)", h, (long long)dn,
+             (long long)d);
+    else
+      EXPECT(dn == 0, "reduced: the whole pattern after five analyses: %lld dropped",
+             (long long)dn);
+    d = dn;
+  }
+  holes = 0;
+  solve_check(F, "reduced", 1);
+  fmbd_klu_destroy(&F);
+  unsetenv("FMBD_SPARSE_LU");
+}
+
 int main(void) {
+  reduced();
   engine("klu", 0, -1);
   engine("umfpack", 1, 0);
   engine("", 0, -1);  // automatic: order 200 is below the UMFPACK threshold
