@@ -756,7 +756,22 @@ static int super_factor(fmbd_chol *F, double sigma, double *Lx, bool ll, double 
 // pivot <= 0 or NaN is reported as CHOLMOD reports it (L->minor, CHOLMOD_NOT_POSDEF).
 static int own_llt(fmbd_chol *F, double sigma, double *dg) {
   cholmod_factor *L = F->L;
-  if (!F->map) FMBD_CALL(super_setup(F, true));
+  if (!F->runs) {
+    // the loop's workspaces, at the first factorisation (all or none: a failed allocation
+    // leaves none behind, and the next call tries again)
+    int rc = super_setup(F, true);
+    if (rc) {
+      int64_t **iw[] = {&F->col2super, &F->map, &F->head, &F->next, &F->lpos, &F->runs};
+      for (size_t i = 0; i < sizeof iw / sizeof iw[0]; i++) {
+        fmbd_free(*iw[i]);
+        *iw[i] = NULL;
+      }
+      fmbd_free(F->wC);
+      fmbd_free(F->wW);
+      F->wC = F->wW = NULL;
+      return rc;
+    }
+  }
   if (L->xtype == CHOLMOD_PATTERN || !L->x) {
     double *x = fmbd_calloc(L->xsize ? L->xsize : 1, sizeof(double));
     FMBD_CHECK(x, FMBD_ERR_NOMEM, "out of memory (%.4g values of the LL' factor, n = %lld)",
