@@ -29,8 +29,12 @@ static void dA_dp(const double *AG, double pn, const double *Av, double *out) {
 }
 
 // g = A (e + th x e): a direction vector e of the point's frame, turned by the point's small
-// elastic rotation th, in global axes
+// elastic rotation th, in global axes; th NULL: a rigid point's (g = A e, the same values)
 static inline void side_dir(const double *A, const double *th, const double *e, double *g) {
+  if (!th) {
+    mv3(A, e, g);
+    return;
+  }
   double wv[3], tc[3];
   cross3(th, e, tc);
   for (int a = 0; a < 3; a++) wv[a] = e[a] + tc[a];
@@ -80,7 +84,7 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
   for (int a = 0; a < 3; a++) s->r[a] = x[a] + Au[a];
   if (!deriv) {
     for (int i = 0; i < nv; i++) {
-      if (want >> i & 1) side_dir(A, th, e[i], s->g[i]);
+      if (want >> i & 1) side_dir(A, nm ? th : NULL, e[i], s->g[i]);
     }
     return;
   }
@@ -94,7 +98,7 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
   for (int k = 0; k < nm; k++) mv3(A, P->T + 3 * k, s->dr + 3 * (7 + k));
   for (int i = 0; i < nv; i++) {
     if (!(want >> i & 1)) continue;
-    side_dir(A, th, e[i], s->g[i]);
+    side_dir(A, nm ? th : NULL, e[i], s->g[i]);
     double *dg = s->dg[i];
     memset(dg, 0, sizeof(double) * 3 * (size_t)n);
     dA_dp(AG, pn, s->g[i], D);
