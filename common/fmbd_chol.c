@@ -1169,21 +1169,34 @@ __attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_2(const cholmod_f
 
 // Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
 // solve); false when not available here (then CHOLMOD's).
-static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
+// own_solve's and own_op's conditions, and the workspace allocated on first use
+static bool own_ready(fmbd_chol *F, int64_t nrhs) {
 #ifdef FMBD_OWN_SOLVE
   const cholmod_factor *L = F->L;
   if (!F->own_solve || nrhs > 8 || nrhs < 2 || !L->is_super || !L->is_ll ||
       L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
     return false;
-  int nv = nrhs > 4 ? 2 : 1, w = 4 * nv;
-  int64_t n = F->n;
   if (!F->ow) {
     const SuiteSparse_long *pi = L->pi;
     int64_t mr = 0;
     for (size_t s = 0; s < L->nsuper; s++) mr = pi[s + 1] - pi[s] > mr ? pi[s + 1] - pi[s] : mr;
-    F->ow = fmbd_malloc((size_t)(n + mr) * 8 * sizeof(double));
+    F->ow = fmbd_malloc((size_t)(F->n + mr) * 8 * sizeof(double));
     if (!F->ow) return false;  // CHOLMOD's then (it reports its own memory failure)
   }
+  return true;
+#else
+  (void)F;
+  (void)nrhs;
+  return false;
+#endif
+}
+
+static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
+#ifdef FMBD_OWN_SOLVE
+  if (!own_ready(F, nrhs)) return false;
+  const cholmod_factor *L = F->L;
+  int nv = nrhs > 4 ? 2 : 1, w = 4 * nv;
+  int64_t n = F->n;
   double *Z = F->ow, *G = F->ow + n * 8;
   const SuiteSparse_long *perm = L->Perm;
   for (int64_t k = 0; k < n; k++) {  // Z = P X (forward) or X (backward), rows of w
@@ -1208,6 +1221,48 @@ static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, i
   (void)nrhs;
   (void)X;
   (void)ldx;
+  return false;
+#endif
+}
+
+// fmbd_chol_apply_op's own path, 2 to 4 columns: the rows of 4 stay in the workspace from the
+// backward sweeps through the product with M to the forward sweeps (Z = X; Z <- L^-T Z;
+// Xt = P' Z; Z = M Xt; Xt = P Z; Xt <- L^-1 Xt; W = Xt): the same operations as the two halves
+// and fmbd_csr_matmat between them (so the same bits), without their column-major round trips
+// and with one pass over M for the 4 columns (a lower-stored M took one per column)
+static bool own_op(fmbd_chol *F, const fmbd_csr *M, int64_t nrhs, const double *X, int64_t ldx,
+                   double *W, int64_t ldw, double *t_m) {
+#ifdef FMBD_OWN_SOLVE
+  if (nrhs > 4 || !own_ready(F, nrhs)) return false;
+  const cholmod_factor *L = F->L;
+  int64_t n = F->n;
+  double *Z = F->ow, *Xt = F->ow + n * 4, *G = F->ow + n * 8;
+  const SuiteSparse_long *perm = L->Perm;
+  for (int64_t k = 0; k < n; k++) {
+    int64_t c = 0;
+    for (; c < nrhs; c++) Z[k * 4 + c] = X[k + c * ldx];
+    for (; c < 4; c++) Z[k * 4 + c] = 0.0;
+  }
+  sn_sweeps_avx2_1(L, 0, 1, Z, G);
+  for (int64_t k = 0; k < n; k++) memcpy(Xt + perm[k] * 4, Z + k * 4, 4 * sizeof(double));
+  double t0 = fmbd_wall_s();
+  fmbd_csr_matmat_rows4(M, Xt, Z);
+  if (t_m) *t_m += fmbd_wall_s() - t0;
+  for (int64_t k = 0; k < n; k++) memcpy(Xt + k * 4, Z + perm[k] * 4, 4 * sizeof(double));
+  sn_sweeps_avx2_1(L, 1, 0, Xt, G);
+  for (int64_t k = 0; k < n; k++) {
+    for (int64_t c = 0; c < nrhs; c++) W[k + c * ldw] = Xt[k * 4 + c];
+  }
+  return true;
+#else
+  (void)F;
+  (void)M;
+  (void)nrhs;
+  (void)X;
+  (void)ldx;
+  (void)W;
+  (void)ldw;
+  (void)t_m;
   return false;
 #endif
 }
@@ -1308,12 +1363,40 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
   return rc;
 }
 
+int fmbd_chol_apply_op(fmbd_chol *F, const fmbd_csr *M, int64_t nrhs, const double *X, int64_t ldx,
+                       double *W, int64_t ldw, double *Y, double *t_m) {
+  FMBD_CHECK(F->kind == FMBD_CHOL_LLT && M->nrows == F->n && M->ncols == F->n, FMBD_ERR_INTERNAL,
+             "operator L^-1 P M P' L^-T needs an LL' factor and M of its size");
+  FMBD_CHECK(ldx >= F->n && ldw >= F->n, FMBD_ERR_VALUE, "leading dimension %lld or %lld < %lld",
+             (long long)ldx, (long long)ldw, (long long)F->n);
+  if (!F->dropped && F->L && F->st.n_factor > 0 && F->failed_row < 0) {
+    double t0 = fmbd_wall_s(), tm = 0.0;
+    if (own_op(F, M, nrhs, X, ldx, W, ldw, &tm)) {
+      F->st.t_solve_s += fmbd_wall_s() - t0 - tm;
+      F->st.n_solves += nrhs;
+      if (t_m) *t_m += tm;
+      return FMBD_OK;
+    }
+  }
+  for (int64_t c = 0; c < nrhs; c++)
+    memcpy(Y + c * F->n, X + c * ldx, (size_t)F->n * sizeof(double));
+  FMBD_CALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nrhs, Y, F->n));
+  double t0 = fmbd_wall_s();
+  fmbd_csr_matmat(M, nrhs, Y, F->n, W, ldw);
+  if (t_m) *t_m += fmbd_wall_s() - t0;
+  return fmbd_chol_solve_half(F, FMBD_CHOL_FWD, nrhs, W, ldw);
+}
+
 void fmbd_chol_set_own_solve(fmbd_chol *F, bool on) {
   if (F) F->own_solve = on;
 }
 
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
   if (F) F->solve_width = w > 0 ? w : 0;
+}
+
+int64_t fmbd_chol_solve_width(const fmbd_chol *F) {
+  return F ? F->solve_width : 0;
 }
 
 void fmbd_chol_release_workspace(fmbd_chol *F) {

@@ -97,6 +97,16 @@ enum { FMBD_CHOL_FWD = 1, FMBD_CHOL_BWD = 2 };
 /// A forward half counts as one solve in the statistics.
 int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64_t ldx);
 
+/// @brief W = L^-1 P M P' L^-T X for an LLT factor (A - sigma B = P' L L' P) and a symmetric
+/// M of its size (usually B): the symmetric shift-invert operator (fmbd_eig's block Lanczos) in
+/// one call, the same bits as fmbd_chol_solve_half BWD, fmbd_csr_matmat and the FWD half. X
+/// (n x nrhs, ldx) is kept, W (ldw) written; Y: scratch n x nrhs (leading dimension n) for the
+/// path through CHOLMOD (blocks of 2-4 columns with the own solve keep their rows of 4 in its
+/// workspace instead). *t_m (if t_m is not NULL) += the wall time of the product with M.
+/// Counts as nrhs solves.
+int fmbd_chol_apply_op(fmbd_chol *F, const fmbd_csr *M, int64_t nrhs, const double *X, int64_t ldx,
+                       double *W, int64_t ldw, double *Y, double *t_m);
+
 /// @brief Solves of blocks of 1 to 8 right-hand sides with a supernodal LL' factor go through
 /// the library's own sweeps over the factor (4-wide vectors, AVX2; fmbd_chol.c "narrow-block
 /// supernodal LL' solves") where the processor has them, else through CHOLMOD's (on: the
@@ -107,6 +117,8 @@ void fmbd_chol_set_own_solve(fmbd_chol *F, bool on);
 /// two n x w workspaces; narrower calls read the factor more often. Each column's solution may
 /// change at round-off with w (the BLAS kernels' blocking).
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
+/// @brief The width set by fmbd_chol_set_solve_width (0: the default).
+int64_t fmbd_chol_solve_width(const fmbd_chol *F);
 /// @brief Free CHOLMOD's solve workspaces (n x nrhs of the largest solve so far, kept for
 /// reuse): before a stage whose solves are narrower (fe2cb's projections after the Lanczos
 /// run's wide back solve; peak memory). The next solve allocates them again.

@@ -214,8 +214,7 @@ static inline void rows_pair(const fmbd_csr *A, const double *bd, int w, int sx,
 
 // the same for a lower-stored symmetric A (sym_matvec's order), the transposed entries' sums in
 // yt (row-major, stride w)
-static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double *yt, double *Y,
-                              int64_t ldy) {
+static inline void rows_lower_rm(const fmbd_csr *A, int w, const double *xt, double *yt) {
   memset(yt, 0, (size_t)A->nrows * (size_t)w * sizeof(double));
   for (int64_t i = 0; i < A->nrows; i++) {
     double s[NB] = {0};
@@ -232,9 +231,6 @@ static inline void rows_lower(const fmbd_csr *A, int w, const double *xt, double
     }
     double *y = yt + i * w;
     for (int k = 0; k < w; k++) y[k] += s[k];
-  }
-  for (int64_t i = 0; i < A->nrows; i++) {
-    for (int k = 0; k < w; k++) Y[i + k * ldy] = yt[i * w + k];
   }
 }
 
@@ -301,7 +297,7 @@ static inline __attribute__((always_inline)) void vrows8_pair(const fmbd_csr *A,
 }
 
 static inline __attribute__((always_inline)) void vrows8_lower(const fmbd_csr *A, const double *xt,
-                                                               double *yt, double *Y, int64_t ldy) {
+                                                               double *yt) {
   const int64_t *ip = A->indptr, *ix = A->indices;
   const double *d = A->data;
   int64_t n = A->nrows;
@@ -324,8 +320,32 @@ static inline __attribute__((always_inline)) void vrows8_lower(const fmbd_csr *A
     ST4(y, LD4(y) + s0);
     ST4(y + 4, LD4(y + 4) + s1);
   }
+}
+
+// 4 columns row-major in and out (fmbd_csr_matmat_rows4): one 4-wide sum, lower or full
+__attribute__((target("avx2"))) static void rows4_avx2(const fmbd_csr *A, const double *xt,
+                                                       double *yt) {
+  const int64_t *ip = A->indptr, *ix = A->indices;
+  const double *d = A->data;
+  int64_t n = A->nrows;
+  if (!A->lower) {
+    for (int64_t i = 0; i < n; i++) {
+      v4d s = {0};
+      for (int64_t p = ip[i]; p < ip[i + 1]; p++) s += d[p] * LD4(xt + ix[p] * 4);
+      ST4(yt + i * 4, s);
+    }
+    return;
+  }
+  memset(yt, 0, (size_t)n * 4 * sizeof(double));
   for (int64_t i = 0; i < n; i++) {
-    for (int k = 0; k < NB; k++) Y[i + k * ldy] = yt[i * NB + k];
+    v4d s = {0}, xi = LD4(xt + i * 4);
+    for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
+      int64_t j = ix[p];
+      double a = d[p];
+      s += a * LD4(xt + j * 4);
+      if (j != i) ST4(yt + j * 4, LD4(yt + j * 4) + a * xi);
+    }
+    ST4(yt + i * 4, LD4(yt + i * 4) + s);
   }
 }
 
@@ -350,13 +370,12 @@ __attribute__((target("avx2"))) static void rows8_pair_avx2(const fmbd_csr *A, c
   vrows8_pair(A, bd, xt, w, Y, Z, ldy);
 }
 __attribute__((target("avx512f"))) static void rows8_lower_avx512(const fmbd_csr *A,
-                                                                  const double *xt, double *yt,
-                                                                  double *Y, int64_t ldy) {
-  vrows8_lower(A, xt, yt, Y, ldy);
+                                                                  const double *xt, double *yt) {
+  vrows8_lower(A, xt, yt);
 }
 __attribute__((target("avx2"))) static void rows8_lower_avx2(const fmbd_csr *A, const double *xt,
-                                                             double *yt, double *Y, int64_t ldy) {
-  vrows8_lower(A, xt, yt, Y, ldy);
+                                                             double *yt) {
+  vrows8_lower(A, xt, yt);
 }
 #endif
 
@@ -391,18 +410,40 @@ static void rows8_pair(const fmbd_csr *A, const double *bd, const double *xt, in
   rows_pair(A, bd, w, NB, xt, Y, Z, ldy);
 }
 
-static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt, double *Y, int64_t ldy) {
+void fmbd_csr_matmat_rows4(const fmbd_csr *A, const double *xt, double *yt) {
 #ifdef FMBD_VEC8
-  if (__builtin_cpu_supports("avx512f")) {
-    rows8_lower_avx512(A, xt, yt, Y, ldy);
-    return;
-  }
   if (__builtin_cpu_supports("avx2")) {
-    rows8_lower_avx2(A, xt, yt, Y, ldy);
+    rows4_avx2(A, xt, yt);
     return;
   }
 #endif
-  rows_lower(A, NB, xt, yt, Y, ldy);
+  if (A->lower) {
+    rows_lower_rm(A, 4, xt, yt);
+    return;
+  }
+  for (int64_t i = 0; i < A->nrows; i++) {
+    double s[4] = {0};
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      const double *x = xt + A->indices[p] * 4;
+      for (int k = 0; k < 4; k++) s[k] += A->data[p] * x[k];
+    }
+    for (int k = 0; k < 4; k++) yt[i * 4 + k] = s[k];
+  }
+}
+
+// yt = A xt (row-major, stride NB) for a lower-stored A
+static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt) {
+#ifdef FMBD_VEC8
+  if (__builtin_cpu_supports("avx512f")) {
+    rows8_lower_avx512(A, xt, yt);
+    return;
+  }
+  if (__builtin_cpu_supports("avx2")) {
+    rows8_lower_avx2(A, xt, yt);
+    return;
+  }
+#endif
+  rows_lower_rm(A, NB, xt, yt);
 }
 
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
@@ -411,10 +452,12 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   // than is used): the matrix is read once per 8 columns (and once for a remainder of 2-7,
   // e.g. the block eigensolver's blocks of 4) and each entry updates contiguous sums (one
   // column at a time read A nrhs times: the block eigensolver's M products, fmbd_eig.c, spent
-  // a third of their time there). A lower-stored A takes a remainder one column at a time:
-  // its blocked form needs a second n x w copy (fe2cb at 188 k dofs, blocks of 4: +11 MB on
-  // the peak) for no gain measurable on the loaded development machine (Lanczos operator
-  // time, 3 runs each).
+  // a third of their time there). A lower-stored A alone (fewer than 8 columns) goes one
+  // column at a time: its blocked form needs a second n x w copy (fe2cb at 188 k dofs, blocks
+  // of 4: +11 MB on the peak; the block Lanczos' operator has its own row-major pass,
+  // fmbd_chol_apply_op); after a block of 8 its remainder takes the copies already there, 2-4
+  // columns by rows of 4 (fmbd_csr_matmat_rows4), 5-7 padded to 8 (fe2cb's 12 boundary
+  // columns, the residual check's 7 after 16 at 20 modes: one pass instead of 4 or 7).
   int64_t nc = A->ncols, wm = nrhs < NB ? nrhs : NB;
   if (!A->lower && wm >= 5) wm = NB;  // room for a remainder of 5-7 padded to 8
   bool blocked = A->lower ? nrhs >= NB : nrhs >= 2;
@@ -430,18 +473,25 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   }
   for (int64_t c = 0; c < nrhs; c += NB) {
     int w = nrhs - c < NB ? (int)(nrhs - c) : NB;
-    if (w == 1 || (A->lower && w < NB)) {
-      for (int k = 0; k < w; k++) fmbd_csr_matvec(A, X + (c + k) * ldx, Y + (c + k) * ldy);
+    if (w == 1) {
+      fmbd_csr_matvec(A, X + c * ldx, Y + c * ldy);
       continue;
     }
-    int sx = w >= 5 ? NB : w;  // xt's stride: 5-7 columns padded with zero columns to 8
+    // xt's stride: 5-7 columns padded with zero columns to 8; lower: 2-4 padded to 4
+    int sx = w >= 5 ? NB : (A->lower ? 4 : w);
     for (int64_t j = 0; j < nc; j++) {
       for (int k = 0; k < w; k++) xt[j * sx + k] = X[j + (c + k) * ldx];
       for (int k = w; k < sx; k++) xt[j * sx + k] = 0.0;
     }
-    if (A->lower)
-      rows8_lower(A, xt, yt, Y + c * ldy, ldy);
-    else if (sx == NB)
+    if (A->lower) {
+      if (sx == NB)
+        rows8_lower(A, xt, yt);
+      else
+        fmbd_csr_matmat_rows4(A, xt, yt);
+      for (int64_t i = 0; i < A->nrows; i++) {
+        for (int k = 0; k < w; k++) Y[i + (c + k) * ldy] = yt[i * sx + k];
+      }
+    } else if (sx == NB)
       rows8_full(A, xt, w, Y + c * ldy, ldy);
     else
       rows_full(A, w, w, xt, Y + c * ldy, ldy);

@@ -60,6 +60,10 @@ void fmbd_csr_matvec(const fmbd_csr *A, const double *x, double *y);
 /// x nrhs, leading dim ldy).
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
                      int64_t ldy);
+/// @brief yt = A xt for 4 columns held row-major (row i at xt + 4 i; nrows x 4 into ncols x 4
+/// of the caller's memory, no allocation): the same bits as fmbd_csr_matmat / fmbd_csr_matvec
+/// column by column (fmbd_chol_apply_op's M product on its own workspace).
+void fmbd_csr_matmat_rows4(const fmbd_csr *A, const double *xt, double *yt);
 /// @brief Y = A X and Z = B X, the same bits as two fmbd_csr_matmat calls. When A and B are
 /// stored in full on one pattern in memory (the same indptr and indices arrays: an fe body's K
 /// and M), one pass over the pattern serves both; otherwise two passes.

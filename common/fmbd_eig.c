@@ -76,15 +76,18 @@ double fmbd_eig_residual(const fmbd_csr *K, const fmbd_csr *M, double lambda, co
 // and the block's M X also gives x' M x: one product with M per vector for both (the
 // normalisation had its own pass over M per 8 vectors: 0.3 s of 300 modes at 51 k dofs,
 // bench/README.md). The scaled X is the same bits as when the normalisation came first.
+// A last block of 9-15 columns goes in one call (fe2cb's lower-stored K and M take a block of
+// fewer than 8 one column at a time, a remainder after 8 in one pass: 23 pairs as 8 + 15, two
+// passes over each matrix for the last 15 instead of 1 + 7).
 static int check_normalise(const fmbd_csr *K, const fmbd_csr *M, int64_t nv, const double *lam,
                            double *X, double sigma, double *rs) {
-  enum { NB = 8 };
+  enum { NB = 8, NW = 2 * NB - 1 };
   int64_t n = K->nrows;
-  double *kx = fmbd_malloc((size_t)n * 2 * NB * sizeof(double));
+  double *kx = fmbd_malloc((size_t)n * 2 * NW * sizeof(double));
   FMBD_CHECK(kx, FMBD_ERR_NOMEM, "out of memory");
-  double *mx = kx + n * NB;
-  for (int64_t j0 = 0; j0 < nv; j0 += NB) {
-    int64_t nb = nv - j0 < NB ? nv - j0 : NB;
+  double *mx = kx + n * NW;
+  for (int64_t j0 = 0, nb = 0; j0 < nv; j0 += nb) {
+    nb = nv - j0 <= NW ? nv - j0 : NB;
     fmbd_csr_matmat(K, nb, X + j0 * n, n, kx, n);
     fmbd_csr_matmat(M, nb, X + j0 * n, n, mx, n);
     for (int64_t j = 0; j < nb; j++) {
@@ -481,13 +484,9 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t nstr
       // W = C Q = L^-1 P M P' L^-T Q; narrow blocks solve on one BLAS thread, as the
       // single-vector path does (their triangular solves are memory-bound: a second thread
       // only spins; 51 k dofs, 20 modes, blocks of 4: 3.0 s CPU on 2 threads, see bench/README.md)
-      memcpy(Y, V + m * n, (size_t)(n * p) * sizeof(double));
+      // (fmbd_chol_apply_op: the halves and the M product in one call)
       int th1 = p < 16 ? fmbd_blas_set_threads(1) : -1;
-      rc = fmbd_chol_solve_half(F, FMBD_CHOL_BWD, p, Y, n);
-      double tm = fmbd_wall_s();
-      fmbd_csr_matmat(M, p, Y, n, W, n);
-      t_mprod += fmbd_wall_s() - tm;
-      if (rc == FMBD_OK) rc = fmbd_chol_solve_half(F, FMBD_CHOL_FWD, p, W, n);
+      rc = fmbd_chol_apply_op(F, M, p, V + m * n, n, W, n, Y, &t_mprod);
       if (th1 > 1) fmbd_blas_set_threads(th1);
       FMBD_GCALL(rc);
       solves += p;
@@ -638,7 +637,24 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t nstr
     V = NULL;
     out->X = X;
     double tb = fmbd_wall_s();
-    FMBD_GCALL(fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nout, out->X, n));
+    // the basis has shrunk from cap to nout columns: CHOLMOD's two n x w solve workspaces may
+    // take half the difference without raising the run's peak, where the caller asked for
+    // narrower calls (fe2cb below 60 modes: 8); in the fewest calls, of equal widths (23
+    // vectors: 12 + 11 instead of 8 + 8 + 7, backward half of the 51 k-dof rod 58 against
+    // 73 ms; each column's result may change at round-off with the width)
+    // (given back right after: the residual check follows, with its own blocks)
+    int64_t w0 = fmbd_chol_solve_width(F), wb = (cap - nout) / 2;
+    bool wide = w0 > 0 && wb > w0 && nout > w0;
+    if (wide) {
+      int64_t calls = (nout + wb - 1) / wb;
+      fmbd_chol_set_solve_width(F, (nout + calls - 1) / calls);
+    }
+    rc = fmbd_chol_solve_half(F, FMBD_CHOL_BWD, nout, out->X, n);
+    if (wide) {
+      fmbd_chol_set_solve_width(F, w0);
+      fmbd_chol_release_workspace(F);
+    }
+    FMBD_GCALL(rc);
     out->nconv = nout;
     fmbd_log(FMBD_LOG_DEBUG, "eig: %lld Ritz vectors %.3g s (of it the back solve %.3g s)",
              (long long)nout, fmbd_wall_s() - te, fmbd_wall_s() - tb);

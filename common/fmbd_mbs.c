@@ -77,7 +77,7 @@ static void body_free(mbody *b) {
   fmbd_free(b->S1), fmbd_free(b->XS), fmbd_free(b->SS), fmbd_free(b->Mff), fmbd_free(b->Kff);
   fmbd_free(b->Dff), fmbd_free(b->XSx), fmbd_free(b->SSx), fmbd_free(b->q0), fmbd_free(b->qd0);
   fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
-  fmbd_free(b->XX), fmbd_free(b->pk);
+  fmbd_free(b->XX), fmbd_free(b->XT), fmbd_free(b->pk);
   mbs_fe_free(&b->fe);
 }
 
@@ -333,8 +333,9 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     b->Mwf = fmbd_calloc(3 * n1, sizeof(double));
     b->cor = fmbd_calloc(3 * n1, sizeof(double));
     b->XX = fmbd_malloc(sizeof(double) * 9 * n1);
+    b->XT = fmbd_malloc(sizeof(double) * 9 * n1);
     FMBD_CHECK(b->S1 && b->XS && b->SS && b->Mff && b->Kff && b->Dff && b->XSx && b->SSx && b->q0 &&
-                   b->qd0 && b->P && b->Hk && b->Mwf && b->cor && b->XX,
+                   b->qd0 && b->P && b->Hk && b->Mwf && b->cor && b->XX && b->XT,
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);

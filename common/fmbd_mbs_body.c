@@ -27,9 +27,9 @@ static inline v2d ld2(const double *p) {
   return v;
 }
 #endif
-// y += alpha A x (leading dimension lda)
-static void matvec_add(int m, int n, const double *restrict A, int lda, const double *restrict x,
-                       double alpha, double *restrict y) {
+// y += alpha A x (leading dimension lda): the portable form
+static void matvec_add_base(int m, int n, const double *restrict A, int lda,
+                            const double *restrict x, double alpha, double *restrict y) {
   int j = 0;
   for (; j + 4 <= n; j += 4) {
     double x0 = alpha * x[j], x1 = alpha * x[j + 1], x2 = alpha * x[j + 2], x3 = alpha * x[j + 3];
@@ -52,10 +52,124 @@ static void matvec_add(int m, int n, const double *restrict A, int lda, const do
     for (int i = 0; i < m; i++) y[i] += xj * a[i];
   }
 }
+
+// The same sums four rows to a vector (AVX, 4 doubles) and eight columns to a pass (y loaded and
+// stored once per eight columns instead of four), chosen when called where the processor has
+// AVX2 (__builtin_cpu_supports; fmbd_csr.c's 8-column kernels do the same): the full-coupling
+// products SS q (9 nm x nm) and SSx q' (3 nm x nm) are most of a full-coupling evaluation
+// (bench/README.md, "The modal body's per-step cost"). Every entry gets the portable form's
+// operations in its order, so the results are the same bits: y_i + x0 a0_i, then + x1 a1_i, ...
+// in column order for the rows the portable form takes in pairs (every row but an odd last
+// one), y_i + (x0 a0_i + ... + x3 a3_i) per four columns for an odd last row, y_i + xj aj_i for
+// the columns after the last four; alpha x_j formed as there; no FMA (GCC compiles -std=c11 with
+// -ffp-contract=off and the target attribute names no FMA; clang is told so below)
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#define MBS_VEC4 1
+#ifdef __clang__
+#pragma clang fp contract(off)
+#endif
+typedef double v4d
+    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
+#define LD4(p) (*(const v4d *)(p))
+#define ST4(p, v) (*(v4d *)(p) = (v))
+// column j + c of a pass: alpha x_j+c, the column and alpha x_j+c broadcast
+#define MV_COL(c)                                                                   \
+  const double x##c = alpha * x[j + c], *restrict a##c = A + (size_t)lda * (j + c); \
+  const v4d X##c = {x##c, x##c, x##c, x##c}
+#define MV_T(c) +X##c *LD4(a##c + i)
+#define MV_S(c) +x##c *a##c[i]
+// eight columns at j: the rows in fours, then in ones (a pair), then an odd last row
+__attribute__((target("avx2"))) static void mv_cols8(int m, int j, const double *restrict A,
+                                                     int lda, const double *restrict x,
+                                                     double alpha, double *restrict y) {
+  MV_COL(0);
+  MV_COL(1);
+  MV_COL(2);
+  MV_COL(3);
+  MV_COL(4);
+  MV_COL(5);
+  MV_COL(6);
+  MV_COL(7);
+  const int me = m & ~1, m4 = m & ~3;
+  int i = 0;
+  for (; i < m4; i += 4)
+    ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2) MV_T(3) MV_T(4) MV_T(5) MV_T(6) MV_T(7));
+  for (; i < me; i++) y[i] = y[i] MV_S(0) MV_S(1) MV_S(2) MV_S(3) MV_S(4) MV_S(5) MV_S(6) MV_S(7);
+  if (m & 1) {
+    i = m - 1;
+    y[i] += x0 * a0[i] + x1 * a1[i] + x2 * a2[i] + x3 * a3[i];
+    y[i] += x4 * a4[i] + x5 * a5[i] + x6 * a6[i] + x7 * a7[i];
+  }
+}
+// the same, four columns
+__attribute__((target("avx2"))) static void mv_cols4(int m, int j, const double *restrict A,
+                                                     int lda, const double *restrict x,
+                                                     double alpha, double *restrict y) {
+  MV_COL(0);
+  MV_COL(1);
+  MV_COL(2);
+  MV_COL(3);
+  const int me = m & ~1, m4 = m & ~3;
+  int i = 0;
+  for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2) MV_T(3));
+  for (; i < me; i++) y[i] = y[i] MV_S(0) MV_S(1) MV_S(2) MV_S(3);
+  if (m & 1) {
+    i = m - 1;
+    y[i] += x0 * a0[i] + x1 * a1[i] + x2 * a2[i] + x3 * a3[i];
+  }
+}
+__attribute__((target("avx2"))) static void matvec_add_avx2(int m, int n, const double *restrict A,
+                                                            int lda, const double *restrict x,
+                                                            double alpha, double *restrict y) {
+  const int m4 = m & ~3;
+  int j = 0;
+  for (; j + 8 <= n; j += 8) mv_cols8(m, j, A, lda, x, alpha, y);
+  for (; j + 4 <= n; j += 4) mv_cols4(m, j, A, lda, x, alpha, y);
+  // the last 1-3 columns, one at a time in the portable form (every row y_i + xj aj_i), here
+  // together in one pass over the rows (y stored once, not once per column)
+  if (j + 3 == n) {
+    MV_COL(0);
+    MV_COL(1);
+    MV_COL(2);
+    int i = 0;
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1) MV_T(2));
+    for (; i < m; i++) y[i] = y[i] MV_S(0) MV_S(1) MV_S(2);
+  } else if (j + 2 == n) {
+    MV_COL(0);
+    MV_COL(1);
+    int i = 0;
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0) MV_T(1));
+    for (; i < m; i++) y[i] = y[i] MV_S(0) MV_S(1);
+  } else if (j + 1 == n) {
+    MV_COL(0);
+    int i = 0;
+    for (; i < m4; i += 4) ST4(y + i, LD4(y + i) MV_T(0));
+    for (; i < m; i++) y[i] = y[i] MV_S(0);
+  }
+}
+#undef MV_COL
+#undef MV_T
+#undef MV_S
+#endif
+// y += alpha A x (leading dimension lda)
+static void matvec_add(int m, int n, const double *restrict A, int lda, const double *restrict x,
+                       double alpha, double *restrict y) {
+#ifdef MBS_VEC4
+  if (m >= 4 && __builtin_cpu_supports("avx2")) {
+    matvec_add_avx2(m, n, A, lda, x, alpha, y);
+    return;
+  }
+#endif
+  matvec_add_base(m, n, A, lda, x, alpha, y);
+}
 // the same, for the other files of the multibody core (fmbd_mbs_impl.h)
 void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
                     double *y) {
   matvec_add(m, n, A, lda, x, alpha, y);
+}
+void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const double *x, double alpha,
+                             double *y) {
+  matvec_add_base(m, n, A, lda, x, alpha, y);
 }
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {
@@ -191,6 +305,7 @@ int mbs_body_consts(mbody *b) {
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
         XX[a + 3 * bb] = X[a + 3 * bb] + X[bb + 3 * a];
+        b->XT[9 * k + a + 3 * bb] = X[bb + 3 * a];
         if (b->partial) XX[a + 3 * bb] += zero, Hk[a + 3 * bb] = X[bb + 3 * a] + zero;
       }
     }
@@ -221,6 +336,66 @@ int mbs_body_consts(mbody *b) {
     }
   }
   return FMBD_OK;
+}
+
+// mbs_body_inert2 (fmbd_mbs_impl.h): the 9 entries of J and the 3 of Mwfqd are independent
+// sums, here each a lane of SSE2 pairs (the scalar loops went through memory at every term: the
+// energy and momentum outputs took 8 % of a 100-mode full-coupling run); each lane does the
+// loops' operations in their order, so the same bits
+void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd) {
+  const int nm = b->nm;
+  double JT[9];  // JT[a + 3 bb] = J[3 a + bb], the order of SS's 3 x 3 blocks
+  for (int a = 0; a < 3; a++) {
+    for (int bb = 0; bb < 3; bb++) JT[a + 3 * bb] = J[3 * a + bb];
+  }
+#if defined(__GNUC__)
+  v2d j0 = ld2(JT), j1 = ld2(JT + 2), j2 = ld2(JT + 4), j3 = ld2(JT + 6), m0 = ld2(Mwfqd);
+#else
+  double j0[2] = {JT[0], JT[1]}, j1[2] = {JT[2], JT[3]}, j2[2] = {JT[4], JT[5]},
+         j3[2] = {JT[6], JT[7]}, m0[2] = {Mwfqd[0], Mwfqd[1]};
+#endif
+  double j8 = JT[8], m2 = Mwfqd[2];
+  for (int k = 0; k < nm; k++) {
+    for (int l = 0; l < nm && !b->partial; l++) {
+      const double *S = b->SS + 9 * k + 9 * (size_t)nm * l;
+      const double f = q[k] * q[l];
+      if (f != 0) {
+#if defined(__GNUC__)
+        const v2d F = {f, f};
+        j0 += F * ld2(S), j1 += F * ld2(S + 2), j2 += F * ld2(S + 4), j3 += F * ld2(S + 6);
+#else
+        for (int i = 0; i < 2; i++) {
+          j0[i] += f * S[i], j1[i] += f * S[2 + i], j2[i] += f * S[4 + i], j3[i] += f * S[6 + i];
+        }
+#endif
+        j8 += f * S[8];
+      }
+      const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
+      const double g = qd[k] * q[l];
+#if defined(__GNUC__)
+      m0 += (v2d){g, g} * ld2(sx);
+#else
+      m0[0] += g * sx[0], m0[1] += g * sx[1];
+#endif
+      m2 += g * sx[2];
+    }
+    const double *xs = b->XSx + 3 * k;
+#if defined(__GNUC__)
+    m0 += (v2d){qd[k], qd[k]} * ld2(xs);
+#else
+    m0[0] += qd[k] * xs[0], m0[1] += qd[k] * xs[1];
+#endif
+    m2 += qd[k] * xs[2];
+  }
+  memcpy(JT, &j0, 2 * sizeof(double));
+  memcpy(JT + 2, &j1, 2 * sizeof(double));
+  memcpy(JT + 4, &j2, 2 * sizeof(double));
+  memcpy(JT + 6, &j3, 2 * sizeof(double));
+  memcpy(Mwfqd, &m0, 2 * sizeof(double));
+  JT[8] = j8, Mwfqd[2] = m2;
+  for (int a = 0; a < 3; a++) {
+    for (int bb = 0; bb < 3; bb++) J[3 * a + bb] = JT[a + 3 * bb];
+  }
 }
 
 // mbs_body_eval: the body's residual r (n = 7 + nm) in x coordinates, r = T'(Mb acc + v - f) (+ Kq
@@ -278,6 +453,47 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   } else if (nm > 0) {
     double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
     matvec(9 * nm, nm, b->SS, q, 1.0, P);
+#if defined(__GNUC__)
+    // the loop below's 9 + 9 + 3 + 3 sums as lanes of SSE2 pairs, J transposed (lane a + 3 bb:
+    // the order of XS_k and P_k), with XX_k = XS_k + XS_k' and XT_k = XS_k' made at load: each
+    // lane does the loop's operations in its order (the same bits); the scalar loop kept Jl and
+    // H in memory, a third of this function's time with full coupling at 100 modes
+    double JT[9], cs[6] = {cl[0], cl[1], cl[2], 0, 0, 0};
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) JT[a + 3 * bb] = Jl[3 * a + bb];
+    }
+    v2d j0 = ld2(JT), j1 = ld2(JT + 2), j2 = ld2(JT + 4), j3 = ld2(JT + 6);
+    v2d h0 = {0, 0}, h1 = h0, h2 = h0, h3 = h0, c01 = ld2(cs), s01 = h0;
+    double j8 = JT[8], h8 = 0, c2 = cl[2], s2 = 0;
+    for (int k = 0; k < nm; k++) {
+      const double *XX = b->XX + 9 * k, *XT = b->XT + 9 * k, *Pk = P + 9 * k, *S1 = b->S1 + 3 * k;
+      double *Hk = b->Hk + 9 * k;
+      const v2d Q = {q[k], q[k]}, QD = {qd[k], qd[k]};
+      c01 += ld2(S1) * Q, c2 += S1[2] * q[k];
+      s01 += ld2(S1) * QD, s2 += S1[2] * qd[k];
+      v2d p0 = ld2(Pk), p1 = ld2(Pk + 2), p2 = ld2(Pk + 4), p3 = ld2(Pk + 6);
+      j0 += Q * (ld2(XX) + p0), j1 += Q * (ld2(XX + 2) + p1);
+      j2 += Q * (ld2(XX + 4) + p2), j3 += Q * (ld2(XX + 6) + p3);
+      j8 += q[k] * (XX[8] + Pk[8]);
+      v2d k0 = ld2(XT) + p0, k1 = ld2(XT + 2) + p1, k2 = ld2(XT + 4) + p2, k3 = ld2(XT + 6) + p3;
+      memcpy(Hk, &k0, sizeof k0), memcpy(Hk + 2, &k1, sizeof k1);
+      memcpy(Hk + 4, &k2, sizeof k2), memcpy(Hk + 6, &k3, sizeof k3);
+      Hk[8] = XT[8] + Pk[8];
+      double *Mw = b->Mwf + 3 * k;
+      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
+      h0 += QD * k0, h1 += QD * k1, h2 += QD * k2, h3 += QD * k3, h8 += qd[k] * Hk[8];
+    }
+    memcpy(JT, &j0, sizeof j0), memcpy(JT + 2, &j1, sizeof j1);
+    memcpy(JT + 4, &j2, sizeof j2), memcpy(JT + 6, &j3, sizeof j3), JT[8] = j8;
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) Jl[3 * a + bb] = JT[a + 3 * bb];
+    }
+    memcpy(H, &h0, sizeof h0), memcpy(H + 2, &h1, sizeof h1);
+    memcpy(H + 4, &h2, sizeof h2), memcpy(H + 6, &h3, sizeof h3), H[8] = h8;
+    memcpy(cs, &c01, sizeof c01), memcpy(cs + 3, &s01, sizeof s01);
+    cl[0] = cs[0], cl[1] = cs[1], cl[2] = c2;
+    s1qd[0] = cs[3], s1qd[1] = cs[4], s1qd[2] = s2;
+#else
     for (int k = 0; k < nm; k++) {
       const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
       double *Hk = b->Hk + 9 * k;
@@ -294,6 +510,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
       for (int i = 0; i < 9; i++) H[i] += qd[k] * Hk[i];
     }
+#endif
     // symmetrise J (round-off)
     for (int a = 0; a < 3; a++) {
       for (int bb = a + 1; bb < 3; bb++) {

@@ -157,6 +157,7 @@ typedef struct mbody {
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
   double *XX;    // 9 nm: XS_k + XS_k' (+ 0 if partial; mbs_body_consts): a partial body's J
+  double *XT;    // 9 nm: XS_k' (mbs_body_consts): H_k = XS_k' + P_k with full coupling
   double *pk;    // partial coupling: PK_SIZE x nm constant arrays (mbs_body_consts), else NULL
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
@@ -385,6 +386,14 @@ int mbs_body_consts(mbody *b);
 // overlap y
 void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
                     double *y);
+// the same by the portable form only (what processors without AVX2 run; the AVX2 form gives the
+// same bits: tests/unit/t513)
+void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const double *x, double alpha,
+                             double *y);
+// the second-order inertia sums of a modal body's energy and momentum (fmbd_mbs_query.c):
+// J += sum_kl q_k q_l SS_kl (transposed: J_ab += q_k q_l SS_ba,kl, pairs with q_k q_l = 0 left
+// out; none for a partial body), Mwfqd += sum_k q'_k (sum_l q_l SSx_lk + XSx_k), k outer, l inner
+void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd);
 // b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
 // (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
 #define PK_SIZE (9 + 12 + 6 + 12)

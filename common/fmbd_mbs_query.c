@@ -161,20 +161,7 @@ static void body_inert(const fmbd_mbs *m, int ib, binert *o) {
   }
   // second-order terms: sum_kl SS_ab,kl q_k q_l; Mwf q' = sum_k q'_k (XSx_k + sum_l q_l SSx_lk)
   // (partial inertia coupling: SS and SSx are zero, their terms left out)
-  for (int k = 0; k < nm; k++) {
-    for (int l = 0; l < nm && !b->partial; l++) {
-      const double *S = b->SS + 9 * k + 9 * (size_t)nm * l;
-      double f = q[k] * q[l];
-      if (f != 0) {
-        for (int a = 0; a < 3; a++) {
-          for (int bb = 0; bb < 3; bb++) J[3 * a + bb] += f * S[a + 3 * bb];
-        }
-      }
-      const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-      for (int a = 0; a < 3; a++) o->Mwfqd[a] += qd[k] * q[l] * sx[a];
-    }
-    for (int a = 0; a < 3; a++) o->Mwfqd[a] += qd[k] * b->XSx[a + 3 * k];
-  }
+  mbs_body_inert2(b, q, qd, J, o->Mwfqd);
   double tr = J[0] + J[4] + J[8];
   for (int i = 0; i < 9; i++) o->I[i] = -0.5 * (J[i] + J[(i % 3) * 3 + i / 3]);
   o->I[0] += tr, o->I[4] += tr, o->I[8] += tr;

@@ -156,6 +156,18 @@ grep -q "output rows" runaway.err || { echo "runaway: no output-size warning"; f
 [ -e runaway.run.h5 ] && { echo "runaway: complete target after a kill"; fail=1; }
 rm -f runaway.run.h5.part
 
+# --- a fixed step that does not divide outputs.every is named (each interval would end with a
+# shorter step: bench/README.md, "Fixed steps and the output interval"); a divisor is not
+for ev in 0.014:warn 0.015:quiet; do
+  printf 'solver: {t_end: 0.03, step: 1.5e-3}\nbodies:\n  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\njoints:\n  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}\noutputs:\n  every: %s\n' "${ev%%:*}" >every.yaml
+  fmbd-run every.yaml -o every.run.h5 2>every.err || { echo "every ${ev%%:*}: run failed"; cat every.err; fail=1; }
+  if [ "${ev##*:}" = warn ]; then
+    grep -q "warning: every.yaml: the fixed step 0.0015 s does not divide outputs.every 0.014 s: each output interval ends with a step of 0.0005 s" every.err || { echo "every 0.014: no warning"; cat every.err; fail=1; }
+  else
+    grep -q "does not divide" every.err && { echo "every 0.015: a warning for a divisor"; cat every.err; fail=1; }
+  fi
+done
+
 # --- a driver is never dropped as redundant (it was, with a warning, and the run exited 0 far
 # from the prescribed motion): at a singular position, and fighting a locked chain
 printf 'solver: {t_end: 0.5}\nbodies:\n  - {name: bob, mass: 1, inertia: [1e-3, 1e-3, 1e-3], position: [1, 0, 0]}\njoints:\n  - {name: pivot, type: revolute, body1: ground, body2: bob, point: [0, 0, 0], axis: z}\ndrivers:\n  - {name: pushx, body: bob, coordinate: x, function: {type: linear, v0: 1, rate: 1}}\n' >drvsing.yaml

@@ -94,7 +94,7 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
   // the bits of one fmbd_csr_matvec per column in the same storage: each sum is added in the
   // same order whatever the number of columns a pass carries
   {
-    const int64_t widths[] = {1, 4, 5, 6, 7, 8, 11, 14, 16, 27, 35};
+    const int64_t widths[] = {1, 4, 5, 6, 7, 8, 10, 11, 12, 13, 14, 16, 27, 35};
     double *X2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
     double *Y2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
     double *Z2 = fmbd_malloc((size_t)(n * 35) * sizeof(double));
@@ -138,6 +138,63 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
     fmbd_free(X2);
     fmbd_free(Y2);
     fmbd_free(Z2);
+  }
+  // fmbd_csr_matmat_rows4 (4 columns row-major in and out): the bits of matvec per column, in
+  // both storages; fmbd_chol_apply_op (the block Lanczos' operator L^-1 P M P' L^-T in one
+  // call, with the own solve's rows of 4 kept from sweep to sweep at 2-4 columns): the bits of
+  // its parts called one after the other (the same operations in the same order), for every
+  // width around the own path's 2-4, the own solve on and off, M full and lower-stored, and
+  // leading dimensions above n
+  {
+    const int64_t ld = n + 5, wmax = 6;
+    double *xt = fmbd_malloc((size_t)(n * 4) * sizeof(double));
+    double *yt = fmbd_malloc((size_t)(n * 4) * sizeof(double));
+    double *R = fmbd_malloc((size_t)(ld * wmax) * sizeof(double));
+    double *W = fmbd_malloc((size_t)(ld * wmax) * sizeof(double));
+    double *S = fmbd_malloc((size_t)(n * wmax) * sizeof(double));
+    for (int t = 0; t < 4; t++) {
+      const fmbd_csr *A = t < 2 ? full[t] : low[t - 2];
+      for (int64_t i = 0; i < n; i++)
+        for (int k = 0; k < 4; k++) xt[i * 4 + k] = X[i + k * n];
+      fmbd_csr_matmat_rows4(A, xt, yt);
+      bool same = true;
+      for (int k = 0; k < 4; k++) {
+        fmbd_csr_matvec(A, X + k * n, Z);
+        for (int64_t i = 0; i < n; i++) same = same && yt[i * 4 + k] == Z[i];
+      }
+      EXPECT(same, "matmat_rows4 (matrix %d) against matvec per column", t);
+    }
+    fmbd_chol *Fo = NULL;
+    EXPECT(fmbd_chol_create_llt(K, &Fo) == 0, "LL' for the operator");
+    for (int own = 0; Fo && own < 2; own++) {
+      fmbd_chol_set_own_solve(Fo, own);
+      for (int t = 0; t < 2; t++) {
+        const fmbd_csr *Mo = t ? Ml : M;
+        for (int64_t w = 1; w <= wmax; w++) {
+          for (int64_t i = 0; i < ld * wmax; i++) W[i] = R[i] = -1.0;
+          for (int64_t k = 0; k < w; k++) memcpy(S + k * n, X + k * n, (size_t)n * sizeof(double));
+          fmbd_chol_stats st0, st1;
+          fmbd_chol_get_stats(Fo, &st0);
+          double tm = 0.0;
+          int rc = fmbd_chol_apply_op(Fo, Mo, w, X, n, W, ld, S, &tm);
+          fmbd_chol_get_stats(Fo, &st1);
+          for (int64_t k = 0; k < w; k++) memcpy(S + k * n, X + k * n, (size_t)n * sizeof(double));
+          rc = rc ? rc : fmbd_chol_solve_half(Fo, FMBD_CHOL_BWD, w, S, n);
+          fmbd_csr_matmat(Mo, w, S, n, R, ld);
+          rc = rc ? rc : fmbd_chol_solve_half(Fo, FMBD_CHOL_FWD, w, R, ld);
+          EXPECT(rc == 0 && memcmp(W, R, (size_t)(ld * wmax) * sizeof(double)) == 0 &&
+                     st1.n_solves == st0.n_solves + w && tm >= 0.0,
+                 "apply_op of %lld columns (own %d, M %s) against its parts", (long long)w, own,
+                 t ? "lower" : "full");
+        }
+      }
+    }
+    fmbd_chol_destroy(&Fo);
+    fmbd_free(xt);
+    fmbd_free(yt);
+    fmbd_free(R);
+    fmbd_free(W);
+    fmbd_free(S);
   }
   // LL' solve: the factor reads the lower triangle in both storages: the same solution
   fmbd_chol *F1 = NULL, *F2 = NULL;
