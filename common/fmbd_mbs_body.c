@@ -18,7 +18,8 @@
 // products: the loop is bound by y's traffic otherwise) on pairs of rows (GCC/clang vector
 // extension: packed SSE2 on x86-64, which -O2 does not vectorise by itself here). Together 2.1x
 // (30 modes) to 3x (100 modes) faster than one column at a time on the quadruple pendulum's
-// rod (bench/README.md). BLAS dgemv was slower (OpenBLAS threads and packs these small products)
+// rod (bench/README.md). BLAS dgemv was slower (OpenBLAS threads and packs these small products).
+// This portable form is what a processor without AVX2 runs; matvec_add below chooses.
 #if defined(__GNUC__)
 typedef double v2d __attribute__((vector_size(16)));
 static inline v2d ld2(const double *p) {

@@ -382,8 +382,8 @@ void mbs_body_ff(fmbd_mbs *m, int ib);
 // a modal body's constant inertia terms at load (b->XX; H_k, Mwf with partial coupling)
 int mbs_body_consts(mbody *b);
 // y += alpha A x, A m x n column-major (leading dimension lda), for the small dense products of
-// the multibody core (fmbd_mbs_body.c: vectorised, four columns at a time); A and x must not
-// overlap y
+// the multibody core (fmbd_mbs_body.c: vectorised; AVX2 where the processor has it, the same bits);
+// A and x must not overlap y
 void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, double alpha,
                     double *y);
 // the same by the portable form only (what processors without AVX2 run; the AVX2 form gives the
