@@ -19,6 +19,7 @@
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
+#include "fmbd_vec.h"
 
 // orderings of matrices of this order and more: METIS alone (fmbd_chol_analyze_perm)
 enum { METIS_ONLY_N = 50000 };
@@ -1134,40 +1135,36 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 #ifdef __clang__
 #pragma clang fp contract(off)
 #endif
-typedef double sv4d
-    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
-#define SLD(p) (*(const sv4d *)(p))
-#define SST(p, v) (*(sv4d *)(p) = (v))
 
 #define SFN static inline __attribute__((always_inline, target("avx2,fma")))
 // t - a y, one rounding (FMA)
-SFN sv4d sn_fnma(double a, sv4d y, sv4d t) {
-  return (sv4d)_mm256_fnmadd_pd(_mm256_set1_pd(a), (__m256d)y, (__m256d)t);
+SFN v4d sn_fnma(double a, v4d y, v4d t) {
+  return (v4d)_mm256_fnmadd_pd(_mm256_set1_pd(a), (__m256d)y, (__m256d)t);
 }
 // s + a z, one rounding
-SFN sv4d sn_fma(double a, sv4d z, sv4d s) {
-  return (sv4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
+SFN v4d sn_fma(double a, v4d z, v4d s) {
+  return (v4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
 }
 
 // T[i] -= L[i] Y[0] + L[i + ld] Y[1] + L[i + 2 ld] Y[2] + L[i + 3 ld] Y[3] for i < nr (in that
 // order); rows of nv 4-wide vectors (row stride 4 nv)
 SFN void sn_upd4(int64_t nr, const double *L, int64_t ld, const double *Y, double *T, int nv) {
   const int w = 4 * nv;
-  sv4d y0[2], y1[2], y2[2], y3[2];
+  v4d y0[2], y1[2], y2[2], y3[2];
   for (int v = 0; v < nv; v++) {
-    y0[v] = SLD(Y + 4 * v);
-    y1[v] = SLD(Y + w + 4 * v);
-    y2[v] = SLD(Y + 2 * w + 4 * v);
-    y3[v] = SLD(Y + 3 * w + 4 * v);
+    y0[v] = LD4(Y + 4 * v);
+    y1[v] = LD4(Y + w + 4 * v);
+    y2[v] = LD4(Y + 2 * w + 4 * v);
+    y3[v] = LD4(Y + 3 * w + 4 * v);
   }
   const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
   for (int64_t i = 0; i < nr; i++) {
     double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d x = sn_fnma(L0[i], y0[v], SLD(t + 4 * v));
+      v4d x = sn_fnma(L0[i], y0[v], LD4(t + 4 * v));
       x = sn_fnma(L1[i], y1[v], x);
       x = sn_fnma(L2[i], y2[v], x);
-      SST(t + 4 * v, sn_fnma(L3[i], y3[v], x));
+      ST4(t + 4 * v, sn_fnma(L3[i], y3[v], x));
     }
   }
 }
@@ -1179,9 +1176,9 @@ SFN void sn_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y,
   for (int64_t i = 0; i < nr; i++) {
     double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d x = SLD(t + 4 * v);
-      for (int q = 0; q < g; q++) x = sn_fnma(L[i + q * ld], SLD(Y + q * w + 4 * v), x);
-      SST(t + 4 * v, x);
+      v4d x = LD4(t + 4 * v);
+      for (int q = 0; q < g; q++) x = sn_fnma(L[i + q * ld], LD4(Y + q * w + 4 * v), x);
+      ST4(t + 4 * v, x);
     }
   }
 }
@@ -1190,14 +1187,14 @@ SFN void sn_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y,
 // (two sets of 4 nv vectors: an FMA's latency is several cycles), added at the end
 SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, double *Y, int nv) {
   const int w = 4 * nv;
-  sv4d s0[2] = {{0}}, s1[2] = {{0}}, s2[2] = {{0}}, s3[2] = {{0}};
-  sv4d u0[2] = {{0}}, u1[2] = {{0}}, u2[2] = {{0}}, u3[2] = {{0}};
+  v4d s0[2] = {{0}}, s1[2] = {{0}}, s2[2] = {{0}}, s3[2] = {{0}};
+  v4d u0[2] = {{0}}, u1[2] = {{0}}, u2[2] = {{0}}, u3[2] = {{0}};
   const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
   int64_t i = 0;
   for (; i + 1 < nr; i += 2) {
     const double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d z = SLD(t + 4 * v), y = SLD(t + w + 4 * v);
+      v4d z = LD4(t + 4 * v), y = LD4(t + w + 4 * v);
       s0[v] = sn_fma(L0[i], z, s0[v]);
       s1[v] = sn_fma(L1[i], z, s1[v]);
       s2[v] = sn_fma(L2[i], z, s2[v]);
@@ -1211,7 +1208,7 @@ SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, doubl
   if (i < nr) {
     const double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d z = SLD(t + 4 * v);
+      v4d z = LD4(t + 4 * v);
       s0[v] = sn_fma(L0[i], z, s0[v]);
       s1[v] = sn_fma(L1[i], z, s1[v]);
       s2[v] = sn_fma(L2[i], z, s2[v]);
@@ -1219,10 +1216,10 @@ SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, doubl
     }
   }
   for (int v = 0; v < nv; v++) {
-    SST(Y + 4 * v, SLD(Y + 4 * v) - (s0[v] + u0[v]));
-    SST(Y + w + 4 * v, SLD(Y + w + 4 * v) - (s1[v] + u1[v]));
-    SST(Y + 2 * w + 4 * v, SLD(Y + 2 * w + 4 * v) - (s2[v] + u2[v]));
-    SST(Y + 3 * w + 4 * v, SLD(Y + 3 * w + 4 * v) - (s3[v] + u3[v]));
+    ST4(Y + 4 * v, LD4(Y + 4 * v) - (s0[v] + u0[v]));
+    ST4(Y + w + 4 * v, LD4(Y + w + 4 * v) - (s1[v] + u1[v]));
+    ST4(Y + 2 * w + 4 * v, LD4(Y + 2 * w + 4 * v) - (s2[v] + u2[v]));
+    ST4(Y + 3 * w + 4 * v, LD4(Y + 3 * w + 4 * v) - (s3[v] + u3[v]));
   }
 }
 
@@ -1232,9 +1229,9 @@ SFN void sn_dot(int64_t nr, const double *L, int64_t ld, int g, const double *T,
   const int w = 4 * nv;
   for (int q = 0; q < g; q++) {
     for (int v = 0; v < nv; v++) {
-      sv4d s = {0};
-      for (int64_t i = 0; i < nr; i++) s = sn_fma(L[i + q * ld], SLD(T + i * w + 4 * v), s);
-      SST(Y + q * w + 4 * v, SLD(Y + q * w + 4 * v) - s);
+      v4d s = {0};
+      for (int64_t i = 0; i < nr; i++) s = sn_fma(L[i + q * ld], LD4(T + i * w + 4 * v), s);
+      ST4(Y + q * w + 4 * v, LD4(Y + q * w + 4 * v) - s);
     }
   }
 }
@@ -1257,11 +1254,11 @@ SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double 
       for (int q = 0; q < g; q++) {  // the g x g triangle
         double *zq = G + (j + q) * w;
         const double *lc = Ld + (j + q) * nsrow;
-        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+        for (int v = 0; v < nv; v++) ST4(zq + 4 * v, LD4(zq + 4 * v) / lc[j + q]);
         for (int r = q + 1; r < g; r++) {
           double *zr = G + (j + r) * w;
           for (int v = 0; v < nv; v++)
-            SST(zr + 4 * v, SLD(zr + 4 * v) - lc[j + r] * SLD(zq + 4 * v));
+            ST4(zr + 4 * v, LD4(zr + 4 * v) - lc[j + r] * LD4(zq + 4 * v));
         }
       }
       int64_t i0 = j + g;
@@ -1273,7 +1270,7 @@ SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double 
     memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
     for (int64_t i = nscol; i < nsrow; i++) {
       double *z = Z + rows[i] * w;
-      for (int v = 0; v < nv; v++) SST(z + 4 * v, SLD(z + 4 * v) + SLD(G + i * w + 4 * v));
+      for (int v = 0; v < nv; v++) ST4(z + 4 * v, LD4(z + 4 * v) + LD4(G + i * w + 4 * v));
     }
   }
   for (int64_t s = ns - 1; bwd && s >= 0; s--) {
@@ -1296,9 +1293,9 @@ SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double 
         for (int r = q + 1; r < g; r++) {
           const double *zr = G + (j + r) * w;
           for (int v = 0; v < nv; v++)
-            SST(zq + 4 * v, SLD(zq + 4 * v) - lc[j + r] * SLD(zr + 4 * v));
+            ST4(zq + 4 * v, LD4(zq + 4 * v) - lc[j + r] * LD4(zr + 4 * v));
         }
-        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+        for (int v = 0; v < nv; v++) ST4(zq + 4 * v, LD4(zq + 4 * v) / lc[j + q]);
       }
     }
     memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
