@@ -215,6 +215,17 @@ int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double 
 /// body does not hold the node's stress.
 int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma);
 
+/// @brief Form r's modal stress (/modes/stress) from its shapes and the body description b
+/// (the one r was built from: same nodes and dofs; not a subset body) with fmbd_fe_nodal_stress:
+/// at every node (nodes NULL), or only at the nodes `nodes` (nsel of them, repeats allowed;
+/// fmbd_fe_nodal_stress_at, bitwise the whole field's rows): then r->stress_row maps a node to
+/// its row (-1 elsewhere: fmbd_rflex_node_stress refuses it) and r->nstress counts the rows, in
+/// node order. Any stress r held is replaced; without solid elements (or modes) r->stress is
+/// NULL.
+/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range, a body that is not b's), FMBD_ERR_NOMEM
+int fmbd_rflex_form_stress(fmbd_rflex *r, const fmbd_fe_body *b, int64_t nsel,
+                           const int64_t *nodes);
+
 /// @brief Make r a subset body (docs/FORMAT.md /subset): keep the modal motion of the nodes
 /// `motion` (and of every interface node) and the modal stress of the nodes `stress` (which
 /// also keep their motion); the /dofs, shapes and /expand columns that no kept node reads are
