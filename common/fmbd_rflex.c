@@ -371,7 +371,7 @@ int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C) {
 // description, the nodal and interface motion through /expand, the FFRF invariants
 // (docs/THEORY.md section 9) and the optional modal stress.
 static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
-                        const double *eig, bool stress) {
+                        const double *eig, bool stress, bool no_ss) {
   int rc = FMBD_OK;
   double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL;
   fmbd_csr *Mn = NULL;
@@ -501,8 +501,11 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         }
       }
     }
+    // SS: 9 products of nm x nn by nn x nm, the largest part of the build with many modes; a
+    // body for partial inertia coupling takes it as zero (fmbd_mbs_add_flex), so none is made
+    r->ss_omitted = no_ss;
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
-    for (int a = 0; a < 3; a++) {
+    for (int a = 0; a < 3 && !no_ss; a++) {
       for (int bb = 0; bb < 3; bb++) {
         fmbd_dense_gemm('T', 'N', nm, nm, nn, 1.0, Wa + nn * a * nm, nn, Ub + nn * bb * nm, nn, 0.0,
                         Sab, nm);
@@ -642,7 +645,7 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
     Mff[k + nm * k] = 1.0;
     Kff[k + nm * k] = in->chibar[k];
   }
-  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, in->chibar, in->stress));
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, in->chibar, in->stress, in->no_ss));
   *out = r;
   r = NULL;
 done:
@@ -724,7 +727,7 @@ int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out) {
                (long long)nm);
   }
   FMBD_GCALL(rc);
-  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, eig, in->stress));
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, eig, in->stress, false));
   *out = r;
   r = NULL;
 done:
@@ -769,6 +772,8 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
   int64_t nm = r->nm, nn = r->nnodes;
   char path[512];
   int64_t d1[1] = {nm};
+  FMBD_GCHECK(!r->ss_omitted, FMBD_ERR_VALUE,
+              "a body built for partial inertia coupling (SS not formed) is not written");
   FMBD_GCHECK(!r->stress_row || r->held, FMBD_ERR_VALUE,
               "a body whose modal stress was formed at %lld selected nodes only "
               "(fmbd_rflex_form_stress) is not written: form it at every node",

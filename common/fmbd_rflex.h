@@ -73,6 +73,8 @@ typedef struct fmbd_rflex {
   int64_t *stress_row;  ///< nnodes: the node's row in stress, or -1 (NULL: row = node)
   int64_t nstress;      ///< rows of stress (nnodes for a whole body)
   int64_t whole_ndof;   ///< the whole body's active dofs (/subset whole_ndof)
+  bool ss_omitted;      ///< SS not formed (zero): built for partial inertia coupling only
+                        ///< (fmbd_rflex_input no_ss); fmbd_rflex_write refuses it
 } fmbd_rflex;
 
 enum { FMBD_RFLEX_HELD_MOTION = 1, FMBD_RFLEX_HELD_STRESS = 2 };
@@ -125,6 +127,8 @@ typedef struct fmbd_rflex_input {
   const double *Xi;      ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
   int64_t ldxi;          ///< leading dimension of Xi (>= nd+nb)
   bool stress;           ///< compute /modes/stress (fmbd_fe_nodal_stress)
+  bool no_ss;  ///< for a body with partial inertia coupling only (docs/THEORY.md section 4c,
+               ///< which takes SS as zero): SS not formed, left zero, and r->ss_omitted set
 } fmbd_rflex_input;
 
 /// @brief The secondary reduction [H46-H50]: shapes qF = T0 PhiT (T0 = [Phi_d Psi; 0 I] in

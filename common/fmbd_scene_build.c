@@ -72,7 +72,9 @@ static int truncate_modes(fmbd_rflex *r, int64_t n) {
 // into a body by the one producer, fmbd_rflex_build, exactly as cbcheck does for a selection.
 // With desc_out, the body's description is handed to the caller (to form the stress later at
 // the nodes it needs, fmbd_rflex_form_stress).
-static int rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out, fmbd_fe_body **desc_out) {
+// With no_ss, the body is for partial inertia coupling only (fmbd_rflex_input no_ss).
+static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, fmbd_rflex **out,
+                         fmbd_fe_body **desc_out) {
   int rc = FMBD_OK;
   fmbd_cb *cb = NULL;
   fmbd_fe_body *desc = NULL;
@@ -89,8 +91,9 @@ static int rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out, fmbd_fe_body
     memcpy(Xi + nr * j, cb->Xi + nr * k, sizeof(double) * (size_t)nr);
     j++;
   }
-  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
-                         cb->ns, cb->Psi, nm,     chibar,       Xi,           nr,     stress};
+  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary,
+                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
+                         chibar, Xi,      nr,     stress,       no_ss};
   FMBD_GCALL(fmbd_rflex_build(&mi, out));
   if (desc_out) {
     *desc_out = desc;
@@ -105,7 +108,7 @@ done:
 }
 
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
-  return rflex_from_cb(f, stress, out, NULL);
+  return rflex_from_cb(f, stress, false, out, NULL);
 }
 
 // --- points --------------------------------------------------------------------------------
@@ -642,7 +645,9 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   } else if (format && !strcmp(format, FMBD_CB_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR);
     if (!rc) {
-      rc = rflex_from_cb(f, false, &m->flex[bi], need_stress && !b->basis ? &desc : NULL);
+      // partial inertia coupling takes SS as zero (fmbd_mbs_add_flex): not formed
+      rc = rflex_from_cb(f, false, b->inertia_partial && !b->basis, &m->flex[bi],
+                         need_stress && !b->basis ? &desc : NULL);
     }
   } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR);
