@@ -452,15 +452,16 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   // than is used): the matrix is read once per 8 columns (and once for a remainder of 2-7,
   // e.g. the block eigensolver's blocks of 4) and each entry updates contiguous sums (one
   // column at a time read A nrhs times: the block eigensolver's M products, fmbd_eig.c, spent
-  // a third of their time there). A lower-stored A alone (fewer than 8 columns) goes one
-  // column at a time: its blocked form needs a second n x w copy (fe2cb at 188 k dofs, blocks
-  // of 4: +11 MB on the peak; the block Lanczos' operator has its own row-major pass,
-  // fmbd_chol_apply_op); after a block of 8 its remainder takes the copies already there, 2-4
-  // columns by rows of 4 (fmbd_csr_matmat_rows4), 5-7 padded to 8 (fe2cb's 12 boundary
-  // columns, the residual check's 7 after 16 at 20 modes: one pass instead of 4 or 7).
+  // a third of their time there). A lower-stored A needs a second n x w copy for its blocked
+  // form: with 2-4 columns alone it goes one column at a time (fe2cb at 188 k dofs, blocks of
+  // 4: +11 MB on the peak; the block Lanczos' operator has its own row-major pass,
+  // fmbd_chol_apply_op); from 5 columns on, 5-7 padded to 8 (no more memory than a block of
+  // 8: the residual check's last 7 of 23 pairs, one pass instead of 7), and a remainder of 2-4
+  // after a block of 8 by rows of 4 (fmbd_csr_matmat_rows4: fe2cb's 12 boundary columns, one
+  // pass instead of 4).
   int64_t nc = A->ncols, wm = nrhs < NB ? nrhs : NB;
-  if (!A->lower && wm >= 5) wm = NB;  // room for a remainder of 5-7 padded to 8
-  bool blocked = A->lower ? nrhs >= NB : nrhs >= 2;
+  if (wm >= 5) wm = NB;  // room for a remainder of 5-7 padded to 8
+  bool blocked = A->lower ? nrhs >= 5 : nrhs >= 2;
   double *xt = blocked ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;
   double *yt =
       xt && A->lower ? fmbd_malloc((size_t)(nc ? nc : 1) * (size_t)wm * sizeof(double)) : NULL;

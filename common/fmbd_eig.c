@@ -76,18 +76,15 @@ double fmbd_eig_residual(const fmbd_csr *K, const fmbd_csr *M, double lambda, co
 // and the block's M X also gives x' M x: one product with M per vector for both (the
 // normalisation had its own pass over M per 8 vectors: 0.3 s of 300 modes at 51 k dofs,
 // bench/README.md). The scaled X is the same bits as when the normalisation came first.
-// A last block of 9-15 columns goes in one call (fe2cb's lower-stored K and M take a block of
-// fewer than 8 one column at a time, a remainder after 8 in one pass: 23 pairs as 8 + 15, two
-// passes over each matrix for the last 15 instead of 1 + 7).
 static int check_normalise(const fmbd_csr *K, const fmbd_csr *M, int64_t nv, const double *lam,
                            double *X, double sigma, double *rs) {
-  enum { NB = 8, NW = 2 * NB - 1 };
+  enum { NB = 8 };
   int64_t n = K->nrows;
-  double *kx = fmbd_malloc((size_t)n * 2 * NW * sizeof(double));
+  double *kx = fmbd_malloc((size_t)n * 2 * NB * sizeof(double));
   FMBD_CHECK(kx, FMBD_ERR_NOMEM, "out of memory");
-  double *mx = kx + n * NW;
-  for (int64_t j0 = 0, nb = 0; j0 < nv; j0 += nb) {
-    nb = nv - j0 <= NW ? nv - j0 : NB;
+  double *mx = kx + n * NB;
+  for (int64_t j0 = 0; j0 < nv; j0 += NB) {
+    int64_t nb = nv - j0 < NB ? nv - j0 : NB;
     fmbd_csr_matmat(K, nb, X + j0 * n, n, kx, n);
     fmbd_csr_matmat(M, nb, X + j0 * n, n, mx, n);
     for (int64_t j = 0; j < nb; j++) {

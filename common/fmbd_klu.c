@@ -46,9 +46,10 @@ struct fmbd_klu {
   SuiteSparse_long *oLp, *oLi, *oUp, *oUi, *oP, *oQ;
   double *oLx, *oUx, *oUi_d, *oy;  // oUi_d: 1 / U's diagonal; oy: work
   int64_t ocap_l, ocap_u;          // capacities of the L and U arrays
-  // the pattern without the entries found exactly zero (red_pattern): KLU's analysis and
-  // factor are of it while red > 0 (Ap, Ai then point to rAp, rAi, and fAp, fAi hold the
-  // caller's); red 0: not yet decided, -1: the caller's pattern for good
+  // the pattern without the entries found exactly zero (red_prepare): KLU's analysis and
+  // factor are of it while red > 0 (kAp, kAi then point to rAp, rAi; Ap, Ai stay the
+  // caller's); red 0: not yet decided, -1: the caller's pattern for good; nred: analyses
+  // since the first
   int red, nred;
   SuiteSparse_long *kAp, *kAi;  // the pattern KLU is given: Ap, Ai or rAp, rAi
   SuiteSparse_long *rAp, *rAi;

@@ -29,8 +29,12 @@ static void dA_dp(const double *AG, double pn, const double *Av, double *out) {
 }
 
 // g = A (e + th x e): a direction vector e of the point's frame, turned by the point's small
-// elastic rotation th, in global axes
+// elastic rotation th, in global axes; th NULL: a rigid point's (g = A e, the same values)
 static inline void side_dir(const double *A, const double *th, const double *e, double *g) {
+  if (!th) {
+    mv3(A, e, g);
+    return;
+  }
   double wv[3], tc[3];
   cross3(th, e, tc);
   for (int a = 0; a < 3; a++) wv[a] = e[a] + tc[a];
@@ -56,14 +60,17 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
   const int64_t *sup = P->sup;
   s->n = n;
   const double *x = xg + b->off, *p = x + 3, *q = xg + b->qoff;
-  double *A = s->A, G[12], pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+  double *A = s->A, pn = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
   quat_to_A(p, A);
-  quat_G(p, G);
-  double *AG = s->AG;  // A G (3 x 4 row-major)
-  for (int i = 0; i < 3; i++) {
-    for (int c = 0; c < 4; c++)
-      AG[4 * i + c] = A[3 * i] * G[c] + A[3 * i + 1] * G[4 + c] + A[3 * i + 2] * G[8 + c];
-  }
+  // A G (3 x 4 row-major) = E(p) = [-e, e~ + e0 1], exactly for any p: A = R(p) / |p|^2 with R
+  // quadratic and G linear in p, and R(q) G(q) = E(q) for a unit q (the global-frame form of
+  // G, Nikravesh's E; at p = (1, 0, 0, 0): [0 1]): R(p) G(p) = |p|^3 E(p / |p|) = |p|^2 E(p).
+  // No products, and no round-off (the product A G had 36 multiplications per side)
+  double *AG = s->AG;
+  const double e0 = p[0], e1 = p[1], e2 = p[2], e3 = p[3];
+  AG[0] = -e1, AG[1] = e0, AG[2] = -e3, AG[3] = e2;
+  AG[4] = -e2, AG[5] = e3, AG[6] = e0, AG[7] = -e1;
+  AG[8] = -e3, AG[9] = -e2, AG[10] = e1, AG[11] = e0;
   s->f = -2.0 / pn;
   double u[3];
   memcpy(u, P->x0, sizeof u);
@@ -77,7 +84,7 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
   for (int a = 0; a < 3; a++) s->r[a] = x[a] + Au[a];
   if (!deriv) {
     for (int i = 0; i < nv; i++) {
-      if (want >> i & 1) side_dir(A, th, e[i], s->g[i]);
+      if (want >> i & 1) side_dir(A, nm ? th : NULL, e[i], s->g[i]);
     }
     return;
   }
@@ -91,7 +98,7 @@ static void side_eval(const fmbd_mbs *m, int pt, const double (*e)[3], int nv, u
   for (int k = 0; k < nm; k++) mv3(A, P->T + 3 * k, s->dr + 3 * (7 + k));
   for (int i = 0; i < nv; i++) {
     if (!(want >> i & 1)) continue;
-    side_dir(A, th, e[i], s->g[i]);
+    side_dir(A, nm ? th : NULL, e[i], s->g[i]);
     double *dg = s->dg[i];
     memset(dg, 0, sizeof(double) * 3 * (size_t)n);
     dA_dp(AG, pn, s->g[i], D);
