@@ -931,7 +931,7 @@ done:
 }
 
 // the stress of a full FE body at a node: its nodal displacements as the one "mode" of
-// fmbd_fe_nodal_stress (element stresses averaged at the nodes)
+// fmbd_fe_nodal_stress_at (element stresses averaged at the node, from its elements only)
 static int fe_output_stress(const fmbd_scene_model *m, int bi, int64_t node, double sigma[6]) {
   int rc = FMBD_OK;
   const fmbd_fe_body *fe = m->fe[bi];
@@ -939,13 +939,13 @@ static int fe_output_stress(const fmbd_scene_model *m, int bi, int64_t node, dou
   const double *q = NULL;
   fmbd_mbs_modal(m->mbs, m->body_id[bi], &q, NULL, NULL);
   FMBD_GALLOC(u = fmbd_calloc((size_t)fe->ndof, sizeof(double)));
-  FMBD_GALLOC(st = fmbd_calloc((size_t)(6 * fe->nnodes), sizeof(double)));
+  FMBD_GALLOC(st = fmbd_calloc(6, sizeof(double)));
   for (int64_t i = 0; i < fe->ndof; i++) {
     int64_t k = m->fe_col[bi][i];
     u[i] = k >= 0 ? q[k] : 0.0;
   }
-  FMBD_GCALL(fmbd_fe_nodal_stress(fe, 1, u, st));
-  memcpy(sigma, st + 6 * node, 6 * sizeof(double));
+  FMBD_GCALL(fmbd_fe_nodal_stress_at(fe, 1, u, 1, &node, st));
+  memcpy(sigma, st, 6 * sizeof(double));
 done:
   fmbd_free(u), fmbd_free(st);
   return rc;
