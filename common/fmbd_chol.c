@@ -11,6 +11,7 @@
 #endif
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -18,10 +19,12 @@
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
 #include "fmbd_log.h"
+#include "fmbd_vec.h"
 
 // orderings of matrices of this order and more: METIS alone (fmbd_chol_analyze_perm)
 enum { METIS_ONLY_N = 50000 };
-// the supernodal LDL' panel's leaf width and product chunk (ldl_panel)
+// the supernodal LDL' and LL' panel's leaf width and product chunk (panel), and the width of
+// the descendants' update blocks (super_factor)
 enum { LDL_LEAF = 16, LDL_KC = 256, LDL_CB = 64 };
 
 struct fmbd_chol {
@@ -41,12 +44,14 @@ struct fmbd_chol {
   cholmod_dense *X, *Y, *E;  // solve workspaces reused by cholmod_l_solve2
   int64_t solve_width;       // columns per cholmod_l_solve2 call (0: 64)
   bool own_solve;            // narrow blocks through own_solve where available (default)
+  bool own_llt;              // LLT: our numeric LL' (super_factor; default) or CHOLMOD's
   double *ow;                // own_solve's workspace: Z (n x 8) and G (largest supernode x 8)
   double sigma;
   double pivot_rtol;
-  // supernodal LDL' (our numeric factorisation on CHOLMOD's supernodal symbolic analysis)
-  double *Lx;    // L->xsize values: D on the diagonal, unit-L below
-  bool lx_zero;  // Lx as calloc gave it (not yet touched: zero pages, not resident)
+  // supernodal LDL' and LL' (our numeric factorisations on CHOLMOD's supernodal symbolic
+  // analysis); the flags describe the value block in use (Lx, or L->x of our LL')
+  double *Lx;    // LDLT: L->xsize values: D on the diagonal, unit-L below
+  bool lx_zero;  // the block as calloc gave it (not yet touched: zero pages, not resident)
   bool lx_kept;  // Lx is an LL' factor's block (fmbd_chol_analyze_like): resident, save the
                  // pages of zeros that release_zero_pages gave back
   int64_t *iperm, *col2super, *map, *head, *next, *lpos, *runs;
@@ -158,9 +163,9 @@ static int build_pattern(fmbd_chol *F) {
     }
   }
   // the supernodal kinds assemble their numeric matrix from A and B themselves (LLT:
-  // assemble_llt, LDLT: super_ldl_factor): the pattern alone serves their analysis; only the
-  // simplicial LDL' hands S's values to cholmod_l_factorize (and without B the upper entries
-  // of A are S's entries in order: no map either)
+  // assemble_llt or super_factor, LDLT: super_factor): the pattern alone serves their analysis;
+  // only the simplicial LDL' hands S's values to cholmod_l_factorize (and without B the upper
+  // entries of A are S's entries in order: no map either)
   bool pos = F->kind == FMBD_CHOL_LDLT_SIMPLICIAL;
   F->S = cholmod_l_allocate_sparse((size_t)n, (size_t)n, (size_t)(nnz ? nnz : 1), 1, 1, 1,
                                    pos ? CHOLMOD_REAL : CHOLMOD_PATTERN, &F->c);
@@ -331,12 +336,12 @@ static double release_zero_pages(const cholmod_factor *L, double *x) {
   return freed;
 }
 
-// --- supernodal LDL' without pivoting ---------------------------------------------------------
+// --- supernodal LDL' without pivoting, and LL' ------------------------------------------------
 // Left-looking over CHOLMOD's supernodes (Ng and Peyton 1993; the structure of CHOLMOD's
 // t_cholmod_super_numeric.c, written here for D): for each supernode s, assemble its columns of
 // P (A - sigma B) P', subtract the updates L_d D_d L_d(rows of s)' of every descendant d (dense
 // products by column blocks, each scattered into s while it is in cache), then factor the
-// panel of s (diagonal block and rows below) as [L11; L21] D L11' (ldl_panel: recursive,
+// panel of s (diagonal block and rows below) as [L11; L21] D L11' (panel: recursive,
 // unpivoted). Without pivoting the D of a symmetric indefinite matrix is the same as the
 // simplicial LDL' one; its signs give the inertia of the matrix factored (Sylvester). BLAS-3
 // throughout, so the Sturm count costs about one Cholesky factorisation instead of 10-20.
@@ -344,17 +349,33 @@ static double release_zero_pages(const cholmod_factor *L, double *x) {
 // entry (element growth, which an unpivoted LDL' of an indefinite matrix does not bound) is
 // logged with the count; the eigensolver places the shift in a clear gap of its converged
 // pairs, so a count that disagrees makes it solve again, never pass silently.
-static int super_ldl_setup(fmbd_chol *F) {
+//
+// The same code (ll true) is the LL' of the LLT kind, into the value block of CHOLMOD's own
+// symbolic supernodal factor (L->x: the layout px / pi / s / super that cholmod_l_super_numeric
+// fills, is_ll), so that CHOLMOD's solves and own_solve read it unchanged: the descendants'
+// updates are L_d L_d(rows of s)' (no D, no scaled copy), the leaves take square roots. No
+// pivoting is needed: for a symmetric positive definite matrix every pivot of the unpivoted
+// elimination is a ratio of leading principal minors, hence positive, and the entries of L are
+// bounded by the diagonal (l_ij^2 <= a_ii), so Cholesky is backward stable without any choice of
+// pivots (Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed., section 10.1: the
+// computed L L' = A + dA, |dA| <= gamma_{c+1} |L| |L'|, c the column count). A pivot that comes
+// out <= 0 or NaN (the test of LAPACK's dpotrf, which CHOLMOD's LL' applies per supernode) means
+// the matrix is not numerically positive definite: the factorisation stops at that column and
+// reports it as CHOLMOD does (L->minor and CHOLMOD_NOT_POSDEF; check_pivots then gives the same
+// message and failed_row, on which fe2cb's rigid-mode message and fmbd_eig's shifts rely).
+static int super_setup(fmbd_chol *F, bool ll) {
   int rc = FMBD_OK;
   cholmod_factor *L = F->L;
   FMBD_GCHECK(L->is_super, FMBD_ERR_INTERNAL, "CHOLMOD analysis is not supernodal");
   int64_t n = F->n, ns = (int64_t)L->nsuper;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *perm = L->Perm;
-  // zeroed by calloc: the pages that the factorisation never writes (most of the diagonal
-  // blocks' upper triangles) are never made resident
-  FMBD_GALLOC(F->Lx = fmbd_calloc(L->xsize ? L->xsize : 1, sizeof(double)));
-  F->lx_zero = true;
-  FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
+  if (!ll) {
+    // zeroed by calloc: the pages that the factorisation never writes (most of the diagonal
+    // blocks' upper triangles) are never made resident
+    FMBD_GALLOC(F->Lx = fmbd_calloc(L->xsize ? L->xsize : 1, sizeof(double)));
+    F->lx_zero = true;
+  }
+  if (!F->iperm) FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->col2super = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->map = fmbd_malloc((size_t)(n ? n : 1) * sizeof(int64_t)));
   FMBD_GALLOC(F->head = fmbd_malloc((size_t)(ns + 1) * sizeof(int64_t)));
@@ -367,13 +388,14 @@ static int super_ldl_setup(fmbd_chol *F) {
     if (off > maxR) maxR = off;
     for (int64_t k = super[d]; k < super[d + 1]; k++) F->col2super[k] = d;
     if (off * (off < LDL_CB ? off : LDL_CB) > maxC) maxC = off * (off < LDL_CB ? off : LDL_CB);
+    if (ll) continue;  // the LL' multiplies L by itself: no scaled copies
     if (off * ncol > maxW) maxW = off * ncol;
-    if (ncol * LDL_KC > maxW) maxW = ncol * LDL_KC;  // the panel's products (ldl_panel)
+    if (ncol * LDL_KC > maxW) maxW = ncol * LDL_KC;  // the panel's products (panel)
   }
   F->sizeC = maxC;
   F->sizeW = maxW;
-  fmbd_log(FMBD_LOG_DEBUG, "LDL': %lld supernodes, %.3g values in L, update workspaces %.3g + %.3g",
-           (long long)ns, (double)L->xsize, (double)maxC, (double)maxW);
+  fmbd_log(FMBD_LOG_DEBUG, "%s: %lld supernodes, %.3g values in L, update workspaces %.3g + %.3g",
+           ll ? "LL'" : "LDL'", (long long)ns, (double)L->xsize, (double)maxC, (double)maxW);
   FMBD_GALLOC(F->wC = fmbd_malloc((size_t)maxC * sizeof(double)));
   FMBD_GALLOC(F->wW = fmbd_malloc((size_t)maxW * sizeof(double)));
   FMBD_GALLOC(F->runs = fmbd_malloc((size_t)(2 * maxR + 2) * sizeof(int64_t)));
@@ -395,15 +417,20 @@ static void gemm_lower(int64_t m, int64_t n, int64_t k, double alpha, const doub
   }
 }
 
-// --- a supernode's columns: unpivoted LDL' of its nsrow x nscol panel -----------------------
-// the leaf of ldl_panel: columns one by one (left-looking), each less the earlier leaf columns
-// times D (a dgemv where the column is long, plain loops where it is short); returns the index
-// of a zero or NaN pivot, or -1
-static int64_t ldl_leaf(int64_t m, int64_t n, double *A, int64_t lda, int64_t *neg, double *lmax) {
+// --- a supernode's columns: unpivoted LDL' (or LL') of its nsrow x nscol panel --------------
+// the leaf of panel: columns one by one (left-looking), each less the earlier leaf columns
+// times D (LL': times nothing) (a dgemv where the column is long, plain loops where it is
+// short); returns the index of a zero or NaN pivot (LL': <= 0 or NaN), or -1
+static int64_t panel_leaf(int64_t m, int64_t n, double *A, int64_t lda, bool ll, int64_t *neg,
+                          double *lmax) {
   double t[LDL_LEAF];
   for (int64_t j = 0; j < n; j++) {
     double *aj = A + j * lda;
-    for (int64_t k = 0; k < j; k++) t[k] = A[j + k * lda] * A[k + k * lda];
+    if (ll) {
+      for (int64_t k = 0; k < j; k++) t[k] = A[j + k * lda];
+    } else {
+      for (int64_t k = 0; k < j; k++) t[k] = A[j + k * lda] * A[k + k * lda];
+    }
     if (j > 0 && m - j >= 64) {
       cblas_dgemv(CblasColMajor, CblasNoTrans, (int)(m - j), (int)j, -1.0, A + j, (int)lda, t, 1,
                   1.0, aj + j, 1);
@@ -414,6 +441,14 @@ static int64_t ldl_leaf(int64_t m, int64_t n, double *A, int64_t lda, int64_t *n
       }
     }
     double d = aj[j];
+    if (ll) {
+      if (!(d > 0.0)) return j;
+      d = sqrt(d);
+      aj[j] = d;
+      double r = 1.0 / d;
+      for (int64_t i = j + 1; i < m; i++) aj[i] *= r;
+      continue;
+    }
     if (d == 0.0 || d != d) return j;
     *neg += d < 0.0;
     double r = 1.0 / d, big = *lmax;
@@ -428,47 +463,81 @@ static int64_t ldl_leaf(int64_t m, int64_t n, double *A, int64_t lda, int64_t *n
 }
 
 // The panel A (m x n, m >= n, leading dimension lda: the diagonal block and the rows below it)
-// factored in place as the lower trapezoid [L11; L21] with D on the diagonal, by halves
-// (recursive blocking, as Gustavson's recursive Cholesky, IBM J. Res. Dev. 41(6), 1997): the
-// left half, then the right half's columns (rows at and below their diagonal) less
-// L(below, left) D L(right, left)' by dgemm, then the right half. The rows below the diagonal
-// block, which a dtrsm and a scaling by D^-1 solved before, are solved within the same
-// products, so all flops but the leaves' (LDL_LEAF columns at most) go through dgemm: the
-// panel stage of the 188 k-dof rod's LDL' 2.3 -> 1.8 s (bench/README.md, "The Sturm check's
-// LDL'"). Nothing above the diagonal is read. W: the right half's rows of the left half times
-// D, by chunks of LDL_KC columns (nscol x LDL_KC values at most). Returns the index of a zero
-// or NaN pivot, or -1.
-static int64_t ldl_panel(int64_t m, int64_t n, double *A, int64_t lda, double *W, int64_t *neg,
-                         double *lmax) {
-  if (n <= LDL_LEAF) return ldl_leaf(m, n, A, lda, neg, lmax);
+// factored in place as the lower trapezoid [L11; L21] with D on the diagonal (LL': L11
+// itself), by halves (recursive blocking, as Gustavson's recursive Cholesky, IBM J. Res. Dev.
+// 41(6), 1997): the left half, then the right half's columns (rows at and below their
+// diagonal) less L(below, left) D L(right, left)' by dgemm, then the right half. The rows below
+// the diagonal block, which a dtrsm (and for the LDL' a scaling by D^-1) solved before, are
+// solved within the same products, so all flops but the leaves' (LDL_LEAF columns at most) go
+// through dgemm: the panel stage of the 188 k-dof rod's LDL' 2.3 -> 1.8 s (bench/README.md,
+// "The Sturm check's LDL'"). Nothing above the diagonal is read. W (LDL' only): the right
+// half's rows of the left half times D, by chunks of LDL_KC columns (nscol x LDL_KC values at
+// most). Returns the index of a zero or NaN pivot (LL': <= 0 or NaN), or -1.
+static int64_t panel(int64_t m, int64_t n, double *A, int64_t lda, double *W, bool ll, int64_t *neg,
+                     double *lmax) {
+  if (n <= LDL_LEAF) return panel_leaf(m, n, A, lda, ll, neg, lmax);
   int64_t n1 = n / 2, n2 = n - n1;
-  int64_t bad = ldl_panel(m, n1, A, lda, W, neg, lmax);
+  int64_t bad = panel(m, n1, A, lda, W, ll, neg, lmax);
   if (bad >= 0) return bad;
-  // A(n1:m, n1:n) -= L(n1:m, 0:n1) D L(n1:n, 0:n1)', lower trapezoid
-  for (int64_t k0 = 0; k0 < n1; k0 += LDL_KC) {
-    int64_t kb = n1 - k0 < LDL_KC ? n1 - k0 : LDL_KC;
-    for (int64_t c = 0; c < kb; c++) {
-      const double *lc = A + n1 + (k0 + c) * lda;
-      double dc = A[(k0 + c) + (k0 + c) * lda];
-      for (int64_t r = 0; r < n2; r++) W[r + c * n2] = lc[r] * dc;
+  if (ll) {
+    // A(n1:m, n1:n) -= L(n1:m, 0:n1) L(n1:n, 0:n1)', lower trapezoid: the triangle by dsyrk
+    // (nothing written above the diagonal: the LL' block's upper triangles stay zero, as
+    // CHOLMOD's), the rows below by dgemm
+    cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, (int)n2, (int)n1, -1.0, A + n1, (int)lda,
+                1.0, A + n1 + n1 * lda, (int)lda);
+    if (m > n)
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, (int)(m - n), (int)n2, (int)n1, -1.0,
+                  A + n, (int)lda, A + n1, (int)lda, 1.0, A + n + n1 * lda, (int)lda);
+  } else {
+    // A(n1:m, n1:n) -= L(n1:m, 0:n1) D L(n1:n, 0:n1)', lower trapezoid
+    for (int64_t k0 = 0; k0 < n1; k0 += LDL_KC) {
+      int64_t kb = n1 - k0 < LDL_KC ? n1 - k0 : LDL_KC;
+      for (int64_t c = 0; c < kb; c++) {
+        const double *lc = A + n1 + (k0 + c) * lda;
+        double dc = A[(k0 + c) + (k0 + c) * lda];
+        for (int64_t r = 0; r < n2; r++) W[r + c * n2] = lc[r] * dc;
+      }
+      gemm_lower(m - n1, n2, kb, -1.0, A + n1 + k0 * lda, lda, W, n2, 1.0, A + n1 + n1 * lda, lda);
     }
-    gemm_lower(m - n1, n2, kb, -1.0, A + n1 + k0 * lda, lda, W, n2, 1.0, A + n1 + n1 * lda, lda);
   }
-  bad = ldl_panel(m - n1, n2, A + n1 + n1 * lda, lda, W, neg, lmax);
+  bad = panel(m - n1, n2, A + n1 + n1 * lda, lda, W, ll, neg, lmax);
   return bad >= 0 ? n1 + bad : -1;
 }
 
-// P (A - sigma B) P' put into the zeroed factor before the supernodal loop, for a matrix stored
-// as its lower triangle (fmbd_csr_keep_lower: a full row, which the loop reads per column, is
-// not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted indices. The rows
-// are visited in pivot order (row j = perm[k] for k = 0, 1, ...), supernode by supernode, so
-// that every place is found without a search: an entry in column k (its other index a >= k)
-// through `map`, set to the rows of k's supernode; one in an earlier column a < k (row k of
-// a's supernode t) through a cursor in t's ascending row list, which only moves forward since
-// k increases (`lpos`, set afresh by the loop afterwards). The writes of the first kind go
-// down the factor's columns in order. The same sums (0 + a - sigma b) as the loop's assembly;
-// the values come from the lower triangle instead of the column's own row.
-static int ldl_prefill(fmbd_chol *F, double sigma) {
+// The value block Lx cleared before a factorisation: nothing when calloc gave it (lx_zero); the
+// rows on and below each column's diagonal otherwise. Above the diagonal (the diagonal blocks'
+// strictly upper triangles) nothing here writes and nothing reads (the kernels above, the
+// solves: release_zero_pages), so those stay as they were: zero, never made resident, in our
+// own blocks; in an LL' block that CHOLMOD factored (lx_kept), only the nonzeros are cleared
+// (reading a page given back maps the shared zero page: no memory, no clearing).
+static void clear_block(fmbd_chol *F, double *Lx) {
+  const cholmod_factor *L = F->L;
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px;
+  if (!F->lx_zero) {
+    for (int64_t s = 0; s < (int64_t)L->nsuper; s++) {
+      int64_t nsrow = pi[s + 1] - pi[s];
+      for (int64_t c = 0; c < super[s + 1] - super[s]; c++) {
+        double *col = Lx + px[s] + c * nsrow;
+        for (int64_t i = 0; i < c && F->lx_kept; i++)
+          if (col[i] != 0.0) col[i] = 0.0;
+        memset(col + c, 0, (size_t)(nsrow - c) * sizeof(double));
+      }
+    }
+  }
+  F->lx_zero = F->lx_kept = false;
+}
+
+// P (A - sigma B) P' put into the cleared factor Lx before the supernodal loop, for a matrix
+// stored as its lower triangle (fmbd_csr_keep_lower: a full row, which the loop reads per
+// column, is not at hand): each entry (i, j), j <= i, goes to (max, min) of its permuted
+// indices. The rows are visited in pivot order (row j = perm[k] for k = 0, 1, ...), supernode by
+// supernode, so that every place is found without a search: an entry in column k (its other
+// index a >= k) through `map`, set to the rows of k's supernode; one in an earlier column a < k
+// (row k of a's supernode t) through a cursor in t's ascending row list, which only moves
+// forward since k increases (`lpos`, set afresh by the loop afterwards). The writes of the
+// first kind go down the factor's columns in order. The same sums (0 + a - sigma b) as the
+// loop's assembly; the values come from the lower triangle instead of the column's own row.
+static int super_prefill(fmbd_chol *F, double sigma, double *Lx) {
   cholmod_factor *L = F->L;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s, *perm = L->Perm;
   int64_t nsuper = (int64_t)L->nsuper, *map = F->map, *cur = F->lpos, *c2s = F->col2super;
@@ -481,29 +550,13 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
   bool both =
       Bs && Bs->indptr == F->A->indptr && Bs->indices == F->A->indices && Bs->lower == F->A->lower;
   if (both) mat[1] = NULL;
-  if (F->lx_kept) {
-    // the rows on and below each column's diagonal cleared; above it, only the nonzeros
-    // (reading a page given back maps the shared zero page: no memory, no clearing)
-    for (int64_t s = 0; s < nsuper; s++) {
-      int64_t nsrow = pi[s + 1] - pi[s];
-      for (int64_t c = 0; c < super[s + 1] - super[s]; c++) {
-        double *col = F->Lx + px[s] + c * nsrow;
-        for (int64_t i = 0; i < c; i++)
-          if (col[i] != 0.0) col[i] = 0.0;
-        memset(col + c, 0, (size_t)(nsrow - c) * sizeof(double));
-      }
-    }
-  } else if (!F->lx_zero) {
-    memset(F->Lx, 0, (L->xsize ? L->xsize : 1) * sizeof(double));
-  }
-  F->lx_zero = F->lx_kept = false;
   for (int m = 0; m < 2; m++) {
     const fmbd_csr *A = mat[m];
     if (!A) continue;
     for (int64_t t = 0; t < nsuper; t++) cur[t] = pi[t];
     for (int64_t s = 0; s < nsuper; s++) {
       int64_t k1 = super[s], psi = pi[s], nsrow = pi[s + 1] - psi;
-      double *Lsx = F->Lx + px[s];
+      double *Lsx = Lx + px[s];
       for (int64_t i = 0; i < nsrow; i++) map[Ls[psi + i]] = i;
       for (int64_t k = k1; k < super[s + 1]; k++) {
         int64_t j = perm ? perm[k] : k;
@@ -514,7 +567,8 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
             // column min(a, k) of s, row max(a, k)
             int64_t c = a < k ? a : k, r = a < k ? k : a, q = map[r];
             FMBD_CHECK(q >= 0 && q < nsrow && Ls[psi + q] == r, FMBD_ERR_INTERNAL,
-                       "entry (%lld, %lld) not in the LDL' pattern", (long long)r, (long long)c);
+                       "entry (%lld, %lld) not in the factor's pattern", (long long)r,
+                       (long long)c);
             x = Lsx + (c - k1) * nsrow + q;
           } else {
             // column a of an earlier supernode t, row k
@@ -522,8 +576,9 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
             while (q < e && Ls[q] < k) q++;
             cur[t] = q;
             FMBD_CHECK(q < e && Ls[q] == k, FMBD_ERR_INTERNAL,
-                       "entry (%lld, %lld) not in the LDL' pattern", (long long)k, (long long)a);
-            x = F->Lx + px[t] + (a - super[t]) * (e - pi[t]) + (q - pi[t]);
+                       "entry (%lld, %lld) not in the factor's pattern", (long long)k,
+                       (long long)a);
+            x = Lx + px[t] + (a - super[t]) * (e - pi[t]) + (q - pi[t]);
           }
           if (m == 0) {
             *x += A->data[p];
@@ -536,6 +591,20 @@ static int ldl_prefill(fmbd_chol *F, double sigma) {
     }
   }
   return FMBD_OK;
+}
+
+// dst[0..len) -= src[0..len), by fours (independent subtractions the compiler turns into vector
+// instructions at -O2; the plain loop stayed scalar: the update scatter was the LL's largest
+// cost outside the BLAS, bench/README.md "our own LL'")
+static inline void sub_run(double *restrict dst, const double *restrict src, int64_t len) {
+  int64_t i = 0;
+  for (; i + 4 <= len; i += 4) {
+    dst[i] -= src[i];
+    dst[i + 1] -= src[i + 1];
+    dst[i + 2] -= src[i + 2];
+    dst[i + 3] -= src[i + 3];
+  }
+  for (; i < len; i++) dst[i] -= src[i];
 }
 
 // Lsx (supernode s, columns k1.., nsrow rows, map: row -> place) -= C (nr2 x nr1, lower
@@ -562,35 +631,42 @@ static void scatter_update(int64_t nr1, int64_t nr2, const double *C, const Suit
     const double *c = C + jj * nr2;
     for (int64_t r = q; r < nrun; r++) {
       int64_t i0 = r == q ? jj : start[r], len = start[r + 1] - i0;
-      double *dst = col + place[r] + (i0 - start[r]);
-      const double *src = c + i0;
-      for (int64_t i = 0; i < len; i++) dst[i] -= src[i];
+      sub_run(col + place[r] + (i0 - start[r]), c + i0, len);
     }
   }
 }
 
-static int super_ldl_factor(fmbd_chol *F, double sigma) {
+// The supernodal factorisation of P (A - sigma B) P' into the value block Lx (super_setup's
+// workspaces): LDL' (ll false; a zero or NaN pivot fails with FMBD_ERR_SINGULAR; the negative
+// pivots in F->neg) or LL' (ll true; a pivot <= 0 or NaN stops it at pivot *minor, else
+// *minor = -1). dg (LL', or NULL): the diagonal of P (A - sigma B) P' as assembled.
+static int super_factor(fmbd_chol *F, double sigma, double *Lx, bool ll, double *dg,
+                        int64_t *minor) {
   cholmod_factor *L = F->L;
   const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s, *perm = L->Perm;
   int64_t nsuper = (int64_t)L->nsuper;
-  double *Lx = F->Lx;
   int64_t *map = F->map, *head = F->head, *next = F->next, *lpos = F->lpos, *c2s = F->col2super;
   const fmbd_csr *A = F->A, *B = F->B;
   int64_t neg = 0;
-  double lmax = 0.0;  // largest |L| entry below the diagonal
+  double lmax = 0.0;  // largest |L| entry below the diagonal (LDL')
+  if (minor) *minor = -1;
+  clear_block(F, Lx);
   bool prefill = A->lower || (B && B->lower);
   if (prefill) {
-    FMBD_CALL(ldl_prefill(F, sigma));
+    FMBD_CALL(super_prefill(F, sigma, Lx));
     input_formed();  // the loop below reads only the factor
+    for (int64_t s = 0; dg && s < nsuper; s++) {
+      int64_t nsrow = pi[s + 1] - pi[s];
+      for (int64_t k = super[s]; k < super[s + 1]; k++)
+        dg[k] = Lx[px[s] + (k - super[s]) * (nsrow + 1)];
+    }
   }
-  F->lx_zero = F->lx_kept = false;
   for (int64_t s = 0; s <= nsuper; s++) head[s] = -1;
   for (int64_t s = 0; s < nsuper; s++) {
     int64_t k1 = super[s], k2 = super[s + 1], nscol = k2 - k1;
     int64_t psi = pi[s], nsrow = pi[s + 1] - psi, psx = px[s];
     double *Lsx = Lx + psx;
     for (int64_t i = 0; i < nsrow; i++) map[Ls[psi + i]] = i;
-    if (!prefill) memset(Lsx, 0, (size_t)(nsrow * nscol) * sizeof(double));
     // --- assemble columns k1..k2-1 of P (A - sigma B) P' (rows >= k) ---
     for (int64_t k = k1; k < k2 && !prefill; k++) {
       int64_t j = perm ? perm[k] : k;
@@ -605,6 +681,7 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
           if (r >= k) col[map[r]] -= sigma * B->data[p];
         }
       }
+      if (dg) dg[k] = col[k - k1];
     }
     // --- updates from the descendants linked to s ---
     int64_t d = head[s];
@@ -617,16 +694,23 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
       int64_t p1 = lpos[d], p2 = p1;
       while (p2 < pdend && Ls[p2] < k2) p2++;
       int64_t nr1 = p2 - p1, nr2 = pdend - p1, r1 = p1 - pdi;
-      // W = L_d(rows in s) D_d  (nr1 x ndcol); C = L_d(rows >= k1) W'  (nr2 x nr1)
-      double *W = F->wW, *C = F->wC;
-      for (int64_t c = 0; c < ndcol; c++) {
-        double dc = Ldx[c + c * ndrow];
-        for (int64_t r = 0; r < nr1; r++) W[r + c * nr1] = Ldx[r1 + r + c * ndrow] * dc;
+      // C = L_d(rows >= k1) W' (nr2 x nr1), W = L_d(rows in s) D_d (LDL': a scaled copy,
+      // nr1 x ndcol) or L_d(rows in s) itself (LL')
+      double *C = F->wC;
+      const double *W = Ldx + r1;
+      int64_t ldw = ndrow;
+      if (!ll) {
+        for (int64_t c = 0; c < ndcol; c++) {
+          double dc = Ldx[c + c * ndrow];
+          for (int64_t r = 0; r < nr1; r++) F->wW[r + c * nr1] = Ldx[r1 + r + c * ndrow] * dc;
+        }
+        W = F->wW;
+        ldw = nr1;
       }
       // by column blocks of C, each scattered while it is in cache
       for (int64_t c0 = 0; c0 < nr1; c0 += LDL_CB) {
         int64_t w = nr1 - c0 < LDL_CB ? nr1 - c0 : LDL_CB;
-        gemm_lower(nr2 - c0, w, ndcol, 1.0, Ldx + r1 + c0, ndrow, W + c0, nr1, 0.0, C, nr2 - c0);
+        gemm_lower(nr2 - c0, w, ndcol, 1.0, Ldx + r1 + c0, ndrow, W + c0, ldw, 0.0, C, nr2 - c0);
         scatter_update(w, nr2 - c0, C, Ls + p1 + c0, map, k1, Lsx, nsrow, F->runs);
       }
       lpos[d] = p2;
@@ -638,7 +722,11 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
       d = dnext;
     }
     // --- the diagonal block and the rows below it ---
-    int64_t bad = ldl_panel(nsrow, nscol, Lsx, nsrow, F->wW, &neg, &lmax);
+    int64_t bad = panel(nsrow, nscol, Lsx, nsrow, F->wW, ll, &neg, &lmax);
+    if (bad >= 0 && ll) {
+      *minor = k1 + bad;
+      return FMBD_OK;
+    }
     if (bad >= 0) {
       F->failed_row = perm ? perm[k1 + bad] : k1 + bad;
       FMBD_FAIL(FMBD_ERR_SINGULAR, "zero pivot in LDL' at row %lld (shift %.17g is an eigenvalue)",
@@ -651,10 +739,58 @@ static int super_ldl_factor(fmbd_chol *F, double sigma) {
       head[t] = s;
     }
   }
+  if (!prefill && ll) input_formed();  // (the contract: A and B not read from here on)
+  if (ll) return FMBD_OK;
   F->neg = neg;
   fmbd_log(FMBD_LOG_DEBUG,
            "LDL' of the matrix shifted by %.9g: %lld negative pivots, largest |L| %.3g", sigma,
            (long long)neg, lmax);
+  return FMBD_OK;
+}
+
+// Our LL' (super_factor) into CHOLMOD's symbolic supernodal factor F->L: made numeric as
+// cholmod_l_change_factor makes a symbolic supernodal factor an LL' one (CHOLMOD's
+// Core/cholmod_change_factor.c, super_symbolic_to_ll_super: the value block of L->xsize
+// doubles, xtype real, is_ll, minor n), the block zeroed by calloc here so that the diagonal
+// blocks' upper triangles, never written, are never made resident (what release_zero_pages
+// does after CHOLMOD's LL'); a factor made before (a new shift) is factored again in place. A
+// pivot <= 0 or NaN is reported as CHOLMOD reports it (L->minor, CHOLMOD_NOT_POSDEF).
+static int own_llt(fmbd_chol *F, double sigma, double *dg) {
+  cholmod_factor *L = F->L;
+  if (!F->runs) {
+    // the loop's workspaces, at the first factorisation (all or none: a failed allocation
+    // leaves none behind, and the next call tries again)
+    int rc = super_setup(F, true);
+    if (rc) {
+      int64_t **iw[] = {&F->col2super, &F->map, &F->head, &F->next, &F->lpos, &F->runs};
+      for (size_t i = 0; i < sizeof iw / sizeof iw[0]; i++) {
+        fmbd_free(*iw[i]);
+        *iw[i] = NULL;
+      }
+      fmbd_free(F->wC);
+      fmbd_free(F->wW);
+      F->wC = F->wW = NULL;
+      return rc;
+    }
+  }
+  if (L->xtype == CHOLMOD_PATTERN || !L->x) {
+    double *x = fmbd_calloc(L->xsize ? L->xsize : 1, sizeof(double));
+    FMBD_CHECK(x, FMBD_ERR_NOMEM, "out of memory (%.4g values of the LL' factor, n = %lld)",
+               (double)L->xsize, (long long)F->n);
+    fmbd_free(L->x);
+    L->x = x;
+    L->z = NULL;
+    L->xtype = CHOLMOD_REAL;
+    L->dtype = CHOLMOD_DOUBLE;
+    L->is_ll = 1;
+    F->lx_zero = true;
+    F->lx_kept = false;
+  }
+  int64_t minor = -1;
+  F->c.status = CHOLMOD_OK;
+  FMBD_CALL(super_factor(F, sigma, L->x, true, dg, &minor));
+  L->minor = minor >= 0 ? (size_t)minor : (size_t)F->n;
+  if (minor >= 0) F->c.status = CHOLMOD_NOT_POSDEF;
   return FMBD_OK;
 }
 
@@ -700,8 +836,8 @@ int fmbd_chol_analyze_like(fmbd_chol *like, const fmbd_csr *A, const fmbd_csr *B
   if (F->kind == FMBD_CHOL_LDLT && like->kept && like->kept_n == (size_t)F->L->xsize) {
     // the LL' values' block (the same supernodes, so the same size) becomes the LDL' factor:
     // its pages are resident, where a fresh block's are faulted and zeroed by the kernel on
-    // first touch (bench/README.md "The LL' factor's block for the LDL'"); ldl_prefill clears
-    // it. The calloc'd block super_ldl_setup made was never touched: no pages to give back.
+    // first touch (bench/README.md "The LL' factor's block for the LDL'"); clear_block clears
+    // it. The calloc'd block super_setup made was never touched: no pages to give back.
     fmbd_free(F->Lx);
     F->Lx = like->kept;
     F->lx_zero = false;
@@ -735,6 +871,9 @@ static int analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t
   F->B = B;
   F->pivot_rtol = 1e-13;
   F->own_solve = true;
+  // FMBD_CHOL_LLT=cholmod: CHOLMOD's numeric LL' instead of ours (side-by-side runs)
+  const char *llt_env = getenv("FMBD_CHOL_LLT");
+  F->own_llt = !(llt_env && strcmp(llt_env, "cholmod") == 0);
   F->neg = -1;
   F->failed_row = -1;
   F->st.n = F->n;
@@ -809,7 +948,7 @@ static int analyze(const fmbd_csr *A, const fmbd_csr *B, int kind, const int64_t
   // them back first (51 k dofs: 149 -> 74 MB resident, the LL' peak 326 -> 287 MB)
   malloc_trim(0);
 #endif
-  if (kind == FMBD_CHOL_LDLT) FMBD_GCALL(super_ldl_setup(F));
+  if (kind == FMBD_CHOL_LDLT) FMBD_GCALL(super_setup(F, false));
   if (kind == FMBD_CHOL_LLT) {
     FMBD_GALLOC(F->iperm = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(int64_t)));
     const SuiteSparse_long *p = F->L->Perm;
@@ -856,7 +995,7 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   double t0 = fmbd_wall_s();
   if (F->kind == FMBD_CHOL_LDLT) {
     // assembled from A and B directly: no CHOLMOD matrix
-    int rc = super_ldl_factor(F, sigma);
+    int rc = super_factor(F, sigma, F->Lx, false, NULL, NULL);
     F->st.t_factor_s += fmbd_wall_s() - t0;
     F->st.n_factor++;
     return rc;
@@ -868,7 +1007,17 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   cholmod_sparse *T = NULL;
   double *dg = NULL;
   int ok;
-  if (F->kind == FMBD_CHOL_LLT) {
+  if (F->kind == FMBD_CHOL_LLT && F->own_llt && F->L->is_super) {
+    // our supernodal LL' (own_llt)
+    dg = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(double));
+    if (!dg) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory (%lld pivots)", (long long)F->n);
+    int rc = own_llt(F, sigma, dg);
+    if (rc) {
+      fmbd_free(dg);
+      return rc;
+    }
+    ok = 1;
+  } else if (F->kind == FMBD_CHOL_LLT) {
     // supernodal LL' of our tril(P (A - sigma B) P'): cholmod_l_factorize's own permuted copy
     // is not made (assemble_llt)
     dg = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(double));
@@ -986,40 +1135,36 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 #ifdef __clang__
 #pragma clang fp contract(off)
 #endif
-typedef double sv4d
-    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
-#define SLD(p) (*(const sv4d *)(p))
-#define SST(p, v) (*(sv4d *)(p) = (v))
 
 #define SFN static inline __attribute__((always_inline, target("avx2,fma")))
 // t - a y, one rounding (FMA)
-SFN sv4d sn_fnma(double a, sv4d y, sv4d t) {
-  return (sv4d)_mm256_fnmadd_pd(_mm256_set1_pd(a), (__m256d)y, (__m256d)t);
+SFN v4d sn_fnma(double a, v4d y, v4d t) {
+  return (v4d)_mm256_fnmadd_pd(_mm256_set1_pd(a), (__m256d)y, (__m256d)t);
 }
 // s + a z, one rounding
-SFN sv4d sn_fma(double a, sv4d z, sv4d s) {
-  return (sv4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
+SFN v4d sn_fma(double a, v4d z, v4d s) {
+  return (v4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
 }
 
 // T[i] -= L[i] Y[0] + L[i + ld] Y[1] + L[i + 2 ld] Y[2] + L[i + 3 ld] Y[3] for i < nr (in that
 // order); rows of nv 4-wide vectors (row stride 4 nv)
 SFN void sn_upd4(int64_t nr, const double *L, int64_t ld, const double *Y, double *T, int nv) {
   const int w = 4 * nv;
-  sv4d y0[2], y1[2], y2[2], y3[2];
+  v4d y0[2], y1[2], y2[2], y3[2];
   for (int v = 0; v < nv; v++) {
-    y0[v] = SLD(Y + 4 * v);
-    y1[v] = SLD(Y + w + 4 * v);
-    y2[v] = SLD(Y + 2 * w + 4 * v);
-    y3[v] = SLD(Y + 3 * w + 4 * v);
+    y0[v] = LD4(Y + 4 * v);
+    y1[v] = LD4(Y + w + 4 * v);
+    y2[v] = LD4(Y + 2 * w + 4 * v);
+    y3[v] = LD4(Y + 3 * w + 4 * v);
   }
   const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
   for (int64_t i = 0; i < nr; i++) {
     double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d x = sn_fnma(L0[i], y0[v], SLD(t + 4 * v));
+      v4d x = sn_fnma(L0[i], y0[v], LD4(t + 4 * v));
       x = sn_fnma(L1[i], y1[v], x);
       x = sn_fnma(L2[i], y2[v], x);
-      SST(t + 4 * v, sn_fnma(L3[i], y3[v], x));
+      ST4(t + 4 * v, sn_fnma(L3[i], y3[v], x));
     }
   }
 }
@@ -1031,9 +1176,9 @@ SFN void sn_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y,
   for (int64_t i = 0; i < nr; i++) {
     double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d x = SLD(t + 4 * v);
-      for (int q = 0; q < g; q++) x = sn_fnma(L[i + q * ld], SLD(Y + q * w + 4 * v), x);
-      SST(t + 4 * v, x);
+      v4d x = LD4(t + 4 * v);
+      for (int q = 0; q < g; q++) x = sn_fnma(L[i + q * ld], LD4(Y + q * w + 4 * v), x);
+      ST4(t + 4 * v, x);
     }
   }
 }
@@ -1042,14 +1187,14 @@ SFN void sn_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y,
 // (two sets of 4 nv vectors: an FMA's latency is several cycles), added at the end
 SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, double *Y, int nv) {
   const int w = 4 * nv;
-  sv4d s0[2] = {{0}}, s1[2] = {{0}}, s2[2] = {{0}}, s3[2] = {{0}};
-  sv4d u0[2] = {{0}}, u1[2] = {{0}}, u2[2] = {{0}}, u3[2] = {{0}};
+  v4d s0[2] = {{0}}, s1[2] = {{0}}, s2[2] = {{0}}, s3[2] = {{0}};
+  v4d u0[2] = {{0}}, u1[2] = {{0}}, u2[2] = {{0}}, u3[2] = {{0}};
   const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
   int64_t i = 0;
   for (; i + 1 < nr; i += 2) {
     const double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d z = SLD(t + 4 * v), y = SLD(t + w + 4 * v);
+      v4d z = LD4(t + 4 * v), y = LD4(t + w + 4 * v);
       s0[v] = sn_fma(L0[i], z, s0[v]);
       s1[v] = sn_fma(L1[i], z, s1[v]);
       s2[v] = sn_fma(L2[i], z, s2[v]);
@@ -1063,7 +1208,7 @@ SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, doubl
   if (i < nr) {
     const double *t = T + i * w;
     for (int v = 0; v < nv; v++) {
-      sv4d z = SLD(t + 4 * v);
+      v4d z = LD4(t + 4 * v);
       s0[v] = sn_fma(L0[i], z, s0[v]);
       s1[v] = sn_fma(L1[i], z, s1[v]);
       s2[v] = sn_fma(L2[i], z, s2[v]);
@@ -1071,10 +1216,10 @@ SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, doubl
     }
   }
   for (int v = 0; v < nv; v++) {
-    SST(Y + 4 * v, SLD(Y + 4 * v) - (s0[v] + u0[v]));
-    SST(Y + w + 4 * v, SLD(Y + w + 4 * v) - (s1[v] + u1[v]));
-    SST(Y + 2 * w + 4 * v, SLD(Y + 2 * w + 4 * v) - (s2[v] + u2[v]));
-    SST(Y + 3 * w + 4 * v, SLD(Y + 3 * w + 4 * v) - (s3[v] + u3[v]));
+    ST4(Y + 4 * v, LD4(Y + 4 * v) - (s0[v] + u0[v]));
+    ST4(Y + w + 4 * v, LD4(Y + w + 4 * v) - (s1[v] + u1[v]));
+    ST4(Y + 2 * w + 4 * v, LD4(Y + 2 * w + 4 * v) - (s2[v] + u2[v]));
+    ST4(Y + 3 * w + 4 * v, LD4(Y + 3 * w + 4 * v) - (s3[v] + u3[v]));
   }
 }
 
@@ -1084,9 +1229,9 @@ SFN void sn_dot(int64_t nr, const double *L, int64_t ld, int g, const double *T,
   const int w = 4 * nv;
   for (int q = 0; q < g; q++) {
     for (int v = 0; v < nv; v++) {
-      sv4d s = {0};
-      for (int64_t i = 0; i < nr; i++) s = sn_fma(L[i + q * ld], SLD(T + i * w + 4 * v), s);
-      SST(Y + q * w + 4 * v, SLD(Y + q * w + 4 * v) - s);
+      v4d s = {0};
+      for (int64_t i = 0; i < nr; i++) s = sn_fma(L[i + q * ld], LD4(T + i * w + 4 * v), s);
+      ST4(Y + q * w + 4 * v, LD4(Y + q * w + 4 * v) - s);
     }
   }
 }
@@ -1109,11 +1254,11 @@ SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double 
       for (int q = 0; q < g; q++) {  // the g x g triangle
         double *zq = G + (j + q) * w;
         const double *lc = Ld + (j + q) * nsrow;
-        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+        for (int v = 0; v < nv; v++) ST4(zq + 4 * v, LD4(zq + 4 * v) / lc[j + q]);
         for (int r = q + 1; r < g; r++) {
           double *zr = G + (j + r) * w;
           for (int v = 0; v < nv; v++)
-            SST(zr + 4 * v, SLD(zr + 4 * v) - lc[j + r] * SLD(zq + 4 * v));
+            ST4(zr + 4 * v, LD4(zr + 4 * v) - lc[j + r] * LD4(zq + 4 * v));
         }
       }
       int64_t i0 = j + g;
@@ -1125,7 +1270,7 @@ SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double 
     memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
     for (int64_t i = nscol; i < nsrow; i++) {
       double *z = Z + rows[i] * w;
-      for (int v = 0; v < nv; v++) SST(z + 4 * v, SLD(z + 4 * v) + SLD(G + i * w + 4 * v));
+      for (int v = 0; v < nv; v++) ST4(z + 4 * v, LD4(z + 4 * v) + LD4(G + i * w + 4 * v));
     }
   }
   for (int64_t s = ns - 1; bwd && s >= 0; s--) {
@@ -1148,9 +1293,9 @@ SFN void sn_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double 
         for (int r = q + 1; r < g; r++) {
           const double *zr = G + (j + r) * w;
           for (int v = 0; v < nv; v++)
-            SST(zq + 4 * v, SLD(zq + 4 * v) - lc[j + r] * SLD(zr + 4 * v));
+            ST4(zq + 4 * v, LD4(zq + 4 * v) - lc[j + r] * LD4(zr + 4 * v));
         }
-        for (int v = 0; v < nv; v++) SST(zq + 4 * v, SLD(zq + 4 * v) / lc[j + q]);
+        for (int v = 0; v < nv; v++) ST4(zq + 4 * v, LD4(zq + 4 * v) / lc[j + q]);
       }
     }
     memcpy(Z + k1 * w, G, (size_t)(nscol * w) * sizeof(double));
@@ -1391,6 +1536,17 @@ void fmbd_chol_set_own_solve(fmbd_chol *F, bool on) {
   if (F) F->own_solve = on;
 }
 
+void fmbd_chol_set_own_llt(fmbd_chol *F, bool on) {
+  if (F) F->own_llt = on;
+}
+
+const double *fmbd_chol_values(const fmbd_chol *F, int64_t *nvalues) {
+  const cholmod_factor *L = F ? F->L : NULL;
+  bool ok = L && L->is_super && L->xtype == CHOLMOD_REAL && L->x && !F->dropped;
+  if (nvalues) *nvalues = ok ? (int64_t)L->xsize : 0;
+  return ok ? L->x : NULL;
+}
+
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
   if (F) F->solve_width = w > 0 ? w : 0;
 }
@@ -1418,7 +1574,7 @@ int fmbd_chol_drop_numeric_keep(fmbd_chol *F, size_t give_back) {
   size_t bytes = (size_t)F->L->xsize * sizeof(double);
   if (pg > 0 && give_back > 0) {
     // the block's last pages back to the system (private anonymous memory: touched again, a
-    // page is a fresh zero page; ldl_prefill clears the block anyway)
+    // page is a fresh zero page; clear_block clears the block anyway)
     uintptr_t lo = (uintptr_t)F->L->x + (give_back < bytes ? bytes - give_back : 0);
     uintptr_t hi = ((uintptr_t)F->L->x + bytes) & ~(uintptr_t)(pg - 1);
     lo &= ~(uintptr_t)(pg - 1);

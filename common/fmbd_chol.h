@@ -7,7 +7,10 @@
 // fmbd_chol_factor call. The same analysis serves any number of shifts.
 //
 // Two kinds:
-// - FMBD_CHOL_LLT: supernodal Cholesky LL' (BLAS-3, fast). Fails with FMBD_ERR_SINGULAR when
+// - FMBD_CHOL_LLT: supernodal Cholesky LL' (BLAS-3, fast): numeric factorisation written here
+//   (the LDLT's, with square roots) into CHOLMOD's symbolic supernodal factor, which CHOLMOD's
+//   solves then read; CHOLMOD's own numeric LL' with FMBD_CHOL_LLT=cholmod in the environment
+//   or fmbd_chol_set_own_llt(F, false). Fails with FMBD_ERR_SINGULAR when
 //   A - sigma B is not positive definite, or when a pivot is tiny against the diagonal (a
 //   singular matrix that round-off made barely positive, e.g. a floating region of a body):
 //   the message names the row (the caller maps it to a dof; fmbd_chol_failed_row).
@@ -112,6 +115,15 @@ int fmbd_chol_apply_op(fmbd_chol *F, const fmbd_csr *M, int64_t nrhs, const doub
 /// supernodal LL' solves") where the processor has them, else through CHOLMOD's (on: the
 /// default). Off: always CHOLMOD's (the tests' reference). The results agree to round-off.
 void fmbd_chol_set_own_solve(fmbd_chol *F, bool on);
+
+/// @brief LLT factors computed by the library's own supernodal LL' (on: the default, unless the
+/// environment says FMBD_CHOL_LLT=cholmod when the factor is analysed) or by CHOLMOD's
+/// (cholmod_l_super_numeric). The factors agree to round-off; takes effect at the next
+/// fmbd_chol_factor.
+void fmbd_chol_set_own_llt(fmbd_chol *F, bool on);
+/// @brief The value block of a numeric supernodal factor (CHOLMOD's layout: L->x, *nvalues =
+/// L->xsize), or NULL (then *nvalues = 0): the tests compare the two LL' factorisations.
+const double *fmbd_chol_values(const fmbd_chol *F, int64_t *nvalues);
 
 /// @brief Solve at most w right-hand sides per CHOLMOD call (0: the default, 64). CHOLMOD keeps
 /// two n x w workspaces; narrower calls read the factor more often. Each column's solution may

@@ -8,6 +8,7 @@
 
 #include "fmbd_alloc.h"
 #include "fmbd_err.h"
+#include "fmbd_vec.h"
 
 int fmbd_csr_create(int64_t nrows, int64_t ncols, int64_t nnz, fmbd_csr **out) {
   FMBD_CHECK(nrows >= 0 && ncols >= 0 && nnz >= 0, FMBD_ERR_VALUE, "negative matrix size");
@@ -251,10 +252,6 @@ static inline void rows_lower_rm(const fmbd_csr *A, int w, const double *xt, dou
 // clang contracts a * x + s into FMA by default, GCC at -std=c11 not
 #pragma clang fp contract(off)
 #endif
-typedef double v4d
-    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
-#define LD4(p) (*(const v4d *)(p))
-#define ST4(p, v) (*(v4d *)(p) = (v))
 
 // the 8 sums as two 4-wide vectors: GCC 12 keeps them in registers with AVX2 and AVX-512 (an
 // 8-wide type it splits for AVX2 through the stack); the first 5 <= w <= 8 columns stored

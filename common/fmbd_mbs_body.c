@@ -9,6 +9,7 @@
 #include "fmbd_err.h"
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
+#include "fmbd_vec.h"
 
 // ============================================================================================
 // body equations (fmbd_mbs.h, EQUATIONS)
@@ -69,10 +70,6 @@ static void matvec_add_base(int m, int n, const double *restrict A, int lda,
 #ifdef __clang__
 #pragma clang fp contract(off)
 #endif
-typedef double v4d
-    __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double)), may_alias));
-#define LD4(p) (*(const v4d *)(p))
-#define ST4(p, v) (*(v4d *)(p) = (v))
 // column j + c of a pass: alpha x_j+c, the column and alpha x_j+c broadcast
 #define MV_COL(c)                                                                   \
   const double x##c = alpha * x[j + c], *restrict a##c = A + (size_t)lda * (j + c); \

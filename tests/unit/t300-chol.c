@@ -9,6 +9,9 @@
 #include "fmbd_chol.h"
 #include "fmbd_csr.h"
 #include "fmbd_err.h"
+#include "fmbd_fe.h"
+#include "fmbd_log.h"
+#include "t2_mesh.h"
 
 // 1-D linear FE on n interior nodes (h = 1/(n+1)): K = tridiag(-1,2,-1)/h, M = tridiag(1,4,1)h/6;
 // free = 1: n nodes with free ends (Neumann), K singular (constant mode)
@@ -553,7 +556,216 @@ static void exact_pivots(void) {
   free(ident);
 }
 
+// --- the library's own supernodal LL' against CHOLMOD's ------------------------------------
+// Both factor the same P (A - sigma B) P' on the same symbolic factor (the same ordering), so
+// their value blocks have one layout and can be compared entry by entry. Each is backward
+// stable: L L' = A + dA with |dA| <= gamma_{c+1} |L| |L'| (c + 1 <= n the longest sum; Higham,
+// Accuracy and Stability of Numerical Algorithms, 2nd ed., Theorem 10.3), and ||dA||_F <=
+// gamma_n || |L| |L'| ||_F <= gamma_n ||L||_F^2 = gamma_n trace(A) (Cauchy-Schwarz). The
+// Cholesky factor's perturbation bound (ibid. Theorem 10.8, to first order) ||dL||_F <=
+// 2^-1/2 ||L||_2 ||A^-1||_2 ||dA||_F, for each computed factor against the exact one, gives
+//   ||L_own - L_cholmod||_F <= sqrt(2) gamma_n trace(A) sqrt(lmax) / lmin
+// (||L||_2 = sqrt(lmax)), lmin and lmax the extreme eigenvalues of A - sigma B. The upper
+// triangles of the diagonal blocks are zero in both (never written), so the blocks compare
+// whole. The same matrix stored in full and as its lower triangle (the two assembly paths).
+static double llt_pair(const fmbd_csr *A, const fmbd_csr *B, double sigma, double lmin, double lmax,
+                       const char *what) {
+  int64_t n = A->nrows;
+  fmbd_chol *F1 = NULL, *F2 = NULL;
+  int64_t *perm = malloc((size_t)n * sizeof(int64_t));
+  EXPECT(fmbd_chol_analyze(A, B, FMBD_CHOL_LLT, &F1) == 0 && fmbd_chol_get_perm(F1, perm) == 0 &&
+             fmbd_chol_analyze_perm(A, B, FMBD_CHOL_LLT, perm, &F2) == 0,
+         "%s: analyse", what);
+  free(perm);
+  double rel = INFINITY;
+  if (!F1 || !F2) goto done;
+  fmbd_chol_set_own_llt(F1, true);
+  fmbd_chol_set_own_llt(F2, false);
+  int rc1 = fmbd_chol_factor(F1, sigma), rc2 = fmbd_chol_factor(F2, sigma);
+  EXPECT(rc1 == 0 && rc2 == 0, "%s: factor: own %d, CHOLMOD %d", what, rc1, rc2);
+  int64_t n1 = 0, n2 = 0;
+  const double *x1 = fmbd_chol_values(F1, &n1), *x2 = fmbd_chol_values(F2, &n2);
+  EXPECT(x1 && x2 && n1 == n2 && n1 > 0, "%s: value blocks %lld and %lld", what, (long long)n1,
+         (long long)n2);
+  if (!x1 || !x2 || n1 != n2) goto done;
+  double d = 0.0, l = 0.0, tr = 0.0;
+  for (int64_t k = 0; k < n1; k++) {
+    d += (x1[k] - x2[k]) * (x1[k] - x2[k]);
+    l += x2[k] * x2[k];
+  }
+  for (int64_t i = 0; i < n; i++)
+    tr += fmbd_csr_get(A, i, i) - sigma * (B ? fmbd_csr_get(B, i, i) : 0.0);
+  double eps = 0x1p-53, gam = (double)n * eps / (1.0 - (double)n * eps);
+  double bound = sqrt(2.0) * gam * tr * sqrt(lmax) / lmin;
+  rel = sqrt(d / l);
+  EXPECT(sqrt(d) <= bound, "%s: ||L_own - L_cholmod||_F = %.3g, bound %.3g (||L||_F %.3g)", what,
+         sqrt(d), bound, sqrt(l));
+  EXPECT(fabs(l - tr) <= 1e-12 * tr, "%s: ||L||_F^2 %.17g against trace %.17g", what, l, tr);
+  // the own factor serves CHOLMOD's solves and the library's own: one residual each
+  double *b = malloc((size_t)(4 * n) * sizeof(double)),
+         *y = malloc((size_t)(4 * n) * sizeof(double));
+  for (int64_t i = 0; i < 4 * n; i++) b[i] = y[i] = sin(0.37 * (double)i) + 0.1;
+  for (int own = 0; own < 2; own++) {
+    fmbd_chol_set_own_solve(F1, own);
+    memcpy(y, b, (size_t)(4 * n) * sizeof(double));
+    EXPECT(fmbd_chol_solve(F1, 4, y, n) == 0, "%s: solve", what);
+    memcpy(b + n, y, (size_t)n * sizeof(double));  // x of the first column
+    double e = 0.0, xm = 0.0, bm = 0.0;
+    double *r = y + n;  // A x - sigma B x into the second column's place
+    fmbd_csr_matvec(A, b + n, r);
+    if (B && sigma != 0.0) {
+      double *s = y + 2 * n;
+      fmbd_csr_matvec(B, b + n, s);
+      for (int64_t i = 0; i < n; i++) r[i] -= sigma * s[i];
+    }
+    for (int64_t i = 0; i < n; i++) {
+      double b0 = sin(0.37 * (double)i) + 0.1;
+      e = fmax(e, fabs(r[i] - b0));
+      xm = fmax(xm, fabs(b[n + i]));
+      bm = fmax(bm, fabs(b0));
+    }
+    // normwise backward error |A x - b| / (|A| |x| + |b|), |A|_inf <= n lmax... bounded here
+    // by lmax sqrt(n) (|A|_inf <= sqrt(n) |A|_2): a backward-stable solve gives a modest
+    // multiple of gamma_n
+    EXPECT(e / (sqrt((double)n) * lmax * xm + bm) <= 4.0 * gam,
+           "%s: solve with our factor (own solve %d): backward error %.3g", what, own,
+           e / (sqrt((double)n) * lmax * xm + bm));
+    for (int64_t i = 0; i < 4 * n; i++) b[i] = sin(0.37 * (double)i) + 0.1;
+  }
+  free(b);
+  free(y);
+done:
+  fmbd_chol_destroy(&F1);
+  fmbd_chol_destroy(&F2);
+  return rel;
+}
+
+// a matrix that is not positive definite: our LL' and CHOLMOD's stop at the same pivot with
+// the same message (fe2cb's rigid-mode message and fmbd_eig's shifts read failed_row)
+static void llt_fail_pair(const fmbd_csr *A, const fmbd_csr *B, double sigma, const char *what) {
+  char msg[2][1100];
+  int64_t row[2] = {-2, -2};
+  int rc[2] = {0, 0};
+  for (int own = 0; own < 2; own++) {
+    fmbd_chol *F = NULL;
+    EXPECT(fmbd_chol_analyze(A, B, FMBD_CHOL_LLT, &F) == 0, "%s: analyse", what);
+    if (!F) return;
+    fmbd_chol_set_own_llt(F, own);
+    rc[own] = fmbd_chol_factor(F, sigma);
+    row[own] = fmbd_chol_failed_row(F);
+    snprintf(msg[own], sizeof msg[own], "%s", fmbd_err_get()->msg);
+    // the object factors again at a valid shift (below every eigenvalue)
+    if (B) EXPECT(fmbd_chol_factor(F, -1.0) == 0, "%s: refactor after failure", what);
+    fmbd_chol_destroy(&F);
+  }
+  EXPECT(rc[0] == FMBD_ERR_SINGULAR && rc[1] == FMBD_ERR_SINGULAR && row[0] == row[1] &&
+             row[0] >= 0 && strcmp(msg[0], msg[1]) == 0,
+         "%s: CHOLMOD rc %d row %lld \"%s\", own rc %d row %lld \"%s\"", what, rc[0],
+         (long long)row[0], msg[0], rc[1], (long long)row[1], msg[1]);
+}
+
+static void own_llt(void) {
+  // 3-D Laplacian (inertia_3d's): K3 and M3 share the sine eigenvectors, so the eigenvalues of
+  // K3 - sigma M3 are k - sigma m over the products of the 1-D k_i and m_i
+  const int64_t m = 11;
+  const double h = 1.0 / (double)(m + 1);
+  fmbd_csr *K = tridiag(m, 2.0 / h, -1.0 / h, 2.0 / h),
+           *M = tridiag(m, 4 * h / 6, h / 6, 4 * h / 6);
+  fmbd_csr *KM = kron(K, M), *MM = kron(M, M), *MK = kron(M, K);
+  fmbd_csr *K3 = kron(K, MM), *t1 = kron(M, KM), *t2 = kron(MM, K), *M3 = kron(M, MM);
+  add_into(K3, t1);
+  add_into(K3, t2);
+  double lam1 = INFINITY;  // the pencil's first eigenvalue
+  for (int pass = 0; pass < 2; pass++) {
+    // pass 0: sigma 0 (well conditioned); 1: just below the first eigenvalue (near-singular)
+    double sigma = pass == 0 ? 0.0 : lam1 * (1.0 - 1e-7);
+    double lmin = INFINITY, lmax = 0.0;
+    for (int64_t i = 1; i <= m; i++)
+      for (int64_t j = 1; j <= m; j++)
+        for (int64_t l = 1; l <= m; l++) {
+          double kk[3], mm[3];
+          int64_t ijl[3] = {i, j, l};
+          for (int t = 0; t < 3; t++) {
+            double c = cos((double)ijl[t] * M_PI * h);
+            kk[t] = (2.0 - 2.0 * c) / h;
+            mm[t] = h * (4.0 + 2.0 * c) / 6.0;
+          }
+          double ek = kk[0] * mm[1] * mm[2] + mm[0] * kk[1] * mm[2] + mm[0] * mm[1] * kk[2];
+          double em = mm[0] * mm[1] * mm[2];
+          lam1 = fmin(lam1, ek / em);
+          lmin = fmin(lmin, ek - sigma * em);
+          lmax = fmax(lmax, ek - sigma * em);
+        }
+    const char *what = pass == 0 ? "3-D Laplacian" : "3-D Laplacian near-singular";
+    double r = llt_pair(K3, pass ? M3 : NULL, sigma, lmin, lmax, what);
+    // the lower-triangle storage (fe2cb's; the factor's input assembled before the loop)
+    fmbd_csr *Kl = NULL, *Ml = NULL;
+    EXPECT(fmbd_csr_duplicate(K3, &Kl) == 0 && fmbd_csr_duplicate(M3, &Ml) == 0 &&
+               fmbd_csr_keep_lower(Kl, NULL) == 0 && fmbd_csr_keep_lower(Ml, NULL) == 0,
+           "lower copies");
+    double rl = llt_pair(Kl, pass ? Ml : NULL, sigma, lmin, lmax, what);
+    fmbd_log(FMBD_LOG_INFO, "%s: relative difference of the LL' factors %.2g (lower storage %.2g)",
+             what, r, rl);
+    fmbd_csr_destroy(&Kl);
+    fmbd_csr_destroy(&Ml);
+  }
+  // past the first eigenvalue: not positive definite
+  llt_fail_pair(K3, M3, lam1 * 1.5, "3-D Laplacian, shift past the first eigenvalue");
+
+  // a tet10 stiffness (t2_mesh.h's box, 3 x 3 x 6 cells): K + s M, K's 6 rigid modes lifted by s
+  fmbd_mesh mesh;
+  box_mesh(&mesh, 0.3, 0.3, 1.0, 3, 3, 6, 2);
+  fmbd_fe_opts o = t2_soft_options();
+  fmbd_fe_body *b = NULL;
+  EXPECT(fmbd_fe_assemble(&mesh, &o, &b) == FMBD_OK, "tet10 assemble: %s", fmbd_err_get()->msg);
+  if (b) {
+    int64_t n = b->K->nrows;
+    double s = 1e3;  // (rad/s)^2, far below the box's first flexible mode (~1e6)
+    // lmax: Gershgorin (rigorous); lmin: inverse iteration with CHOLMOD's factor (60 steps
+    // from a smooth start: the Rayleigh quotient converges from above, taken with a margin 2)
+    double lmax = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+      double r = 0.0;
+      for (int64_t p = b->K->indptr[i]; p < b->K->indptr[i + 1]; p++) r += fabs(b->K->data[p]);
+      for (int64_t p = b->M->indptr[i]; p < b->M->indptr[i + 1]; p++) r += s * fabs(b->M->data[p]);
+      lmax = fmax(lmax, r);
+    }
+    fmbd_chol *F = NULL;
+    double lmin = 0.0;
+    EXPECT(fmbd_chol_analyze(b->K, b->M, FMBD_CHOL_LLT, &F) == 0, "tet10 analyse");
+    if (F) {
+      fmbd_chol_set_own_llt(F, false);
+      EXPECT(fmbd_chol_factor(F, -s) == 0, "tet10 factor");
+      double *x = malloc((size_t)(3 * n) * sizeof(double)), *ax = x + n, *bx = x + 2 * n;
+      for (int64_t i = 0; i < n; i++) x[i] = 1.0 + 0.1 * sin((double)i);
+      for (int it = 0; it < 60; it++) {
+        double nx = 0.0;
+        for (int64_t i = 0; i < n; i++) nx += x[i] * x[i];
+        for (int64_t i = 0; i < n; i++) x[i] /= sqrt(nx);
+        EXPECT(fmbd_chol_solve(F, 1, x, n) == 0, "tet10 solve");
+      }
+      double nx = 0.0, q = 0.0;
+      for (int64_t i = 0; i < n; i++) nx += x[i] * x[i];
+      fmbd_csr_matvec(b->K, x, ax);
+      fmbd_csr_matvec(b->M, x, bx);
+      for (int64_t i = 0; i < n; i++) q += x[i] * (ax[i] + s * bx[i]);
+      lmin = q / nx / 2.0;
+      free(x);
+      fmbd_chol_destroy(&F);
+    }
+    double r = llt_pair(b->K, b->M, -s, lmin, lmax, "tet10 box");
+    fmbd_log(FMBD_LOG_INFO, "tet10 box (%lld dofs): relative difference of the LL' factors %.2g",
+             (long long)n, r);
+    fmbd_fe_body_destroy(&b);
+  }
+  fmbd_mesh_destroy(&mesh);
+  fmbd_csr *all[] = {K, M, KM, MM, MK, K3, t1, t2, M3};
+  for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) fmbd_csr_destroy(&all[i]);
+}
+
 int main(void) {
+  fmbd_log_init("t300-chol", FMBD_LOG_WARN);  // FMBD_LOG=info: the factors' differences
+  own_llt();
   inertia_3d();
   dense_supernode();
   exact_pivots();
@@ -657,6 +869,33 @@ int main(void) {
       break;
     }
     EXPECT(rc == FMBD_ERR_NOMEM && F == NULL, "countdown %lld: rc %d", (long long)c, rc);
+  }
+
+  // a failed allocation in our LL' (its workspaces, its value block) leaves the object able to
+  // factor again, and the factor then solves
+  for (int64_t c = 0; c < 40; c++) {
+    EXPECT(fmbd_chol_analyze(K, NULL, FMBD_CHOL_LLT, &F) == 0, "analyse");
+    fmbd_alloc_fail_after(c);
+    rc = fmbd_chol_factor(F, 0.0);
+    fmbd_alloc_fail_after(-1);
+    EXPECT(rc == 0 || rc == FMBD_ERR_NOMEM, "countdown %lld in the factorisation: rc %d",
+           (long long)c, rc);
+    int rc2 = rc ? fmbd_chol_factor(F, 0.0) : 0;
+    for (int64_t i = 0; i < n; i++) X[i] = B[i];
+    EXPECT(rc2 == 0 && fmbd_chol_solve(F, 1, X, n) == 0, "countdown %lld: factor again %d",
+           (long long)c, rc2);
+    fmbd_csr_matvec(K, X, R);
+    double e = 0.0, xm = 0.0, bm = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+      e = fmax(e, fabs(R[i] - B[i]));
+      xm = fmax(xm, fabs(X[i]));
+      bm = fmax(bm, fabs(B[i]));
+    }
+    // the normwise backward error, as for the first solve above (|K|_inf = 4/h)
+    EXPECT(e / (4.0 / h * xm + bm) <= 1e-14, "countdown %lld: backward error %.3g", (long long)c,
+           e / (4.0 / h * xm + bm));
+    fmbd_chol_destroy(&F);
+    if (rc == 0) break;
   }
 
   fmbd_csr_destroy(&K);
