@@ -1218,13 +1218,27 @@ done:
 
 // --- nodal stress ---------------------------------------------------------------------------
 int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q, double *sigma) {
+  return fmbd_fe_nodal_stress_at(b, ncases, q, -1, NULL, sigma);
+}
+
+// One computation for the whole field and for a selection of nodes: only the elements around
+// the selected nodes, in the same increasing order, each with the same arithmetic (its
+// displacements are the same /expand rows times q, through the same product), so a selected
+// node's stress is bitwise the whole field's row.
+int fmbd_fe_nodal_stress_at(const fmbd_fe_body *b, int64_t ncases, const double *q, int64_t nsel,
+                            const int64_t *sel, double *sigma) {
   FMBD_CHECK(b->expand && b->expand->nrows == 6 * b->nnodes && b->expand->ncols == b->ndof,
              FMBD_ERR_VALUE, "nodal stress: the body has no expansion matrix of shape (%lld, %lld)",
              (long long)(6 * b->nnodes), (long long)b->ndof);
   int rc = FMBD_OK;
   double *u = NULL;
   int *count = NULL;
+  int64_t *orow = NULL, *urow = NULL;
+  unsigned char *etouch = NULL;
+  fmbd_csr *Xs = NULL;
+  const fmbd_csr *X = b->expand;
   const int nn = b->tet_nodes;
+  const int64_t nno = b->nnodes, nout = sel ? nsel : nno;
   const double nu = b->nu, E = b->E;
   const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), mu = E / (2.0 * (1.0 + nu));
   static const double node_xi[10][3] = {{0, 0, 0},   {1, 0, 0},   {0, 1, 0},  {0, 0, 1},
@@ -1232,18 +1246,65 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
                                         {0, .5, .5}, {.5, 0, .5}};
   double dNn[10][30], Nn[10];
   for (int a = 0; a < nn; a++) fmbd_fe_tet_shape(nn, node_xi[a], Nn, dNn[a]);
-  // cases in blocks: the displacements of a block of cases at all nodes, U = expand * q
-  const int64_t nb = ncases < 16 ? ncases : 16, ld = 6 * b->nnodes;
-  FMBD_GALLOC(u = fmbd_malloc((size_t)(ld * (nb ? nb : 1)) * sizeof *u));
-  FMBD_GALLOC(count = fmbd_calloc((size_t)b->nnodes, sizeof *count));
-  memset(sigma, 0, (size_t)(b->nnodes * 6 * ncases) * sizeof *sigma);
+  FMBD_GALLOC(count = fmbd_calloc((size_t)nno + 1, sizeof *count));
   for (int64_t e = 0; e < b->ntet; e++) {
     for (int a = 0; a < nn; a++) count[b->tet[e * nn + a]]++;
   }
+  // orow: a node's row in sigma (-1: not asked); urow: its row block in the displacements
+  // (-1: not needed); etouch: the elements around a selected node
+  int64_t nu_rows = nno;
+  if (sel) {
+    FMBD_GCHECK(nsel >= 0, FMBD_ERR_VALUE, "nodal stress: %lld selected nodes", (long long)nsel);
+    FMBD_GALLOC(orow = fmbd_malloc(sizeof(int64_t) * (size_t)(nno + 1)));
+    FMBD_GALLOC(urow = fmbd_malloc(sizeof(int64_t) * (size_t)(nno + 1)));
+    FMBD_GALLOC(etouch = fmbd_calloc((size_t)b->ntet + 1, 1));
+    for (int64_t p = 0; p < nno; p++) orow[p] = urow[p] = -1;
+    for (int64_t i = 0; i < nsel; i++) {
+      FMBD_GCHECK(sel[i] >= 0 && sel[i] < nno, FMBD_ERR_VALUE,
+                  "nodal stress: selected node %lld out of range (%lld nodes)", (long long)sel[i],
+                  (long long)nno);
+      FMBD_GCHECK(orow[sel[i]] < 0, FMBD_ERR_VALUE, "nodal stress: node %lld selected twice",
+                  (long long)sel[i]);
+      orow[sel[i]] = i;
+    }
+    for (int64_t e = 0; e < b->ntet; e++) {
+      for (int a = 0; a < nn; a++) etouch[e] |= orow[b->tet[e * nn + a]] >= 0;
+      if (etouch[e]) {
+        for (int a = 0; a < nn; a++) urow[b->tet[e * nn + a]] = 0;
+      }
+    }
+    // the /expand rows of the needed nodes, in node order, entries as they are
+    nu_rows = 0;
+    int64_t nnz = 0;
+    for (int64_t p = 0; p < nno; p++) {
+      if (urow[p] < 0) continue;
+      urow[p] = nu_rows++;
+      nnz += X->indptr[6 * p + 6] - X->indptr[6 * p];
+    }
+    FMBD_GCALL(fmbd_csr_create(6 * nu_rows, b->ndof, nnz, &Xs));
+    int64_t k = 0, row = 0;
+    Xs->indptr[0] = 0;
+    for (int64_t p = 0; p < nno; p++) {
+      if (urow[p] < 0) continue;
+      for (int d = 0; d < 6; d++, row++) {
+        for (int64_t e = X->indptr[6 * p + d]; e < X->indptr[6 * p + d + 1]; e++, k++) {
+          Xs->indices[k] = X->indices[e];
+          Xs->data[k] = X->data[e];
+        }
+        Xs->indptr[row + 1] = k;
+      }
+    }
+    X = Xs;
+  }
+  // cases in blocks: the displacements of a block of cases at the needed nodes, U = expand * q
+  const int64_t nb = ncases < 16 ? ncases : 16, ld = 6 * nu_rows;
+  FMBD_GALLOC(u = fmbd_malloc((size_t)(ld * (nb ? nb : 1) + 1) * sizeof *u));
+  memset(sigma, 0, (size_t)(nout * 6 * ncases) * sizeof *sigma);
   for (int64_t c0 = 0; c0 < ncases; c0 += nb) {
     const int64_t ncb = ncases - c0 < nb ? ncases - c0 : nb;
-    fmbd_csr_matmat(b->expand, ncb, q + c0 * b->ndof, b->ndof, u, ld);
+    fmbd_csr_matmat(X, ncb, q + c0 * b->ndof, b->ndof, u, ld);
     for (int64_t e = 0; e < b->ntet; e++) {
+      if (etouch && !etouch[e]) continue;
       const int64_t *en = b->tet + e * nn;
       double G[10][30];  // global gradients of the shape functions at each node of the element
       for (int a = 0; a < nn; a++) {
@@ -1277,11 +1338,13 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
       }
       for (int64_t c = 0; c < ncb; c++) {
         const double *uc = u + c * ld;
-        double *sg = sigma + (c0 + c) * b->nnodes * 6;
+        double *sg = sigma + (c0 + c) * nout * 6;
         for (int a = 0; a < nn; a++) {
-          double gu[9] = {0};  // gu[i][j] = d u_i / d x_j
+          int64_t oa = orow ? orow[en[a]] : en[a];
+          if (oa < 0) continue;  // a node of the element that is not asked
+          double gu[9] = {0};    // gu[i][j] = d u_i / d x_j
           for (int k = 0; k < nn; k++) {
-            const double *uk = uc + 6 * en[k], *g = G[a] + 3 * k;
+            const double *uk = uc + 6 * (urow ? urow[en[k]] : en[k]), *g = G[a] + 3 * k;
             for (int i = 0; i < 3; i++) {
               gu[i * 3 + 0] += uk[i] * g[0];
               gu[i * 3 + 1] += uk[i] * g[1];
@@ -1289,7 +1352,7 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
             }
           }
           double tr = gu[0] + gu[4] + gu[8];
-          double *dst = sg + en[a] * 6;
+          double *dst = sg + oa * 6;
           dst[0] += lambda * tr + 2 * mu * gu[0];
           dst[1] += lambda * tr + 2 * mu * gu[4];
           dst[2] += lambda * tr + 2 * mu * gu[8];
@@ -1301,15 +1364,20 @@ int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q,
     }
   }
   for (int64_t c = 0; c < ncases; c++) {
-    double *sg = sigma + c * b->nnodes * 6;
-    for (int64_t p = 0; p < b->nnodes; p++) {
+    double *sg = sigma + c * nout * 6;
+    for (int64_t i = 0; i < nout; i++) {
+      int64_t p = sel ? sel[i] : i;
       if (count[p] > 1) {
-        for (int i = 0; i < 6; i++) sg[p * 6 + i] /= count[p];
+        for (int j = 0; j < 6; j++) sg[i * 6 + j] /= count[p];
       }
     }
   }
 done:
   fmbd_free(u);
   fmbd_free(count);
+  fmbd_free(orow);
+  fmbd_free(urow);
+  fmbd_free(etouch);
+  fmbd_csr_destroy(&Xs);
   return rc;
 }

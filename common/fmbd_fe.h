@@ -195,6 +195,14 @@ int fmbd_fe_copy_description(fmbd_h5 *src, fmbd_h5 *dst);
 /// @param[out] sigma (caller allocates nnodes*6*ncases): sigma[(c*nnodes + p)*6 + i],
 /// i = xx yy zz xy yz zx (engineering shear stresses tau)
 int fmbd_fe_nodal_stress(const fmbd_fe_body *b, int64_t ncases, const double *q, double *sigma);
+/// @brief fmbd_fe_nodal_stress at some nodes only: the same computation restricted to the
+/// solid elements around them (in the same order), so each selected node's stress is bitwise
+/// the whole field's row. sel NULL: every node (fmbd_fe_nodal_stress).
+/// @param[in] sel (nsel) distinct node indices
+/// @param[out] sigma (caller allocates nsel*6*ncases): sigma[(c*nsel + i)*6 + j] at node sel[i]
+/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range or selected twice), FMBD_ERR_NOMEM
+int fmbd_fe_nodal_stress_at(const fmbd_fe_body *b, int64_t ncases, const double *q, int64_t nsel,
+                            const int64_t *sel, double *sigma);
 
 /// @brief Active dof of (node, direction), or -1 if that component is not active.
 int64_t fmbd_fe_dof(const fmbd_fe_body *b, int64_t node, int direction);

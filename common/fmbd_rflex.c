@@ -110,11 +110,15 @@ int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma) {
   FMBD_CHECK(node >= 0 && node < r->nnodes, FMBD_ERR_VALUE, "node %lld out of range (%lld nodes)",
              (long long)node, (long long)r->nnodes);
   int64_t row = r->stress_row ? r->stress_row[node] : node;
-  FMBD_CHECK(row >= 0, FMBD_ERR_VALUE,
+  FMBD_CHECK(row >= 0 || !r->held, FMBD_ERR_VALUE,
              "this subset body holds no stress at node %lld: only where its scene asked for "
              "stress (/subset/stress_nodes); make the body for this scene (fmbd-run -M passes "
              "cbcheck --for-scene)",
              (long long)node);
+  FMBD_CHECK(row >= 0, FMBD_ERR_VALUE,
+             "the modal stress of this body was formed at %lld selected nodes only "
+             "(fmbd_rflex_form_stress), not at node %lld",
+             (long long)r->nstress, (long long)node);
   int64_t ns = r->stress_row ? r->nstress : r->nnodes;
   for (int64_t k = 0; k < r->nm; k++) {
     for (int i = 0; i < 6; i++) {
@@ -367,7 +371,7 @@ int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C) {
 // description, the nodal and interface motion through /expand, the FFRF invariants
 // (docs/THEORY.md section 9) and the optional modal stress.
 static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
-                        const double *eig, bool stress) {
+                        const double *eig, bool stress, bool no_ss) {
   int rc = FMBD_OK;
   double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL;
   fmbd_csr *Mn = NULL;
@@ -497,8 +501,11 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         }
       }
     }
+    // SS: 9 products of nm x nn by nn x nm, the largest part of the build with many modes; a
+    // body for partial inertia coupling takes it as zero (fmbd_mbs_add_flex), so none is made
+    r->ss_omitted = no_ss;
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
-    for (int a = 0; a < 3; a++) {
+    for (int a = 0; a < 3 && !no_ss; a++) {
       for (int bb = 0; bb < 3; bb++) {
         fmbd_dense_gemm('T', 'N', nm, nm, nn, 1.0, Wa + nn * a * nm, nn, Ub + nn * bb * nm, nn, 0.0,
                         Sab, nm);
@@ -513,10 +520,7 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
   // --- modal stress ---
   // from the solid elements only: without any (beams, springs, a lost /mesh/elements) it would
   // be zero everywhere, so none is made (r->stress = NULL; callers say so)
-  if (stress && nm > 0 && b->ntet > 0) {
-    FMBD_GALLOC(r->stress = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
-    FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, r->stress));
-  }
+  if (stress) FMBD_GCALL(fmbd_rflex_form_stress(r, b, -1, NULL));
 done:
   fmbd_free(U);
   fmbd_free(Wa);
@@ -524,6 +528,56 @@ done:
   fmbd_csr_destroy(&Mn);
   fmbd_free(Sab);
   fmbd_free(WM);
+  return rc;
+}
+
+int fmbd_rflex_form_stress(fmbd_rflex *r, const fmbd_fe_body *b, int64_t nsel,
+                           const int64_t *nodes) {
+  int rc = FMBD_OK;
+  int64_t nm = r->nm, nn = r->nnodes, ns = 0, *list = NULL, *srow = NULL;
+  double *sig = NULL;
+  FMBD_CHECK(!r->held && b->nnodes == nn && b->ndof == r->ndof, FMBD_ERR_VALUE,
+             "modal stress: the body (%lld nodes, %lld dofs%s) is not the description's (%lld "
+             "nodes, %lld dofs)",
+             (long long)nn, (long long)r->ndof, r->held ? ", a subset" : "", (long long)b->nnodes,
+             (long long)b->ndof);
+  fmbd_free(r->stress);
+  fmbd_free(r->stress_row);
+  r->stress = NULL;
+  r->stress_row = NULL;
+  r->nstress = 0;
+  // from the solid elements only: without any (beams, springs, a lost /mesh/elements) it would
+  // be zero everywhere, so none is made (r->stress = NULL; callers say so)
+  if (nm == 0 || b->ntet == 0) return FMBD_OK;
+  if (!nodes) {
+    FMBD_GALLOC(sig = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+    FMBD_GCALL(fmbd_fe_nodal_stress(b, nm, r->shapes, sig));
+    ns = nn;
+  } else {  // rows in node order, each node once
+    FMBD_GALLOC(srow = fmbd_malloc(sizeof(int64_t) * (size_t)(nn + 1)));
+    FMBD_GALLOC(list = fmbd_malloc(sizeof(int64_t) * (size_t)(nsel + 1)));
+    for (int64_t p = 0; p < nn; p++) srow[p] = -1;
+    for (int64_t i = 0; i < nsel; i++) {
+      FMBD_GCHECK(nodes[i] >= 0 && nodes[i] < nn, FMBD_ERR_VALUE,
+                  "modal stress: node %lld out of range (%lld nodes)", (long long)nodes[i],
+                  (long long)nn);
+      srow[nodes[i]] = 0;
+    }
+    for (int64_t p = 0; p < nn; p++) {
+      if (srow[p] == 0) list[ns] = p, srow[p] = ns++;
+    }
+    FMBD_GALLOC(sig = xcalloc((size_t)(6 * ns * nm), sizeof(double)));
+    FMBD_GCALL(fmbd_fe_nodal_stress_at(b, nm, r->shapes, ns, list, sig));
+  }
+  r->stress = sig;
+  r->stress_row = srow;
+  r->nstress = ns;
+  sig = NULL;
+  srow = NULL;
+done:
+  fmbd_free(sig);
+  fmbd_free(srow);
+  fmbd_free(list);
   return rc;
 }
 
@@ -591,7 +645,7 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
     Mff[k + nm * k] = 1.0;
     Kff[k + nm * k] = in->chibar[k];
   }
-  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, in->chibar, in->stress));
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, in->chibar, in->stress, in->no_ss));
   *out = r;
   r = NULL;
 done:
@@ -673,7 +727,7 @@ int fmbd_rflex_from_basis(const fmbd_rflex_basis *in, fmbd_rflex **out) {
                (long long)nm);
   }
   FMBD_GCALL(rc);
-  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, eig, in->stress));
+  FMBD_GCALL(rflex_finish(b, r, Mff, Kff, eig, in->stress, false));
   *out = r;
   r = NULL;
 done:
@@ -718,6 +772,12 @@ int fmbd_rflex_write(fmbd_h5 *f, const fmbd_rflex *r) {
   int64_t nm = r->nm, nn = r->nnodes;
   char path[512];
   int64_t d1[1] = {nm};
+  FMBD_GCHECK(!r->ss_omitted, FMBD_ERR_VALUE,
+              "a body built for partial inertia coupling (SS not formed) is not written");
+  FMBD_GCHECK(!r->stress_row || r->held, FMBD_ERR_VALUE,
+              "a body whose modal stress was formed at %lld selected nodes only "
+              "(fmbd_rflex_form_stress) is not written: form it at every node",
+              (long long)r->nstress);
   FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/eigenvalue", 1, d1, r->eigenvalue));
   FMBD_GCALL(fmbd_h5_write_f64(f, "/modes/frequency_hz", 1, d1, r->frequency_hz));
   FMBD_GCALL(fmbd_h5_write_f64_cm(f, "/modes/shapes", r->ndof, nm, r->shapes));

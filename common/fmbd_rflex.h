@@ -73,6 +73,8 @@ typedef struct fmbd_rflex {
   int64_t *stress_row;  ///< nnodes: the node's row in stress, or -1 (NULL: row = node)
   int64_t nstress;      ///< rows of stress (nnodes for a whole body)
   int64_t whole_ndof;   ///< the whole body's active dofs (/subset whole_ndof)
+  bool ss_omitted;      ///< SS not formed (zero): built for partial inertia coupling only
+                        ///< (fmbd_rflex_input no_ss); fmbd_rflex_write refuses it
 } fmbd_rflex;
 
 enum { FMBD_RFLEX_HELD_MOTION = 1, FMBD_RFLEX_HELD_STRESS = 2 };
@@ -125,6 +127,8 @@ typedef struct fmbd_rflex_input {
   const double *Xi;      ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
   int64_t ldxi;          ///< leading dimension of Xi (>= nd+nb)
   bool stress;           ///< compute /modes/stress (fmbd_fe_nodal_stress)
+  bool no_ss;  ///< for a body with partial inertia coupling only (docs/THEORY.md section 4c,
+               ///< which takes SS as zero): SS not formed, left zero, and r->ss_omitted set
 } fmbd_rflex_input;
 
 /// @brief The secondary reduction [H46-H50]: shapes qF = T0 PhiT (T0 = [Phi_d Psi; 0 I] in
@@ -214,6 +218,17 @@ int fmbd_rflex_node_modes(const fmbd_rflex *r, int64_t node, double *x0, double 
 /// coordinate. FMBD_ERR_VALUE if the body has no stress, node is out of range, or a subset
 /// body does not hold the node's stress.
 int fmbd_rflex_node_stress(const fmbd_rflex *r, int64_t node, double *sigma);
+
+/// @brief Form r's modal stress (/modes/stress) from its shapes and the body description b
+/// (the one r was built from: same nodes and dofs; not a subset body) with fmbd_fe_nodal_stress:
+/// at every node (nodes NULL), or only at the nodes `nodes` (nsel of them, repeats allowed;
+/// fmbd_fe_nodal_stress_at, bitwise the whole field's rows): then r->stress_row maps a node to
+/// its row (-1 elsewhere: fmbd_rflex_node_stress refuses it) and r->nstress counts the rows, in
+/// node order. Any stress r held is replaced; without solid elements (or modes) r->stress is
+/// NULL.
+/// @return FMBD_OK, FMBD_ERR_VALUE (a node out of range, a body that is not b's), FMBD_ERR_NOMEM
+int fmbd_rflex_form_stress(fmbd_rflex *r, const fmbd_fe_body *b, int64_t nsel,
+                           const int64_t *nodes);
 
 /// @brief Make r a subset body (docs/FORMAT.md /subset): keep the modal motion of the nodes
 /// `motion` (and of every interface node) and the modal stress of the nodes `stress` (which

@@ -70,7 +70,11 @@ static int truncate_modes(fmbd_rflex *r, int64_t n) {
 // --- a modal body from a cb file ------------------------------------------------------------
 // The flexible modes of the reduced eigenproblem (those /reduced/rigid does not flag), turned
 // into a body by the one producer, fmbd_rflex_build, exactly as cbcheck does for a selection.
-int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
+// With desc_out, the body's description is handed to the caller (to form the stress later at
+// the nodes it needs, fmbd_rflex_form_stress).
+// With no_ss, the body is for partial inertia coupling only (fmbd_rflex_input no_ss).
+static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, fmbd_rflex **out,
+                         fmbd_fe_body **desc_out) {
   int rc = FMBD_OK;
   fmbd_cb *cb = NULL;
   fmbd_fe_body *desc = NULL;
@@ -87,15 +91,24 @@ int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
     memcpy(Xi + nr * j, cb->Xi + nr * k, sizeof(double) * (size_t)nr);
     j++;
   }
-  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
-                         cb->ns, cb->Psi, nm,     chibar,       Xi,           nr,     stress};
+  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary,
+                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
+                         chibar, Xi,      nr,     stress,       no_ss};
   FMBD_GCALL(fmbd_rflex_build(&mi, out));
+  if (desc_out) {
+    *desc_out = desc;
+    desc = NULL;
+  }
 done:
   fmbd_free(Xi);
   fmbd_free(chibar);
   fmbd_fe_body_destroy(&desc);
   fmbd_cb_destroy(&cb);
   return rc;
+}
+
+int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
+  return rflex_from_cb(f, stress, false, out, NULL);
 }
 
 // --- points --------------------------------------------------------------------------------
@@ -251,7 +264,10 @@ static int add_input(fmbd_scene_model *m, const char *name, const char *sha) {
 // basis_kind gms: the body's rows of the first `modes` global modes (/gms/<body>), whose
 // coordinates the bodies naming the same file share (fmbd_mbs_share_modal, in
 // fmbd_scene_build); the body's own S'MS may then be singular.
-static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f, bool stress) {
+// With desc_out, no stress is formed and the description is handed to the caller (to form it at
+// the nodes the scene reads, stress_at_outputs).
+static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f,
+                    fmbd_fe_body **desc_out) {
   int rc = 0;
   const fmbd_scene_body *b = &s->bodies[bi];
   const char *name = b->basis_body ? b->basis_body : b->name;
@@ -361,13 +377,17 @@ static int load_gmc(fmbd_scene_model *m, const fmbd_scene *s, int bi, fmbd_h5 *f
   }
   // a full FE body's file has its M and K: the projections are made here; a modal body's
   // description has none: the file's Mff, Kff (gmsolve's projections with the modal matrices)
-  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, stress, b->basis_gms};
+  fmbd_rflex_basis in = {desc, desc->M, desc->K, nc, S, ndof, Mff, Kff, false, b->basis_gms};
   rc = fmbd_rflex_from_basis(&in, &r);
   if (rc) SFAIL(s, b->basis_loc, rc, "body '%s': %s: %s", b->name, b->basis, fmbd_err_get()->msg);
   fmbd_rflex_destroy(&m->flex[bi]);
   m->flex[bi] = r;
   r = NULL;
   FMBD_GCALL(add_input(m, b->basis, fmbd_h5_sha256(g)));
+  if (desc_out) {
+    *desc_out = desc;
+    desc = NULL;
+  }
 done:
   fmbd_h5_close(&g);
   fmbd_fe_body_destroy(&desc);
@@ -576,10 +596,40 @@ static void fe_node_modes(const fmbd_scene_model *m, int bi, int64_t node, int64
 }
 
 // --- flexible bodies ---------------------------------------------------------------------
+// The modal stress of a body built here (from a cb file or a GMc basis), formed only at the
+// nodes the scene's stress and strain outputs read (fmbd_rflex_form_stress: bitwise the whole
+// field's rows there), resolved as the outputs resolve them (flex_node). An output whose place
+// does not resolve is left to the outputs' loop, which says why.
+static int stress_at_outputs(const fmbd_scene *s, int bi, fmbd_rflex *r, const fmbd_fe_body *desc) {
+  int rc = 0;
+  int64_t *nodes = NULL, n = 0;
+  FMBD_GALLOC(nodes = fmbd_malloc(sizeof(int64_t) * (size_t)(s->noutputs + 1)));
+  for (int o = 0; o < s->noutputs; o++) {
+    const fmbd_scene_output *op = &s->outputs[o];
+    if (op->body != bi ||
+        !(op->quantities & (FMBD_OUT_VON_MISES | FMBD_OUT_STRESS | FMBD_OUT_STRAIN)) ||
+        op->at.kind == FMBD_AT_DEFAULT)  // the body's origin: no node (refused later)
+      continue;
+    double x0[3] = {0, 0, 0};
+    if (op->at.kind == FMBD_AT_POINT) memcpy(x0, op->at.p, sizeof x0);
+    int64_t node = -1;
+    if (flex_node(s, bi, r, &op->at, x0, op->loc, "output", &node) == 0 && node >= 0) {
+      nodes[n++] = node;
+    } else {
+      fmbd_err_clear();
+    }
+  }
+  FMBD_GCALL(fmbd_rflex_form_stress(r, desc, n, nodes));
+done:
+  fmbd_free(nodes);
+  return rc;
+}
+
 static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need_stress) {
   int rc = 0;
   const fmbd_scene_body *b = &s->bodies[bi];
   fmbd_h5 *f = NULL;
+  fmbd_fe_body *desc = NULL;  // a body built here: its description, for its stress
   char *format = NULL;
   fmbd_err_clear();
   rc = fmbd_h5_open(b->file, &f);
@@ -594,7 +644,11 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     rc = fmbd_rflex_read(f, &m->flex[bi]);
   } else if (format && !strcmp(format, FMBD_CB_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR);
-    if (!rc) rc = fmbd_scene_rflex_from_cb(f, need_stress, &m->flex[bi]);
+    if (!rc) {
+      // partial inertia coupling takes SS as zero (fmbd_mbs_add_flex): not formed
+      rc = rflex_from_cb(f, false, b->inertia_partial && !b->basis, &m->flex[bi],
+                         need_stress && !b->basis ? &desc : NULL);
+    }
   } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {
     rc = fmbd_h5_check_format(f, FMBD_FE_FORMAT, FMBD_FE_FORMAT_MAJOR);
     // with a GMc basis the body is the modal body of that basis (load_gmc, below)
@@ -659,8 +713,12 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     }
     fmbd_free(made);
   }
-  if (b->basis) FMBD_GCALL(load_gmc(m, s, bi, f, need_stress));
+  if (b->basis) FMBD_GCALL(load_gmc(m, s, bi, f, need_stress ? &desc : NULL));
   fmbd_rflex *r = m->flex[bi];
+  if (desc) {  // with every mode of the file, as the whole field was formed before truncation
+    rc = stress_at_outputs(s, bi, r, desc);
+    if (rc) SFAIL(s, b->file_loc, rc, "body '%s' (%s): %s", b->name, b->file, fmbd_err_get()->msg);
+  }
   if (!b->basis && b->modes > r->nm) {
     SFAIL(s, b->file_loc, FMBD_ERR_SCENE, "body '%s' asks for %lld modes; %s has %lld", b->name,
           (long long)b->modes, b->basis ? b->basis : b->file, (long long)r->nm);
@@ -700,6 +758,7 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
   }
 done:
   fmbd_free(format);
+  fmbd_fe_body_destroy(&desc);
   fmbd_h5_close(&f);
   return rc;
 }
@@ -872,7 +931,7 @@ done:
 }
 
 // the stress of a full FE body at a node: its nodal displacements as the one "mode" of
-// fmbd_fe_nodal_stress (element stresses averaged at the nodes)
+// fmbd_fe_nodal_stress_at (element stresses averaged at the node, from its elements only)
 static int fe_output_stress(const fmbd_scene_model *m, int bi, int64_t node, double sigma[6]) {
   int rc = FMBD_OK;
   const fmbd_fe_body *fe = m->fe[bi];
@@ -880,13 +939,13 @@ static int fe_output_stress(const fmbd_scene_model *m, int bi, int64_t node, dou
   const double *q = NULL;
   fmbd_mbs_modal(m->mbs, m->body_id[bi], &q, NULL, NULL);
   FMBD_GALLOC(u = fmbd_calloc((size_t)fe->ndof, sizeof(double)));
-  FMBD_GALLOC(st = fmbd_calloc((size_t)(6 * fe->nnodes), sizeof(double)));
+  FMBD_GALLOC(st = fmbd_calloc(6, sizeof(double)));
   for (int64_t i = 0; i < fe->ndof; i++) {
     int64_t k = m->fe_col[bi][i];
     u[i] = k >= 0 ? q[k] : 0.0;
   }
-  FMBD_GCALL(fmbd_fe_nodal_stress(fe, 1, u, st));
-  memcpy(sigma, st + 6 * node, 6 * sizeof(double));
+  FMBD_GCALL(fmbd_fe_nodal_stress_at(fe, 1, u, 1, &node, st));
+  memcpy(sigma, st, 6 * sizeof(double));
 done:
   fmbd_free(u), fmbd_free(st);
   return rc;

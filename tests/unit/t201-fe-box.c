@@ -10,6 +10,7 @@
 #include "fmbd_dense.h"
 #include "fmbd_err.h"
 #include "fmbd_fe.h"
+#include "fmbd_rflex.h"
 #include "t2_mesh.h"
 
 static const double E = 70e9, NU = 0.33, RHO = 2700;
@@ -124,6 +125,69 @@ static void patch_test(const fmbd_fe_body *b, const char *what, double a, double
   fmbd_free(sig);
 }
 
+// the stress at selected nodes (fmbd_fe_nodal_stress_at; fmbd_rflex_form_stress, which fmbd-run
+// uses to form a body's modal stress at the nodes its outputs read only) is bitwise the whole
+// field's rows: the same elements summed in the same order. NCASES pseudo-random fields (two
+// blocks of the routine; independent, as a basis must be), so every element contributes.
+static void selected_stress_test(const fmbd_fe_body *b, const char *what) {
+  int64_t nn = b->nnodes, nd = b->ndof;
+  double *q = fmbd_malloc(NCASES * nd * sizeof *q), *all = fmbd_malloc(NCASES * nn * 6 * 8);
+  double *sel = fmbd_malloc(NCASES * 3 * 6 * sizeof *sel);
+  uint64_t x = 12345;  // a linear congruential sequence (Knuth's MMIX constants): independent
+  for (int64_t i = 0; i < NCASES * nd; i++) {
+    x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+    q[i] = ((double)(x >> 11) / 9007199254740992.0 - 0.5) * 1e-3;
+  }
+  const int64_t nodes[3] = {nn - 1, 0, nn / 2};  // not in node order: rows follow the list
+  EXPECT(fmbd_fe_nodal_stress(b, NCASES, q, all) == FMBD_OK, "%s: nodal stress", what);
+  EXPECT(fmbd_fe_nodal_stress_at(b, NCASES, q, 3, nodes, sel) == FMBD_OK, "%s: selected: %s", what,
+         fmbd_err_get()->msg);
+  int differ = 0, nonzero = 0;
+  for (int cs = 0; cs < NCASES; cs++) {
+    for (int i = 0; i < 3; i++) {
+      const double *x = all + (cs * nn + nodes[i]) * 6, *y = sel + (cs * 3 + i) * 6;
+      differ += memcmp(x, y, 6 * sizeof(double)) != 0;
+      for (int j = 0; j < 6; j++) nonzero += x[j] != 0.0;
+    }
+  }
+  EXPECT(differ == 0 && nonzero > 0, "%s: %d selected rows differ from the whole field's", what,
+         differ);
+  const int64_t twice[2] = {1, 1}, out[1] = {nn};
+  EXPECT(fmbd_fe_nodal_stress_at(b, 1, q, 2, twice, sel) == FMBD_ERR_VALUE &&
+             strstr(fmbd_err_get()->msg, "selected twice"),
+         "%s: a node selected twice: %s", what, fmbd_err_get()->msg);
+  EXPECT(fmbd_fe_nodal_stress_at(b, 1, q, 1, out, sel) == FMBD_ERR_VALUE &&
+             strstr(fmbd_err_get()->msg, "out of range"),
+         "%s: a node out of range: %s", what, fmbd_err_get()->msg);
+  // a modal body of these fields: its stress formed at every node, and at two nodes only
+  fmbd_rflex_basis in = {b, b->M, b->K, NCASES, q, nd, NULL, NULL, true, false};
+  fmbd_rflex *whole = NULL, *part = NULL;
+  EXPECT(fmbd_rflex_from_basis(&in, &whole) == FMBD_OK, "%s: basis: %s", what, fmbd_err_get()->msg);
+  in.stress = false;
+  EXPECT(fmbd_rflex_from_basis(&in, &part) == FMBD_OK && part && !part->stress,
+         "%s: basis without stress", what);
+  if (whole && part) {
+    const int64_t two[3] = {nn / 2, 0, nn / 2};  // a repeat is one row
+    EXPECT(fmbd_rflex_form_stress(part, b, 3, two) == FMBD_OK && part->nstress == 2,
+           "%s: form stress: %s", what, fmbd_err_get()->msg);
+    double s1[6 * NCASES], s2[6 * NCASES];
+    for (int i = 0; i < 2; i++) {
+      EXPECT(fmbd_rflex_node_stress(whole, two[i], s1) == FMBD_OK &&
+                 fmbd_rflex_node_stress(part, two[i], s2) == FMBD_OK && !memcmp(s1, s2, sizeof s1),
+             "%s: modal stress at node %lld differs from the whole field's", what,
+             (long long)two[i]);
+    }
+    EXPECT(fmbd_rflex_node_stress(part, nn - 1, s2) == FMBD_ERR_VALUE &&
+               strstr(fmbd_err_get()->msg, "formed at 2 selected nodes only"),
+           "%s: a node outside the selection: %s", what, fmbd_err_get()->msg);
+  }
+  fmbd_rflex_destroy(&whole);
+  fmbd_rflex_destroy(&part);
+  fmbd_free(q);
+  fmbd_free(all);
+  fmbd_free(sel);
+}
+
 static void check_body(const fmbd_fe_body *b, const char *what, double m, const double S1[3],
                        const double S2[9]) {
   // rigid-body properties from the consistent mass: exact for straight elements and for the
@@ -228,6 +292,7 @@ int main(void) {
         }
       }
       patch_test(b, what, a, bb, c, true);
+      selected_stress_test(b, what);
       fmbd_fe_body_destroy(&b);
       fmbd_mesh_destroy(&mesh);
     }
@@ -256,6 +321,7 @@ int main(void) {
       // even on curved elements (K u = 0 inside does not hold exactly: the 4-point rule is not
       // exact for the curved integrand, so only the stresses are checked)
       patch_test(b, "curved tet10", a, bb, c + eps * (a * bb + a * a), false);
+      selected_stress_test(b, "curved tet10");
       fmbd_fe_body_destroy(&b);
     }
     fmbd_mesh_destroy(&mesh);

@@ -99,8 +99,9 @@ int main(void) {
     chif[k] = cb->chibar[nrig + k];
     memcpy(Xif + nr * k, cb->Xi + nr * (nrig + k), sizeof(double) * (size_t)nr);
   }
-  fmbd_rflex_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary, cb->nd, cb->Phi,
-                         cb->ns, cb->Psi, nm,     chif,         Xif,          nr,     true};
+  fmbd_rflex_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary,
+                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
+                         chif,   Xif,     nr,     true,         false};
   fmbd_rflex *rf = NULL;
   EXPECT(fmbd_rflex_build(&mi, &rf) == 0, "build: %s", fmbd_err_get()->msg);
   // shapes' M shapes = I: T0' M T0 = M_ (closed form) and Xi' M_ Xi = I; round-off of the
@@ -118,6 +119,23 @@ int main(void) {
       EXPECT(fabs(Kq[i + nm * j] - (i == j) * chif[i]) < 1e-9 * chif[nm - 1],
              "shapes' K shapes (%d,%d)", i, j);
     }
+  }
+  // a body for partial inertia coupling: SS not formed (zero, flagged), everything else the same
+  {
+    mi.no_ss = true;
+    fmbd_rflex *rp = NULL;
+    EXPECT(fmbd_rflex_build(&mi, &rp) == 0 && rp, "build without SS: %s", fmbd_err_get()->msg);
+    if (rp && rf) {
+      int nz = 0;
+      for (int64_t i = 0; i < 9 * nm * nm; i++) nz += rp->SS[i] != 0.0;
+      EXPECT(rp->ss_omitted && !rf->ss_omitted && nz == 0, "SS omitted: %d nonzero", nz);
+      EXPECT(!memcmp(rp->S1, rf->S1, sizeof(double) * 3 * nm) &&
+                 !memcmp(rp->XS, rf->XS, sizeof(double) * 9 * nm) &&
+                 !memcmp(rp->shapes, rf->shapes, sizeof(double) * n * nm),
+             "without SS: the other invariants differ");
+    }
+    fmbd_rflex_destroy(&rp);
+    mi.no_ss = false;
   }
   // first moment and mass from /body
   EXPECT(rf->mass == b->mass && fabs(rf->first_moment[0] - b->mass * b->center_of_mass[0]) < 1e-15,
