@@ -1007,10 +1007,13 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   cholmod_sparse *T = NULL;
   double *dg = NULL;
   int ok;
-  if (F->kind == FMBD_CHOL_LLT && F->own_llt && F->L->is_super) {
-    // our supernodal LL' (own_llt)
+  if (F->kind == FMBD_CHOL_LLT) {
+    // the diagonal of P (A - sigma B) P' as assembled, for check_pivots
     dg = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(double));
     if (!dg) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory (%lld pivots)", (long long)F->n);
+  }
+  if (F->kind == FMBD_CHOL_LLT && F->own_llt && F->L->is_super) {
+    // our supernodal LL' (own_llt)
     int rc = own_llt(F, sigma, dg);
     if (rc) {
       fmbd_free(dg);
@@ -1020,8 +1023,6 @@ int fmbd_chol_factor(fmbd_chol *F, double sigma) {
   } else if (F->kind == FMBD_CHOL_LLT) {
     // supernodal LL' of our tril(P (A - sigma B) P'): cholmod_l_factorize's own permuted copy
     // is not made (assemble_llt)
-    dg = fmbd_malloc((size_t)(F->n ? F->n : 1) * sizeof(double));
-    if (!dg) FMBD_FAIL(FMBD_ERR_NOMEM, "out of memory (%lld pivots)", (long long)F->n);
     int rc = assemble_llt(F, sigma, &T, dg);
     if (rc) {
       fmbd_free(dg);
@@ -1129,7 +1130,7 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 // columns against CHOLMOD's 86 and 104 ms), CHOLMOD's solve. The results agree with CHOLMOD's to
 // round-off (the same substitutions, the sums in another order and fused: tests/unit/t300
 // compares them, within the triangular solves' error bound).
-#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#ifdef FMBD_HAVE_V4D  // fmbd_vec.h: x86-64, GCC or clang, not FMBD_NO_VECTOR
 #define FMBD_OWN_SOLVE 1
 #include <immintrin.h>
 #ifdef __clang__
@@ -1312,11 +1313,9 @@ __attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_2(const cholmod_f
 }
 #endif
 
-// Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
-// solve); false when not available here (then CHOLMOD's).
+#ifdef FMBD_OWN_SOLVE
 // own_solve's and own_op's conditions, and the workspace allocated on first use
 static bool own_ready(fmbd_chol *F, int64_t nrhs) {
-#ifdef FMBD_OWN_SOLVE
   const cholmod_factor *L = F->L;
   if (!F->own_solve || nrhs > 8 || nrhs < 2 || !L->is_super || !L->is_ll ||
       L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
@@ -1329,13 +1328,11 @@ static bool own_ready(fmbd_chol *F, int64_t nrhs) {
     if (!F->ow) return false;  // CHOLMOD's then (it reports its own memory failure)
   }
   return true;
-#else
-  (void)F;
-  (void)nrhs;
-  return false;
-#endif
 }
+#endif
 
+// Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
+// solve); false when not available here (then CHOLMOD's).
 static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
 #ifdef FMBD_OWN_SOLVE
   if (!own_ready(F, nrhs)) return false;

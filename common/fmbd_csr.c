@@ -246,7 +246,7 @@ static inline void rows_lower_rm(const fmbd_csr *A, int w, const double *xt, dou
 // a * x then + (no contraction into FMA: GCC compiles -std=c11 with -ffp-contract=off, the
 // target attributes inherit it, and clang is told so below), so the results are the same bits on
 // every instruction set and as fmbd_csr_matvec's (tests/unit/t300).
-#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#ifdef FMBD_HAVE_V4D  // fmbd_vec.h: x86-64, GCC or clang, not FMBD_NO_VECTOR
 #define FMBD_VEC8 1
 #ifdef __clang__
 // clang contracts a * x + s into FMA by default, GCC at -std=c11 not

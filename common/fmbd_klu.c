@@ -205,6 +205,14 @@ static void own_drop0(int64_t n, SuiteSparse_long *Xp, SuiteSparse_long *Xi, dou
   Xp[n] = w;
 }
 
+// FMBD_KLU_DROP0=0: the exact zeros kept, in the pattern KLU analyses (red_prepare) and in the
+// own solves' factor (own_extract)
+static bool keep_zeros(void) {
+  static int keep = -1;
+  if (keep < 0) keep = getenv("FMBD_KLU_DROP0") && !strcmp(getenv("FMBD_KLU_DROP0"), "0");
+  return keep;
+}
+
 static void own_extract(fmbd_klu *F) {
   static int off = -1;
   if (off < 0) off = getenv("FMBD_KLU_OWN_SOLVE") && !strcmp(getenv("FMBD_KLU_OWN_SOLVE"), "0");
@@ -250,9 +258,7 @@ static void own_extract(fmbd_klu *F) {
   // once the analysis is of the pattern without A's zeros, red_prepare below, which a motion
   // leaving the plane can undo). The zeros are found again at each refactorisation, so a value
   // turning nonzero keeps its entry. FMBD_KLU_DROP0=0 keeps them.
-  static int keep0 = -1;
-  if (keep0 < 0) keep0 = getenv("FMBD_KLU_DROP0") && !strcmp(getenv("FMBD_KLU_DROP0"), "0");
-  if (!keep0) {
+  if (!keep_zeros()) {
     own_drop0(n, F->oLp, F->oLi, F->oLx, 1);
     own_drop0(n, F->oUp, F->oUi, F->oUx, 0);
   }
@@ -322,8 +328,7 @@ static void red_prepare(fmbd_klu *F, const double *Ax, double **kax) {
   const int64_t n = F->n, nnz = F->Ap[n];
   if (F->red == 0) {
     F->red = -1;
-    const char *e = getenv("FMBD_KLU_DROP0");
-    if (e && !strcmp(e, "0")) return;
+    if (keep_zeros()) return;
     int64_t z = 0;
     for (int64_t c = 0; c < n; c++)
       for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++) z += Ax[p] == 0 && F->Ai[p] != c;

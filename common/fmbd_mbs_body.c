@@ -65,7 +65,7 @@ static void matvec_add_base(int m, int n, const double *restrict A, int lda,
 // one), y_i + (x0 a0_i + ... + x3 a3_i) per four columns for an odd last row, y_i + xj aj_i for
 // the columns after the last four; alpha x_j formed as there; no FMA (GCC compiles -std=c11 with
 // -ffp-contract=off and the target attribute names no FMA; clang is told so below)
-#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(FMBD_NO_VECTOR)
+#ifdef FMBD_HAVE_V4D  // fmbd_vec.h: x86-64, GCC or clang, not FMBD_NO_VECTOR
 #define MBS_VEC4 1
 #ifdef __clang__
 #pragma clang fp contract(off)

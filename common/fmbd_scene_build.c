@@ -935,19 +935,18 @@ done:
 static int fe_output_stress(const fmbd_scene_model *m, int bi, int64_t node, double sigma[6]) {
   int rc = FMBD_OK;
   const fmbd_fe_body *fe = m->fe[bi];
-  double *u = NULL, *st = NULL;
+  double *u = NULL, st[6];
   const double *q = NULL;
   fmbd_mbs_modal(m->mbs, m->body_id[bi], &q, NULL, NULL);
   FMBD_GALLOC(u = fmbd_calloc((size_t)fe->ndof, sizeof(double)));
-  FMBD_GALLOC(st = fmbd_calloc(6, sizeof(double)));
   for (int64_t i = 0; i < fe->ndof; i++) {
     int64_t k = m->fe_col[bi][i];
     u[i] = k >= 0 ? q[k] : 0.0;
   }
   FMBD_GCALL(fmbd_fe_nodal_stress_at(fe, 1, u, 1, &node, st));
-  memcpy(sigma, st, 6 * sizeof(double));
+  memcpy(sigma, st, sizeof st);
 done:
-  fmbd_free(u), fmbd_free(st);
+  fmbd_free(u);
   return rc;
 }
 

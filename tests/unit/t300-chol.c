@@ -341,6 +341,31 @@ static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const 
 
 // the supernodal LDL' count against the simplicial one and the exact count, on a 3-D
 // Laplacian (K3 = K(x)M(x)M + M(x)K(x)M + M(x)M(x)K, M3 = M(x)M(x)M): real supernodes
+// The 3-D Laplacian pencil (K3, M3) of inertia_3d and own_llt on m^3 interior nodes, spacing h:
+// K3 and M3 share the sine eigenvectors (tridiagonal Toeplitz factors: k_i = (2 - 2 cos(i pi h))
+// / h, m_i = h (4 + 2 cos(i pi h)) / 6), so the eigenvalues of K3 - sigma M3 are k - sigma m over
+// the products; their extremes in *lmin, *lmax, and the pencil's first eigenvalue in *lam1
+static void k3_spectrum(int64_t m, double h, double sigma, double *lmin, double *lmax,
+                        double *lam1) {
+  *lmin = INFINITY, *lmax = 0.0, *lam1 = INFINITY;
+  for (int64_t i = 1; i <= m; i++)
+    for (int64_t j = 1; j <= m; j++)
+      for (int64_t l = 1; l <= m; l++) {
+        double kk[3], mm[3];
+        int64_t ijl[3] = {i, j, l};
+        for (int t = 0; t < 3; t++) {
+          double c = cos((double)ijl[t] * M_PI * h);
+          kk[t] = (2.0 - 2.0 * c) / h;
+          mm[t] = h * (4.0 + 2.0 * c) / 6.0;
+        }
+        double ek = kk[0] * mm[1] * mm[2] + mm[0] * kk[1] * mm[2] + mm[0] * mm[1] * kk[2];
+        double em = mm[0] * mm[1] * mm[2];
+        *lam1 = fmin(*lam1, ek / em);
+        *lmin = fmin(*lmin, ek - sigma * em);
+        *lmax = fmax(*lmax, ek - sigma * em);
+      }
+}
+
 static void inertia_3d(void) {
   const int64_t m = 11;
   const double h = 1.0 / (double)(m + 1);
@@ -364,23 +389,9 @@ static void inertia_3d(void) {
         ex[(i * m + j) * m + k] = l[0] + l[1] + l[2];
       }
   qsort(ex, (size_t)n, sizeof(double), cmpd);
-  // K3's own extreme eigenvalues (tridiagonal Toeplitz factors share the sine eigenvectors:
-  // k_i = (2 - 2 cos(i pi h)) / h, m_i = h (4 + 2 cos(i pi h)) / 6) for own_solves' bound
-  double kmin = INFINITY, kmax = 0.0;
-  for (int64_t i = 1; i <= m; i++)
-    for (int64_t j = 1; j <= m; j++)
-      for (int64_t l = 1; l <= m; l++) {
-        double kk[3], mm[3];
-        int64_t ijl[3] = {i, j, l};
-        for (int t = 0; t < 3; t++) {
-          double c = cos((double)ijl[t] * M_PI * h);
-          kk[t] = (2.0 - 2.0 * c) / h;
-          mm[t] = h * (4.0 + 2.0 * c) / 6.0;
-        }
-        double e = kk[0] * mm[1] * mm[2] + mm[0] * kk[1] * mm[2] + mm[0] * mm[1] * kk[2];
-        kmin = fmin(kmin, e);
-        kmax = fmax(kmax, e);
-      }
+  // K3's own extreme eigenvalues, for own_solves' bound
+  double kmin, kmax, lam1_k3;
+  k3_spectrum(m, h, 0.0, &kmin, &kmax, &lam1_k3);
   own_solves(K3, kmin, kmax, "3-D Laplacian");
   fmbd_chol *Fs = NULL, *Fp = NULL;
   int rc = fmbd_chol_analyze(K3, M3, FMBD_CHOL_LDLT, &Fs);
@@ -679,23 +690,8 @@ static void own_llt(void) {
   for (int pass = 0; pass < 2; pass++) {
     // pass 0: sigma 0 (well conditioned); 1: just below the first eigenvalue (near-singular)
     double sigma = pass == 0 ? 0.0 : lam1 * (1.0 - 1e-7);
-    double lmin = INFINITY, lmax = 0.0;
-    for (int64_t i = 1; i <= m; i++)
-      for (int64_t j = 1; j <= m; j++)
-        for (int64_t l = 1; l <= m; l++) {
-          double kk[3], mm[3];
-          int64_t ijl[3] = {i, j, l};
-          for (int t = 0; t < 3; t++) {
-            double c = cos((double)ijl[t] * M_PI * h);
-            kk[t] = (2.0 - 2.0 * c) / h;
-            mm[t] = h * (4.0 + 2.0 * c) / 6.0;
-          }
-          double ek = kk[0] * mm[1] * mm[2] + mm[0] * kk[1] * mm[2] + mm[0] * mm[1] * kk[2];
-          double em = mm[0] * mm[1] * mm[2];
-          lam1 = fmin(lam1, ek / em);
-          lmin = fmin(lmin, ek - sigma * em);
-          lmax = fmax(lmax, ek - sigma * em);
-        }
+    double lmin, lmax;
+    k3_spectrum(m, h, sigma, &lmin, &lmax, &lam1);
     const char *what = pass == 0 ? "3-D Laplacian" : "3-D Laplacian near-singular";
     double r = llt_pair(K3, pass ? M3 : NULL, sigma, lmin, lmax, what);
     // the lower-triangle storage (fe2cb's; the factor's input assembled before the loop)
