@@ -341,6 +341,193 @@ static void matvec(int m, int n, const double *restrict A, const double *restric
   for (int i = 0; i < m; i++) y[i] = 0;
   matvec_add(m, n, A, m, x, alpha, y);
 }
+// --- full coupling: the sums over the modes four modes to a vector ----------------------------
+// The body's full-coupling arrays in b->pk (mbs_body_consts; nmp = nm rounded up to 4, every
+// array over the modes padded with zeros to nmp, "i-major": entry i of mode k at k + nmp i):
+// SS (mbs_ss_pack), P = SS q (9), XX_k, XT_k (9 each), S1_k (3), the rows of SSx (3 nmp x nm:
+// row k + nmp a, column l, SSx[a + 3k + 3 nm l]), cor (3), H_k = XT_k + P_k (9), q, q', q''
+// padded (3), the modal rows' inertia terms (1)
+typedef struct full_ws {
+  double *St, *P, *XX, *XT, *S1, *SX, *cor, *H, *q, *qd, *qdd, *v;
+  int nmp;
+} full_ws;
+static size_t full_size(int nm) {
+  const size_t nmp = (size_t)((nm + 3) & ~3);
+  return mbs_ss_size(nm) + (9 + 18 + 3 + 3 + 9 + 3 + 1) * nmp + 3 * nmp * (size_t)nm;
+}
+static full_ws full_at(const mbody *b) {
+  full_ws f;
+  const size_t nmp = (size_t)((b->nm + 3) & ~3);
+  f.nmp = (int)nmp;
+  f.St = b->pk, f.P = f.St + mbs_ss_size(b->nm);
+  f.XX = f.P + 9 * nmp, f.XT = f.XX + 9 * nmp, f.S1 = f.XT + 9 * nmp, f.SX = f.S1 + 3 * nmp;
+  f.cor = f.SX + 3 * nmp * (size_t)b->nm, f.H = f.cor + 3 * nmp, f.q = f.H + 9 * nmp;
+  f.qd = f.q + nmp, f.qdd = f.qd + nmp, f.v = f.qdd + nmp;
+  return f;
+}
+static void full_consts(const mbody *b) {
+  const full_ws f = full_at(b);
+  const int nm = b->nm, nmp = f.nmp;
+  const size_t n1 = (size_t)nm;
+  mbs_ss_pack(nm, b->SS, f.St);
+  memset(f.XX, 0, sizeof(double) * (21 + 3 * n1) * (size_t)nmp);  // XX, XT, S1 and SX
+  for (int k = 0; k < nm; k++) {
+    for (int i = 0; i < 9; i++)
+      f.XX[k + nmp * i] = b->XX[i + 9 * k], f.XT[k + nmp * i] = b->XT[i + 9 * k];
+    for (int a = 0; a < 3; a++) f.S1[k + nmp * a] = b->S1[a + 3 * k];
+    // SSx[a + 3k + 3 nm l] = (int rho S_k x S_l)_a = eps_abc SS_bc,kl, as fmbd_mbs.c forms it
+    for (size_t l = 0; l < n1; l++) {
+      const double *S = b->SS + 9 * (size_t)k + 9 * n1 * l;
+      double *o = f.SX + k + 3 * (size_t)nmp * l;
+      o[0] = S[1 + 3 * 2] - S[2 + 3 * 1];
+      o[nmp] = S[2 + 3 * 0] - S[0 + 3 * 2];
+      o[2 * nmp] = S[0 + 3 * 1] - S[1 + 3 * 0];
+    }
+  }
+  memset(f.cor, 0, sizeof(double) * 16 * (size_t)nmp);  // cor, H, the padded q, q', q'', v
+}
+
+// The sums of a full-coupling evaluation over the modes, in lanes of four modes (lane e: the
+// modes k = e mod 4, zero padding past nm), each sum's lanes added as ((0 + 1) + (2 + 3)):
+// fs_inertia: J_i = sum q_k (XX_k,i + P_k,i), H_i = sum q'_k H_k,i with H_k = XT_k + P_k (stored
+// in f.H for the modal rows and the block), c_a = sum q_k S1_k,a, s1qd_a = sum q'_k S1_k,a;
+// fs_rows: the modal rows' inertia terms v_k = y . H_k + ag . S1_k + w2 . cor_k (y: 9 weights, ag
+// and w2: 3), the rigid rows' s1a_a = sum q''_k S1_k,a and hq_i = sum q''_k H_k,i (the
+// antisymmetric entries 1, 2, 3, 5, 6, 7: Mwf q''). One body each for the forms below: GCC's and
+// clang's vector extension (four doubles: two SSE2 operations where the processor has no AVX,
+// the same operations per lane, so the same bits), chosen when called as matvec_add is, or plain
+// C per lane where there is no vector extension
+#define FS_RED(v) (((v)[0] + (v)[1]) + ((v)[2] + (v)[3]))
+#if defined(__GNUC__)
+typedef double v4g __attribute__((vector_size(32), aligned(sizeof(double)), may_alias));
+#define G4(p) (*(const v4g *)(p))
+__attribute__((always_inline)) static inline void fs_inertia_body(const full_ws *f, double *J,
+                                                                  double *H, double *c,
+                                                                  double *s1qd) {
+  const int nmp = f->nmp;
+  v4g aj[9], ah[9], ac[3], as[3];
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) aj[i] = ah[i] = (v4g){0, 0, 0, 0};
+  _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) ac[a] = as[a] = (v4g){0, 0, 0, 0};
+  for (int k = 0; k < nmp; k += 4) {
+    const v4g q = G4(f->q + k), qd = G4(f->qd + k);
+    _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) {
+      const v4g p = G4(f->P + k + nmp * i), h = G4(f->XT + k + nmp * i) + p;
+      aj[i] += q * (G4(f->XX + k + nmp * i) + p);
+      *(v4g *)(f->H + k + nmp * i) = h;
+      ah[i] += qd * h;
+    }
+    _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) {
+      const v4g s = G4(f->S1 + k + nmp * a);
+      ac[a] += q * s, as[a] += qd * s;
+    }
+  }
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) J[i] = FS_RED(aj[i]), H[i] = FS_RED(ah[i]);
+  _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) c[a] = FS_RED(ac[a]), s1qd[a] = FS_RED(as[a]);
+}
+__attribute__((always_inline)) static inline void fs_rows_body(const full_ws *f, const double *y,
+                                                               const double *ag, const double *w2,
+                                                               bool acc, double *s1a, double *hq) {
+  const int nmp = f->nmp;
+  v4g a1[3] = {{0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}}, a2[9];
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) a2[i] = (v4g){0, 0, 0, 0};
+  for (int k = 0; k < nmp; k += 4) {
+    v4g v = (v4g){0, 0, 0, 0};
+    _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) v += y[i] * G4(f->H + k + nmp * i);
+    _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) v += ag[a] * G4(f->S1 + k + nmp * a);
+    _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) v += w2[a] * G4(f->cor + k + nmp * a);
+    *(v4g *)(f->v + k) = v;
+    if (acc) {
+      const v4g qdd = G4(f->qdd + k);
+      _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) a1[a] += qdd * G4(f->S1 + k + nmp * a);
+      _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) a2[i] += qdd * G4(f->H + k + nmp * i);
+    }
+  }
+  _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) s1a[a] = FS_RED(a1[a]);
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) hq[i] = FS_RED(a2[i]);
+}
+#else
+static void fs_inertia_body(const full_ws *f, double *J, double *H, double *c, double *s1qd) {
+  const int nmp = f->nmp;
+  double aj[9][4] = {{0}}, ah[9][4] = {{0}}, ac[3][4] = {{0}}, as[3][4] = {{0}};
+  for (int k = 0; k < nmp; k++) {
+    const int e = k & 3;
+    const double q = f->q[k], qd = f->qd[k];
+    for (int i = 0; i < 9; i++) {
+      const double p = f->P[k + nmp * i], h = f->XT[k + nmp * i] + p;
+      aj[i][e] += q * (f->XX[k + nmp * i] + p);
+      f->H[k + nmp * i] = h;
+      ah[i][e] += qd * h;
+    }
+    for (int a = 0; a < 3; a++) {
+      const double s = f->S1[k + nmp * a];
+      ac[a][e] += q * s, as[a][e] += qd * s;
+    }
+  }
+  for (int i = 0; i < 9; i++) J[i] = FS_RED(aj[i]), H[i] = FS_RED(ah[i]);
+  for (int a = 0; a < 3; a++) c[a] = FS_RED(ac[a]), s1qd[a] = FS_RED(as[a]);
+}
+static void fs_rows_body(const full_ws *f, const double *y, const double *ag, const double *w2,
+                         bool acc, double *s1a, double *hq) {
+  const int nmp = f->nmp;
+  double a1[3][4] = {{0}}, a2[9][4] = {{0}};
+  for (int k = 0; k < nmp; k++) {
+    const int e = k & 3;
+    double v = 0;
+    for (int i = 0; i < 9; i++) v += y[i] * f->H[k + nmp * i];
+    for (int a = 0; a < 3; a++) v += ag[a] * f->S1[k + nmp * a];
+    for (int a = 0; a < 3; a++) v += w2[a] * f->cor[k + nmp * a];
+    f->v[k] = v;
+    if (acc) {
+      for (int a = 0; a < 3; a++) a1[a][e] += f->qdd[k] * f->S1[k + nmp * a];
+      for (int i = 0; i < 9; i++) a2[i][e] += f->qdd[k] * f->H[k + nmp * i];
+    }
+  }
+  for (int a = 0; a < 3; a++) s1a[a] = FS_RED(a1[a]);
+  for (int i = 0; i < 9; i++) hq[i] = FS_RED(a2[i]);
+}
+#endif
+static void fs_inertia_base(const full_ws *f, double *J, double *H, double *c, double *s1qd) {
+  fs_inertia_body(f, J, H, c, s1qd);
+}
+static void fs_rows_base(const full_ws *f, const double *y, const double *ag, const double *w2,
+                         bool acc, double *s1a, double *hq) {
+  fs_rows_body(f, y, ag, w2, acc, s1a, hq);
+}
+#ifdef MBS_VEC4
+__attribute__((target("avx2"))) static void fs_inertia_avx2(const full_ws *f, double *J, double *H,
+                                                            double *c, double *s1qd) {
+  fs_inertia_body(f, J, H, c, s1qd);
+}
+__attribute__((target("avx2"))) static void fs_rows_avx2(const full_ws *f, const double *y,
+                                                         const double *ag, const double *w2,
+                                                         bool acc, double *s1a, double *hq) {
+  fs_rows_body(f, y, ag, w2, acc, s1a, hq);
+}
+#endif
+static void fs_inertia(const full_ws *f, double *J, double *H, double *c, double *s1qd) {
+#ifdef MBS_VEC4
+  if (__builtin_cpu_supports("avx2")) {
+    fs_inertia_avx2(f, J, H, c, s1qd);
+    return;
+  }
+#endif
+  fs_inertia_base(f, J, H, c, s1qd);
+}
+static void fs_rows(const full_ws *f, const double *y, const double *ag, const double *w2, bool acc,
+                    double *s1a, double *hq) {
+#ifdef MBS_VEC4
+  if (__builtin_cpu_supports("avx2")) {
+    fs_rows_avx2(f, y, ag, w2, acc, s1a, hq);
+    return;
+  }
+#endif
+  fs_rows_base(f, y, ag, w2, acc, s1a, hq);
+}
+static void pad_copy(int nm, int nmp, const double *x, double *y) {
+  memcpy(y, x, sizeof(double) * (size_t)nm);
+  for (int k = nm; k < nmp; k++) y[k] = 0;
+}
+
 // --- parts shared by modal bodies (mbs_body_eval) and full FE bodies (mbs_fe_eval) -------
 // the frame's kinematics: A(p/|p|), G(p), |p| into the body's workspace, body angular velocity
 // w = 2 G p' (also b->wb) and acceleration wd = 2 G p'' (zero without pdd)
@@ -477,11 +664,10 @@ int mbs_body_consts(mbody *b) {
     if (b->partial) Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
   }
   if (nm == 0) return FMBD_OK;
-  if (!b->partial) {  // full coupling: SS's upper triangle (mbs_ss_pack), mbs_ssq's P and q
-    const size_t nmp = (size_t)((nm + 3) & ~3);
-    FMBD_CHECK(b->pk = fmbd_malloc(sizeof(double) * (mbs_ss_size(nm) + 10 * nmp)), FMBD_ERR_NOMEM,
+  if (!b->partial) {  // full coupling: SS packed, the arrays of its sums (full_ws)
+    FMBD_CHECK(b->pk = fmbd_malloc(sizeof(double) * full_size(nm)), FMBD_ERR_NOMEM,
                "out of memory");
-    mbs_ss_pack(nm, b->SS, b->pk);
+    full_consts(b);
     return FMBD_OK;
   }
   FMBD_CHECK(b->pk = fmbd_malloc(sizeof(double) * PK_SIZE * (size_t)nm), FMBD_ERR_NOMEM,
@@ -623,69 +809,17 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     }
     Jl[3] = Jl[1], Jl[6] = Jl[2], Jl[7] = Jl[5];
   } else if (nm > 0) {
-    // P_k,ab = (SS q)_k,ab at P[k + nmp (a + 3 b)] (mbs_ssq), in b->pk after SS's triangle
-    const int nmp = (nm + 3) & ~3;
-    double *P = b->pk + mbs_ss_size(nm);
-    mbs_ssq(nm, b->pk, q, P, P + 9 * (size_t)nmp);
-#if defined(__GNUC__)
-    // the loop below's 9 + 9 + 3 + 3 sums as lanes of SSE2 pairs, J transposed (lane a + 3 bb:
-    // the order of XS_k and P_k), with XX_k = XS_k + XS_k' and XT_k = XS_k' made at load: each
-    // lane does the loop's operations in its order (the same bits); the scalar loop kept Jl and
-    // H in memory, a third of this function's time with full coupling at 100 modes
-    double JT[9], cs[6] = {cl[0], cl[1], cl[2], 0, 0, 0};
+    // full coupling: P = SS q (mbs_ssq), then c, J, H, S1 q' and H_k in lanes of four modes
+    const full_ws f = full_at(b);
+    pad_copy(nm, f.nmp, q, f.q);
+    pad_copy(nm, f.nmp, qd, f.qd);
+    mbs_ssq(nm, f.St, q, f.P, f.v);  // f.v: mbs_ssq's workspace (the modal rows' come later)
+    double Ju[9], cu[3];
+    fs_inertia(&f, Ju, H, cu, s1qd);
     for (int a = 0; a < 3; a++) {
-      for (int bb = 0; bb < 3; bb++) JT[a + 3 * bb] = Jl[3 * a + bb];
+      cl[a] += cu[a];
+      for (int bb = 0; bb < 3; bb++) Jl[3 * a + bb] += Ju[a + 3 * bb];
     }
-    v2d j0 = ld2(JT), j1 = ld2(JT + 2), j2 = ld2(JT + 4), j3 = ld2(JT + 6);
-    v2d h0 = {0, 0}, h1 = h0, h2 = h0, h3 = h0, c01 = ld2(cs), s01 = h0;
-    double j8 = JT[8], h8 = 0, c2 = cl[2], s2 = 0;
-    for (int k = 0; k < nm; k++) {
-      const double *XX = b->XX + 9 * k, *XT = b->XT + 9 * k, *Pk = P + k, *S1 = b->S1 + 3 * k;
-      double *Hk = b->Hk + 9 * k;
-      const v2d Q = {q[k], q[k]}, QD = {qd[k], qd[k]};
-      c01 += ld2(S1) * Q, c2 += S1[2] * q[k];
-      s01 += ld2(S1) * QD, s2 += S1[2] * qd[k];
-      const v2d p0 = {Pk[0], Pk[nmp]}, p1 = {Pk[2 * nmp], Pk[3 * nmp]},
-                p2 = {Pk[4 * nmp], Pk[5 * nmp]}, p3 = {Pk[6 * nmp], Pk[7 * nmp]};
-      j0 += Q * (ld2(XX) + p0), j1 += Q * (ld2(XX + 2) + p1);
-      j2 += Q * (ld2(XX + 4) + p2), j3 += Q * (ld2(XX + 6) + p3);
-      j8 += q[k] * (XX[8] + Pk[8 * nmp]);
-      v2d k0 = ld2(XT) + p0, k1 = ld2(XT + 2) + p1, k2 = ld2(XT + 4) + p2, k3 = ld2(XT + 6) + p3;
-      memcpy(Hk, &k0, sizeof k0), memcpy(Hk + 2, &k1, sizeof k1);
-      memcpy(Hk + 4, &k2, sizeof k2), memcpy(Hk + 6, &k3, sizeof k3);
-      Hk[8] = XT[8] + Pk[8 * nmp];
-      double *Mw = b->Mwf + 3 * k;
-      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
-      h0 += QD * k0, h1 += QD * k1, h2 += QD * k2, h3 += QD * k3, h8 += qd[k] * Hk[8];
-    }
-    memcpy(JT, &j0, sizeof j0), memcpy(JT + 2, &j1, sizeof j1);
-    memcpy(JT + 4, &j2, sizeof j2), memcpy(JT + 6, &j3, sizeof j3), JT[8] = j8;
-    for (int a = 0; a < 3; a++) {
-      for (int bb = 0; bb < 3; bb++) Jl[3 * a + bb] = JT[a + 3 * bb];
-    }
-    memcpy(H, &h0, sizeof h0), memcpy(H + 2, &h1, sizeof h1);
-    memcpy(H + 4, &h2, sizeof h2), memcpy(H + 6, &h3, sizeof h3), H[8] = h8;
-    memcpy(cs, &c01, sizeof c01), memcpy(cs + 3, &s01, sizeof s01);
-    cl[0] = cs[0], cl[1] = cs[1], cl[2] = c2;
-    s1qd[0] = cs[3], s1qd[1] = cs[4], s1qd[2] = s2;
-#else
-    for (int k = 0; k < nm; k++) {
-      const double *X = b->XS + 9 * k, *Pk = P + k;
-      double *Hk = b->Hk + 9 * k;
-      for (int a = 0; a < 3; a++) {
-        cl[a] += b->S1[a + 3 * k] * q[k];
-        s1qd[a] += b->S1[a + 3 * k] * qd[k];
-        for (int bb = 0; bb < 3; bb++) {
-          // J_ab += q_k (XS_abk + XS_bak) + q_k P_k,ab; H_k,ab = XS_bak + P_k,ab
-          Jl[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[nmp * (a + 3 * bb)]);
-          Hk[a + 3 * bb] = X[bb + 3 * a] + Pk[nmp * (a + 3 * bb)];
-        }
-      }
-      double *Mw = b->Mwf + 3 * k;
-      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
-      for (int i = 0; i < 9; i++) H[i] += qd[k] * Hk[i];
-    }
-#endif
     // symmetrise J (round-off)
     for (int a = 0; a < 3; a++) {
       for (int bb = a + 1; bb < 3; bb++) {
@@ -718,8 +852,16 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       MB(3 + a, 3 + bb) = I[3 * a + bb];
     }
   }
+  if (B && nm > 0 && !b->partial) {  // H_k and Mwf_k per mode for the block (partial: constant)
+    const full_ws f = full_at(b);
+    for (int k = 0; k < nm; k++) {
+      double *Hk = b->Hk + 9 * k, *Mw = b->Mwf + 3 * k;
+      for (int i = 0; i < 9; i++) Hk[i] = f.H[k + (size_t)f.nmp * i];
+      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
+    }
+  }
   // the coupling columns of Mb (A S1_k, Mwf_k and their transposes) only for the block: the
-  // residual takes their products from S1, Mwf and H_k directly below
+  // residual takes their products from S1, H_k and P directly below
   for (int k = 0; k < nm && B; k++) {
     double as[3];
     mv3(A, b->S1 + 3 * k, as);
@@ -736,9 +878,15 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double Iw[3];
   mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
   double ww = dot3(w, w);
-  double *cor = b->cor;         // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
-  if (nm > 0 && !b->partial) {  // partial: SSx = 0, cor stays zero
-    matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
+  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry), in full_ws's rows (per
+  // mode for the block); partial: SSx = 0, cor stays zero
+  double *cor = b->cor;
+  if (nm > 0 && !b->partial) {
+    const full_ws f = full_at(b);
+    matvec(3 * f.nmp, nm, f.SX, qd, -1.0, f.cor);
+    for (int k = 0; k < nm && B; k++) {
+      for (int a = 0; a < 3; a++) cor[a + 3 * k] = f.cor[k + (size_t)f.nmp * a];
+    }
   }
   // gravity
   double gl[3];
@@ -763,13 +911,32 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       for (int bb = 0; bb < 3; bb++) Y[a + 3 * bb] = w[a] * w[bb] - (a == bb ? ww : 0);
     }
     double s1a[3] = {0, 0, 0}, mwa[3] = {0, 0, 0};
-    for (int k = 0; k < nm; k++) {
+    if (!b->partial) {
+      // full coupling: Y : H_k + Mwf_k . wd with wd's antisymmetric part in Y (Mwf_k = (H_k,21 -
+      // H_k,12, H_k,02 - H_k,20, H_k,10 - H_k,01), entry a + 3b of H_k its (a, b)), S1_k . ag and
+      // 2 w . cor_k in lanes of four modes (fs_rows), the rigid rows' sums over q'' with them
+      const full_ws f = full_at(b);
+      Y[5] += wd[0], Y[7] -= wd[0], Y[6] += wd[1], Y[2] -= wd[1], Y[1] += wd[2], Y[3] -= wd[2];
+      const double w2[3] = {2 * w[0], 2 * w[1], 2 * w[2]};
+      double hq[9];
+      if (xdd) pad_copy(nm, f.nmp, qdd, f.qdd);
+      fs_rows(&f, Y, ag, w2, xdd != NULL, s1a, hq);
+      for (int k = 0; k < nm; k++) rb[6 + k] = f.v[k];
+      if (b->kdiag) {
+        for (int k = 0; k < nm; k++)
+          rb[6 + k] += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+      } else {
+        matvec_add(nm, nm, b->Kff, nm, q, 1.0, rb + 6);
+        matvec_add(nm, nm, b->Dff, nm, qd, 1.0, rb + 6);
+      }
+      mwa[0] = hq[5] - hq[7], mwa[1] = hq[6] - hq[2], mwa[2] = hq[1] - hq[3];
+    }
+    for (int k = 0; k < nm && b->partial; k++) {  // partial coupling: H_k, Mwf_k constant
       const double *Hk = b->Hk + 9 * k, *S1 = b->S1 + 3 * k, *Mw = b->Mwf + 3 * k;
       double v = Y[0] * Hk[0] + Y[1] * Hk[1] + Y[2] * Hk[2] + Y[3] * Hk[3] + Y[4] * Hk[4] +
                  Y[5] * Hk[5] + Y[6] * Hk[6] + Y[7] * Hk[7] + Y[8] * Hk[8];
       v += S1[0] * ag[0] + S1[1] * ag[1] + S1[2] * ag[2];
       v += Mw[0] * wd[0] + Mw[1] * wd[1] + Mw[2] * wd[2];
-      if (!b->partial) v += 2 * dot3(w, cor + 3 * k);
       if (b->kdiag) {
         v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
       } else {
