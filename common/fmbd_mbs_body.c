@@ -696,63 +696,32 @@ int mbs_body_consts(mbody *b) {
   return FMBD_OK;
 }
 
-// mbs_body_inert2 (fmbd_mbs_impl.h): the 9 entries of J and the 3 of Mwfqd are independent
-// sums, here each a lane of SSE2 pairs (the scalar loops went through memory at every term: the
-// energy and momentum outputs took 8 % of a 100-mode full-coupling run); each lane does the
-// loops' operations in their order, so the same bits
+// mbs_body_inert2 (fmbd_mbs_impl.h). Full coupling: sum_kl q_k q_l SS_kl = sum_k q_k P_k with
+// P = SS q, and sum_kl q'_k q_l SSx_lk = sum_l q_l (SSx q')_l, by the evaluation's products
+// (mbs_ssq; SSx's rows of full_ws) in its workspace (the outputs are formed between steps): the
+// loops over the pairs (k, l) took 1-2 us an output at 30 modes, 10,000 pairs at 100
 void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd) {
   const int nm = b->nm;
-  double JT[9];  // JT[a + 3 bb] = J[3 a + bb], the order of SS's 3 x 3 blocks
-  for (int a = 0; a < 3; a++) {
-    for (int bb = 0; bb < 3; bb++) JT[a + 3 * bb] = J[3 * a + bb];
-  }
-#if defined(__GNUC__)
-  v2d j0 = ld2(JT), j1 = ld2(JT + 2), j2 = ld2(JT + 4), j3 = ld2(JT + 6), m0 = ld2(Mwfqd);
-#else
-  double j0[2] = {JT[0], JT[1]}, j1[2] = {JT[2], JT[3]}, j2[2] = {JT[4], JT[5]},
-         j3[2] = {JT[6], JT[7]}, m0[2] = {Mwfqd[0], Mwfqd[1]};
-#endif
-  double j8 = JT[8], m2 = Mwfqd[2];
-  for (int k = 0; k < nm; k++) {
-    for (int l = 0; l < nm && !b->partial; l++) {
-      const double *S = b->SS + 9 * k + 9 * (size_t)nm * l;
-      const double f = q[k] * q[l];
-      if (f != 0) {
-#if defined(__GNUC__)
-        const v2d F = {f, f};
-        j0 += F * ld2(S), j1 += F * ld2(S + 2), j2 += F * ld2(S + 4), j3 += F * ld2(S + 6);
-#else
-        for (int i = 0; i < 2; i++) {
-          j0[i] += f * S[i], j1[i] += f * S[2 + i], j2[i] += f * S[4 + i], j3[i] += f * S[6 + i];
-        }
-#endif
-        j8 += f * S[8];
+  if (!b->partial && nm > 0) {
+    const full_ws f = full_at(b);
+    const int nmp = f.nmp;
+    mbs_ssq(nm, f.St, q, f.P, f.v);
+    matvec(3 * nmp, nm, f.SX, qd, 1.0, f.cor);
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        const double *P = f.P + (size_t)nmp * (a + 3 * bb);
+        double t = 0;
+        for (int k = 0; k < nm; k++) t += q[k] * P[k];
+        J[3 * a + bb] += t;
       }
-      const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-      const double g = qd[k] * q[l];
-#if defined(__GNUC__)
-      m0 += (v2d){g, g} * ld2(sx);
-#else
-      m0[0] += g * sx[0], m0[1] += g * sx[1];
-#endif
-      m2 += g * sx[2];
+      const double *t3 = f.cor + (size_t)nmp * a;
+      double t = 0;
+      for (int l = 0; l < nm; l++) t += q[l] * t3[l];
+      Mwfqd[a] += t;
     }
-    const double *xs = b->XSx + 3 * k;
-#if defined(__GNUC__)
-    m0 += (v2d){qd[k], qd[k]} * ld2(xs);
-#else
-    m0[0] += qd[k] * xs[0], m0[1] += qd[k] * xs[1];
-#endif
-    m2 += qd[k] * xs[2];
   }
-  memcpy(JT, &j0, 2 * sizeof(double));
-  memcpy(JT + 2, &j1, 2 * sizeof(double));
-  memcpy(JT + 4, &j2, 2 * sizeof(double));
-  memcpy(JT + 6, &j3, 2 * sizeof(double));
-  memcpy(Mwfqd, &m0, 2 * sizeof(double));
-  JT[8] = j8, Mwfqd[2] = m2;
-  for (int a = 0; a < 3; a++) {
-    for (int bb = 0; bb < 3; bb++) J[3 * a + bb] = JT[a + 3 * bb];
+  for (int k = 0; k < nm; k++) {
+    for (int a = 0; a < 3; a++) Mwfqd[a] += qd[k] * b->XSx[a + 3 * k];
   }
 }
 

@@ -402,8 +402,8 @@ void mbs_ss_pack(int nm, const double *SS, double *St);
 void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp);
 void mbs_ssq_portable(int nm, const double *St, const double *q, double *P, double *qp);
 // the second-order inertia sums of a modal body's energy and momentum (fmbd_mbs_query.c):
-// J += sum_kl q_k q_l SS_kl (transposed: J_ab += q_k q_l SS_ba,kl, pairs with q_k q_l = 0 left
-// out; none for a partial body), Mwfqd += sum_k q'_k (sum_l q_l SSx_lk + XSx_k), k outer, l inner
+// J += sum_kl q_k q_l SS_kl (J_ab += q_k q_l SS[a + 3b + 9k + 9 nm l]; none for a partial body),
+// Mwfqd += sum_k q'_k (sum_l q_l SSx_lk + XSx_k); full coupling: in the evaluation's workspace
 void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd);
 // b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
 // (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
