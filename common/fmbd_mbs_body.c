@@ -870,7 +870,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   if (fast) {  // the inertia terms of the modal rows below (PG)
     for (int k = 0; k < nm; k++)
       rb[6 + k] = b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
-  } else {
+  } else if (nm > 0) {  // (a rigid body has no modal rows)
     // each modal row: w'H_k w - |w|^2 tr H_k = Y : H_k with Y = w w' - |w|^2 1, the Coriolis
     // term 2 w . cor_k, Mb's coupling row S1_k . A'R'' + Mwf_k . wd with the gravity S1_k . A'g
     // (ag), the elastic and damping forces; and the rigid rows' sum_k [S1_k; Mwf_k] q''_k (Mb's
