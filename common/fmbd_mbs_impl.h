@@ -394,9 +394,9 @@ void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const doubl
                              double *y);
 // SS (layout of fmbd_mbs.h) as one symmetric matrix of order 3 nm, its upper triangle packed
 // into St (mbs_ss_size(nm) doubles; blocks padded to nmp = nm rounded up to 4; the mean of the
-// two copies of each entry), and P = SS q from it (P[k + nmp (a + 3b)] = sum_l SS_ab,kl q_l,
-// 9 nmp doubles; qp: nmp doubles of workspace): AVX2 where the processor has it, the same bits
-// as the portable form (tests/unit/t513); see fmbd_mbs_body.c
+// two copies of each entry; below 40 modes SS whole, re-laid), and P = SS q from it (P[k + nmp (a +
+// 3b)] = sum_l SS_ab,kl q_l, 9 nmp doubles; qp: nmp doubles of workspace): AVX2 where the processor
+// has it, the same bits as the portable form (tests/unit/t513); see fmbd_mbs_body.c
 size_t mbs_ss_size(int nm);
 void mbs_ss_pack(int nm, const double *SS, double *St);
 void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp);
