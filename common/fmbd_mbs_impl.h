@@ -294,6 +294,11 @@ struct fmbd_mbs {
   int64_t worst_dx;  // coordinate of the largest Newton correction
   int64_t worst_dy;  // kept equation of the largest multiplier correction (debug output)
   bool need_factor, after_reject;
+  // the refresh by age (fmbd_mbs_step.c, refresh_age): m->st.steps when the current factor was
+  // formed in a step, and the age at which it is refreshed at a step's start (0: not decided
+  // yet, -1: never)
+  int64_t fact_steps;
+  int refresh_age;
   // --- sparse matrix and KLU ---
   int64_t nnz;
   double *Ax;       // values in the pattern analysed by klu (compressed columns)

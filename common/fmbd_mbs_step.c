@@ -196,6 +196,30 @@ static void pred_score(fmbd_mbs *m, double h) {
   m->pred_n++;
 }
 
+// The REFRESH BY AGE: with a modal body of full inertia coupling of the size whose block
+// fmbd_mbs_schur.c eliminates (on either path: FMBD_MBS_SCHUR=0 keeps the same rule), the factor is
+// formed anew at the start of every step once it is REFRESH_AGE steps old, not only when Newton
+// contracts slowly (THETA_REFACTOR). Measured on the quadruple pendulum (bench/ README.md, "Fewer
+// Newton iterations with a fresh matrix"; 30 modes, full coupling, fixed 1.75e-3 s): a factor
+// formed at an iterate of the step contracts by about 1e-4, one of the step before by 0.05 (median;
+// 0.09 two steps before), as the links' rotation (|w| h about 0.03 a step) and the velocity terms
+// move the matrix, while the first increment is 1e3-3e3 tolerances (mostly the elastic coordinates'
+// predictor error, whose rows are constant): a fresh factor converges in 2.3 iterations a step, a
+// stale one in 3.3-3.7, and a Newton iteration there is the evaluation of 12 nm^2 products (SS q,
+// SSx q') against nm nc^2 for the elimination and KLU on the order-44 complement. Every step (age
+// 1): 2.31 iterations and one factorisation a step, age 2: 2.80 and 0.57, the rule on theta
+// alone: 3.66 and 0.43; CPU 0.068, 0.063 and 0.071 s. With partial coupling an iteration costs a
+// few nm products and the refresh lost at 100 modes (0.132 against 0.127 s): left to THETA_REFACTOR
+// there, and for rigid and full FE bodies
+#define REFRESH_AGE 2
+static int refresh_age(const fmbd_mbs *m) {
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (!b->fe && b->share < 0 && b->nm >= SCHUR_NM_MIN && !b->partial) return REFRESH_AGE;
+  }
+  return -1;
+}
+
 // the contraction rate from which increments within tolerance are taken as round-off
 // stagnation once a factor of the attempt is in use (attempt's convergence test)
 #define STALL_THETA 0.5
@@ -246,6 +270,8 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
   }
   if (m->h_fact <= 0 || fabs(h / m->h_fact - 1) > 0.25) m->need_factor = true;
   if (force_fresh) m->need_factor = true;
+  if (!m->refresh_age) m->refresh_age = refresh_age(m);
+  if (m->refresh_age > 0 && m->st.steps - m->fact_steps >= m->refresh_age) m->need_factor = true;
   bool fresh = false;
   double prev = 0;
   bool ity_ok = false;  // m->ity formed for this attempt
@@ -284,6 +310,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       FMBD_CALL(fr);
       m->need_factor = false;
       m->h_fact = h;
+      m->fact_steps = m->st.steps;
       fresh = true;
       clk = clk1, clk1 = fmbd_wall_s();
       m->tm_phase[0] += clk1 - clk;
