@@ -46,7 +46,10 @@ struct fmbd_klu {
   int own;
   SuiteSparse_long *oLp, *oLi, *oUp, *oUi, *oP, *oQ;
   double *oLx, *oUx, *oUi_d, *oy;  // oUi_d: 1 / U's diagonal; oy: work
-  int64_t ocap_l, ocap_u;          // capacities of the L and U arrays
+  // the triangles own_solve reads: the o arrays, or own_refactor's f arrays (own_from_rf)
+  const SuiteSparse_long *sLp, *sLi, *sUp, *sUi;
+  const double *sLx, *sUx;
+  int64_t ocap_l, ocap_u;  // capacities of the L and U arrays
   // own refactorisation (own_refactor): the pattern of the last full factorisation's L and U in
   // KLU's stored order (fLp ... fUx, exact zeros kept; the values those of the last
   // refactorisation), its row permutation's inverse fPinv and column order fQ, the work vector
@@ -54,6 +57,7 @@ struct fmbd_klu {
   int rf;
   SuiteSparse_long *fLp, *fLi, *fUp, *fUi, *fPinv, *fQ;
   double *fLx, *fUx, *fX, frcond;
+  int64_t fzeros;  // exact zeros off the diagonals in the last own_refactor's L and U
   int64_t fcap_l, fcap_u;
   // the pattern without the entries found exactly zero (red_prepare): KLU's analysis and
   // factor are of it while red > 0 (kAp, kAi then point to rAp, rAi; Ap, Ai stay the
@@ -272,6 +276,8 @@ static void own_extract(fmbd_klu *F) {
     own_drop0(n, F->oLp, F->oLi, F->oLx, 1);
     own_drop0(n, F->oUp, F->oUi, F->oUx, 0);
   }
+  F->sLp = F->oLp, F->sLi = F->oLi, F->sLx = F->oLx, F->sUp = F->oUp, F->sUi = F->oUi;
+  F->sUx = F->oUx;
   F->own = 1;
 }
 
@@ -348,6 +354,7 @@ static bool own_refactor(fmbd_klu *F, const double *ax) {
                          *Ui = F->fUi, *Pinv = F->fPinv, *Q = F->fQ;
   double *Lx = F->fLx, *Ux = F->fUx, *X = F->fX, umin = INFINITY, umax = 0;
   bool ok = true;
+  int64_t z = 0;
   for (int64_t k = 0; k < n; k++) {
     const SuiteSparse_long c = Q[k];
     for (SuiteSparse_long p = Ap[c]; p < Ap[c + 1]; p++) X[Pinv[Ai[p]]] = ax[p];
@@ -357,6 +364,7 @@ static bool own_refactor(fmbd_klu *F, const double *ax) {
       const double ujk = X[j];
       X[j] = 0;
       Ux[up] = ujk;
+      z += ujk == 0;
       for (SuiteSparse_long p = Lp[j] + 1; p < Lp[j + 1]; p++) X[Li[p]] -= Lx[p] * ujk;
     }
     const double ukk = X[k];
@@ -369,14 +377,20 @@ static bool own_refactor(fmbd_klu *F, const double *ax) {
     for (SuiteSparse_long p = Lp[k] + 1; p < Lp[k + 1]; p++) {
       const SuiteSparse_long i = Li[p];
       Lx[p] = X[i] / ukk;
+      z += Lx[p] == 0;
       X[i] = 0;
     }
   }
+  F->fzeros = z;
   F->frcond = ok && umax > 0 ? umin / umax : 0;
   return ok && F->frcond > RCOND_MIN;
 }
 
-// the own solves' factor from own_refactor's (zeros dropped as own_extract does)
+// the own solves' factor from own_refactor's: its exact zeros dropped as own_extract does
+// (into the o arrays) where they are at least 1/8 of the entries (a planar chain's, "Exact zeros
+// of the planar chains"), else solved on the f arrays as they are: subtracting the few 0 y_k
+// costs less than a copy of the factor at each refactorisation (the pendulum's order-44
+// complement: 7 zeros in 493 entries), and gives the same numbers but the sign of a zero
 static void own_from_rf(fmbd_klu *F) {
   const int64_t n = F->n;
   F->own = 0;
@@ -396,23 +410,22 @@ static void own_from_rf(fmbd_klu *F) {
     }
   }
   const int64_t lnz = F->fLp[n], unz = F->fUp[n];
-  if (!own_grow(&F->oLi, &F->oLx, &F->ocap_l, lnz) || !own_grow(&F->oUi, &F->oUx, &F->ocap_u, unz))
-    return;
   for (int64_t k = 0; k < n; k++) {
     F->oP[F->fPinv[k]] = k;
     F->oQ[k] = F->fQ[k];
     F->oUi_d[k] = 1 / F->fUx[F->fUp[k + 1] - 1];
   }
-  if (keep_zeros()) {
-    memcpy(F->oLp, F->fLp, sizeof(SuiteSparse_long) * (size_t)(n + 1));
-    memcpy(F->oUp, F->fUp, sizeof(SuiteSparse_long) * (size_t)(n + 1));
-    memcpy(F->oLi, F->fLi, sizeof(SuiteSparse_long) * (size_t)lnz);
-    memcpy(F->oUi, F->fUi, sizeof(SuiteSparse_long) * (size_t)unz);
-    memcpy(F->oLx, F->fLx, sizeof(double) * (size_t)lnz);
-    memcpy(F->oUx, F->fUx, sizeof(double) * (size_t)unz);
+  if (keep_zeros() || 8 * F->fzeros < lnz + unz) {
+    F->sLp = F->fLp, F->sLi = F->fLi, F->sLx = F->fLx, F->sUp = F->fUp, F->sUi = F->fUi;
+    F->sUx = F->fUx;
   } else {
+    if (!own_grow(&F->oLi, &F->oLx, &F->ocap_l, lnz) ||
+        !own_grow(&F->oUi, &F->oUx, &F->ocap_u, unz))
+      return;
     own_copy0(n, F->fLp, F->fLi, F->fLx, F->oLp, F->oLi, F->oLx, 1);
     own_copy0(n, F->fUp, F->fUi, F->fUx, F->oUp, F->oUi, F->oUx, 0);
+    F->sLp = F->oLp, F->sLi = F->oLi, F->sLx = F->oLx, F->sUp = F->oUp, F->sUi = F->oUi;
+    F->sUx = F->oUx;
   }
   F->own = 1;
 }
@@ -421,8 +434,8 @@ static void own_from_rf(fmbd_klu *F) {
 static void own_solve(fmbd_klu *F, double *b) {
   const int64_t n = F->n;
   double *y = F->oy;
-  const SuiteSparse_long *Lp = F->oLp, *Li = F->oLi, *Up = F->oUp, *Ui = F->oUi;
-  const double *Lx = F->oLx, *Ux = F->oUx, *Ud = F->oUi_d;
+  const SuiteSparse_long *Lp = F->sLp, *Li = F->sLi, *Up = F->sUp, *Ui = F->sUi;
+  const double *Lx = F->sLx, *Ux = F->sUx, *Ud = F->oUi_d;
   for (int64_t k = 0; k < n; k++) y[k] = b[F->oP[k]];
   for (int64_t k = 0; k < n; k++) {
     double yk = y[k];

@@ -259,8 +259,13 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     // a spurious force that breaks momentum conservation at small steps), but never below
     // the round-off of x_i (at the predicted x_i: the iterates differ from it far below the
     // 1e3 eps of that floor). Once per attempt, not per iteration: 4 % of a chain's run
-    double tx = m->set.newton_tol * fmin(m->nscale[i], m->ascale[i] / bp);
-    tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), fmax(m->nscale[i], m->rscale[i])));
+    // (fmin and fmax written out: the scales are positive and finite, a NaN |x_i| gives way
+    // as in fmax; the library calls were 1 % of the pendulum's run)
+    const double ns = m->nscale[i], as = m->ascale[i] / bp, rs = m->rscale[i], ax = fabs(m->x[i]);
+    double tx = m->set.newton_tol * (as < ns ? as : ns);
+    double fl = ns > rs ? ns : rs;
+    fl = 1e3 * DBL_EPSILON * (ax > fl ? ax : fl);
+    tx = fl > tx ? fl : tx;
     m->tx[i] = tx, m->itx[i] = 1 / tx;
   }
   for (int64_t k = 0; k < m->m; k++) {
