@@ -196,28 +196,39 @@ static void pred_score(fmbd_mbs *m, double h) {
   m->pred_n++;
 }
 
-// The REFRESH BY AGE: with a modal body of full inertia coupling of the size whose block
-// fmbd_mbs_schur.c eliminates (on either path: FMBD_MBS_SCHUR=0 keeps the same rule), the factor is
-// formed anew at the start of every step once it is REFRESH_AGE steps old, not only when Newton
-// contracts slowly (THETA_REFACTOR). Measured on the quadruple pendulum (bench/ README.md, "Fewer
-// Newton iterations with a fresh matrix"; 30 modes, full coupling, fixed 1.75e-3 s): a factor
-// formed at an iterate of the step contracts by about 1e-4, one of the step before by 0.05 (median;
-// 0.09 two steps before), as the links' rotation (|w| h about 0.03 a step) and the velocity terms
-// move the matrix, while the first increment is 1e3-3e3 tolerances (mostly the elastic coordinates'
-// predictor error, whose rows are constant): a fresh factor converges in 2.3 iterations a step, a
-// stale one in 3.3-3.7, and a Newton iteration there is the evaluation of 12 nm^2 products (SS q,
-// SSx q') against nm nc^2 for the elimination and KLU on the order-44 complement. Every step (age
-// 1): 2.31 iterations and one factorisation a step, age 2: 2.80 and 0.57, the rule on theta
-// alone: 3.66 and 0.43; CPU 0.068, 0.063 and 0.071 s. With partial coupling an iteration costs a
-// few nm products and the refresh lost at 100 modes (0.132 against 0.127 s): left to THETA_REFACTOR
-// there, and for rigid and full FE bodies
+// The REFRESH BY AGE: with a modal body of the size whose block fmbd_mbs_schur.c eliminates (at
+// least SCHUR_NM_MIN modes; on either path, FMBD_MBS_SCHUR=0 keeps the same rule), the factor is
+// formed anew at the start of a step once it is 2 steps old (full inertia coupling; 3 with
+// partial coupling only), not only when Newton contracts slowly (THETA_REFACTOR) or h changed.
+// Measured on the quadruple pendulum (bench/README.md, "Fewer Newton iterations: a fresh matrix by
+// age"; 30 modes, full coupling, fixed 1.75e-3 s, `-vv`): a factor formed at an iterate of the
+// step contracts by about 1e-4, one of the step before by 0.05 (median; 0.09 two steps before):
+// the links' rotation (|w| h about 0.03 a step) and the velocity terms move the matrix, while the
+// first increment is 1e3-3e3 tolerances, mostly the elastic coordinates' predictor error, whose
+// rows are constant. A fresh factor converges in 2.3 iterations a step, a stale one in 3.3-3.7,
+// and a factorisation (the elimination, nm nc^2, and KLU on the order-44 complement) with the
+// matrix's evaluation costs about 1.5 iterations there. Iterations and factorisations a step,
+// run CPU (median of 5): the rule on theta alone 3.66 and 0.43, 0.0675 s; age 1 (every step)
+// 2.31 and 1, 0.0655 s; age 2 2.80 and 0.57, 0.0600 s; age 3 3.15 and 0.47, 0.0631 s. With
+// partial coupling an iteration costs less against a factorisation (a few nm products instead of
+// 12 nm^2): age 3 there (30 modes, 1.4e-3 s: 0.0552 s without, 0.0526 at age 2, 0.0541 at 3;
+// 100 modes, 1e-3 s: 0.1210, 0.1215, 0.1153 s). Rigid and full FE bodies: none (their factor is
+// the whole matrix's KLU). FMBD_MBS_REFRESH = N > 0 forces age N for any model, 0 none.
 #define REFRESH_AGE 2
 static int refresh_age(const fmbd_mbs *m) {
+  const char *e = getenv("FMBD_MBS_REFRESH");
+  if (e && *e) {
+    int v = atoi(e);
+    return v > 0 ? v : -1;
+  }
+  int age = -1;
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
-    if (!b->fe && b->share < 0 && b->nm >= SCHUR_NM_MIN && !b->partial) return REFRESH_AGE;
+    if (b->fe || b->share >= 0 || b->nm < SCHUR_NM_MIN) continue;
+    if (!b->partial) return REFRESH_AGE;
+    age = REFRESH_AGE + 1;
   }
-  return -1;
+  return age;
 }
 
 // the contraction rate from which increments within tolerance are taken as round-off
