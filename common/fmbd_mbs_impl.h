@@ -276,6 +276,7 @@ struct fmbd_mbs {
   double *dyp;      // the multipliers' increments of the last Newton iteration
   bool jw_ok;       // the equations' jw formed from the last evaluated matrix
   int64_t *dpos;    // position of each coordinate's diagonal entry in Ax (-1: not formed there)
+  unsigned char *qpar;  // 1: an elastic coordinate of a modal body (the predictor's parity rule)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;
