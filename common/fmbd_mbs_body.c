@@ -10,6 +10,9 @@
 #include "fmbd_log.h"
 #include "fmbd_mbs_impl.h"
 #include "fmbd_vec.h"
+#ifdef FMBD_HAVE_V4D
+#include <immintrin.h>
+#endif
 
 // ============================================================================================
 // body equations (fmbd_mbs.h, EQUATIONS)
@@ -169,11 +172,362 @@ void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const doubl
                              double *y) {
   matvec_add_base(m, n, A, lda, x, alpha, y);
 }
+// --- P = SS q from SS's upper triangle (full inertia coupling) -------------------------------
+// SS as one symmetric matrix St of order 3 nm, row (a, k) = a nm + k: St[(a,k),(b,l)] = int rho
+// S_k,a S_l,b = SS[a + 3b + 9k + 9 nm l] = St[(b,l),(a,k)] (docs/THEORY.md). P_k,ab = sum_l
+// St[(a,k),(b,l)] q_l is formed from St's upper triangle alone: each entry read once gives both
+// its products, St_ij q_l into P's row i of column b (an axpy) and St_ij q_k into P's row j of
+// column a (a dot product), so half the bytes of the full (9 nm) x nm product for the same
+// multiply-adds (the full product ran at about 14 multiply-adds a ns from L2, its 65 kB at 30
+// modes exceeding L1's 32 kB; the same loop from L1 at 21-23: bench/README.md).
+//
+// Layout (mbs_ss_pack): every block padded to nmp = nm rounded up to 4 rows and columns (zeros),
+// row (a, k) at a nmp + k; the columns j = b nmp + l in groups of four (g = j / 4), each column of
+// group g holding the rows 0..4g+3 (the upper triangle and the group's whole 4 x 4 diagonal block),
+// at ss_off(j). P (mbs_ssq) is 3 nmp x 3: P_k,ab at P[k + nmp (a + 3b)].
+//
+// The order of the operations (the portable form; the AVX2 form does the same per lane): groups
+// in order; per group and segment a <= b (rows a nmp + k, k < nmp, or k < l0 in the group's own
+// block) four rows a pass: P_i = (((P_i + q_l0 St_i,l0) + q_l0+1 St_i,l0+1) + ...), and a dot
+// product per column in four lanes (lane e: rows k = e mod 4), reduced as ((lane 0 + lane 1) +
+// (lane 2 + lane 3)) and added to P[(b, l), a]; then the group's diagonal block as the axpy alone
+static size_t ss_off(size_t j) {
+  const size_t g = j / 4;
+  return 8 * g * (g + 1) + (j % 4) * (4 * g + 4);
+}
+// Below MBS_SS_TRI modes the full (9 nmp) x nm product is faster (the loops over a block's 4 x 4
+// groups have short runs: measured one evaluation's SS q at 30 modes 0.67 us packed against 0.62
+// full, 40 modes 0.98 against 1.09, 100 modes 5.9 against 10.6): there St holds SS whole, row
+// k + nmp (a + 3b), column l, so that P = St q has the same layout
+#define MBS_SS_TRI 40
+size_t mbs_ss_size(int nm) {
+  const size_t nmp = (size_t)((nm + 3) & ~3);
+  return nm >= MBS_SS_TRI ? ss_off(3 * nmp) : 9 * nmp * (size_t)nm;
+}
+void mbs_ss_pack(int nm, const double *SS, double *St) {
+  const size_t n1 = (size_t)nm;
+  const int nmp = (nm + 3) & ~3;
+  if (nm < MBS_SS_TRI) {
+    for (size_t l = 0; l < n1; l++) {
+      for (int i = 0; i < 9; i++) {
+        for (int k = 0; k < nmp; k++)
+          St[k + nmp * i + 9 * nmp * l] = k < nm ? SS[i + 9 * k + 9 * n1 * l] : 0;
+      }
+    }
+    return;
+  }
+  for (int j = 0; j < 3 * nmp; j++) {
+    const int bb = j / nmp, l = j % nmp, rows = (j | 3) + 1;
+    double *col = St + ss_off((size_t)j);
+    for (int i = 0; i < rows; i++) {
+      const int a = i / nmp, k = i % nmp;
+      if (k >= nm || l >= nm) {
+        col[i] = 0;
+        continue;
+      }
+      // the two stored copies of the entry (equal up to the invariant's own round-off)
+      double u = SS[a + 3 * bb + 9 * k + 9 * n1 * l], v = SS[bb + 3 * a + 9 * l + 9 * n1 * k];
+      col[i] = 0.5 * (u + v);
+    }
+  }
+}
+
+// the portable form: the lanes as arrays; qp: q padded with zeros to nmp
+static void ssq_base(int nm, const double *restrict St, const double *restrict qp,
+                     double *restrict P) {
+  const int nmp = (nm + 3) & ~3, N = 3 * nmp;
+  memset(P, 0, sizeof(double) * 3 * (size_t)N);
+  for (int bb = 0; bb < 3; bb++) {
+    double *Pb = P + (size_t)N * bb;
+    for (int l0 = 0; l0 < nmp; l0 += 4) {
+      const double *s[4];
+      for (int t = 0; t < 4; t++) s[t] = St + ss_off((size_t)(bb * nmp + l0 + t));
+      const double *X = qp + l0;
+      for (int a = 0; a <= bb; a++) {
+        const int ka = a < bb ? nmp : l0, i0 = a * nmp;
+        double d[4][4] = {{0}};
+        for (int k = 0; k < ka; k += 4) {
+          for (int e = 0; e < 4; e++) {
+            const int i = i0 + k + e;
+            Pb[i] = Pb[i] + ((X[0] * s[0][i] + X[1] * s[1][i]) + (X[2] * s[2][i] + X[3] * s[3][i]));
+            for (int t = 0; t < 4; t++) d[t][e] = d[t][e] + s[t][i] * qp[k + e];
+          }
+        }
+        for (int t = 0; t < 4; t++)
+          P[bb * nmp + l0 + t + (size_t)N * a] += (d[t][0] + d[t][1]) + (d[t][2] + d[t][3]);
+      }
+      for (int e = 0; e < 4; e++) {
+        const int i = bb * nmp + l0 + e;
+        Pb[i] = Pb[i] + X[0] * s[0][i] + X[1] * s[1][i] + X[2] * s[2][i] + X[3] * s[3][i];
+      }
+    }
+  }
+}
+
+#ifdef MBS_VEC4
+// the same, four rows to a vector
+__attribute__((target("avx2"))) static void ssq_avx2(int nm, const double *restrict St,
+                                                     const double *restrict qp,
+                                                     double *restrict P) {
+  const int nmp = (nm + 3) & ~3, N = 3 * nmp;
+  memset(P, 0, sizeof(double) * 3 * (size_t)N);
+  for (int bb = 0; bb < 3; bb++) {
+    double *Pb = P + (size_t)N * bb;
+    for (int l0 = 0; l0 < nmp; l0 += 4) {
+      const double *s0 = St + ss_off((size_t)(bb * nmp + l0)), *s1 = s0 + (bb * nmp + l0 + 4),
+                   *s2 = s1 + (bb * nmp + l0 + 4), *s3 = s2 + (bb * nmp + l0 + 4);
+      const v4d X0 = {qp[l0], qp[l0], qp[l0], qp[l0]},
+                X1 = {qp[l0 + 1], qp[l0 + 1], qp[l0 + 1], qp[l0 + 1]},
+                X2 = {qp[l0 + 2], qp[l0 + 2], qp[l0 + 2], qp[l0 + 2]},
+                X3 = {qp[l0 + 3], qp[l0 + 3], qp[l0 + 3], qp[l0 + 3]};
+      for (int a = 0; a <= bb; a++) {
+        const int ka = a < bb ? nmp : l0, i0 = a * nmp;
+        v4d d0 = {0, 0, 0, 0}, d1 = d0, d2 = d0, d3 = d0;
+        for (int k = 0; k < ka; k += 4) {
+          const int i = i0 + k;
+          v4d a0 = LD4(s0 + i), a1 = LD4(s1 + i), a2 = LD4(s2 + i), a3 = LD4(s3 + i);
+          // each column's four entries loaded once (GCC otherwise reads them again for the dots)
+          __asm__("" : "+x"(a0), "+x"(a1), "+x"(a2), "+x"(a3));
+          const v4d qk = LD4(qp + k);
+          ST4(Pb + i, LD4(Pb + i) + ((X0 * a0 + X1 * a1) + (X2 * a2 + X3 * a3)));
+          d0 = d0 + a0 * qk, d1 = d1 + a1 * qk, d2 = d2 + a2 * qk, d3 = d3 + a3 * qk;
+        }
+        // lane sums of the four: h01 = (d0_0 + d0_1, d1_0 + d1_1, d0_2 + d0_3, d1_2 + d1_3), h23
+        // the same of d2, d3; their halves added: ((lane 0 + lane 1) + (lane 2 + lane 3)) each
+        const __m256d h01 = _mm256_hadd_pd(d0, d1), h23 = _mm256_hadd_pd(d2, d3);
+        const v4d r =
+            _mm256_permute2f128_pd(h01, h23, 0x20) + _mm256_permute2f128_pd(h01, h23, 0x31);
+        double *o = P + bb * nmp + l0 + (size_t)N * a;
+        ST4(o, LD4(o) + r);
+      }
+      const int i = bb * nmp + l0;
+      ST4(Pb + i,
+          LD4(Pb + i) + X0 * LD4(s0 + i) + X1 * LD4(s1 + i) + X2 * LD4(s2 + i) + X3 * LD4(s3 + i));
+    }
+  }
+}
+#endif
+// P (3 nmp x 3) = St q (St packed by mbs_ss_pack); qp: nmp doubles of workspace
+void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp) {
+  const int nmp = (nm + 3) & ~3;
+  if (nm < MBS_SS_TRI) {
+    memset(P, 0, sizeof(double) * 9 * (size_t)nmp);
+    matvec_add(9 * nmp, nm, St, 9 * nmp, q, 1.0, P);
+    return;
+  }
+  memcpy(qp, q, sizeof(double) * (size_t)nm);
+  for (int k = nm; k < nmp; k++) qp[k] = 0;
+#ifdef MBS_VEC4
+  if (__builtin_cpu_supports("avx2")) {
+    ssq_avx2(nm, St, qp, P);
+    return;
+  }
+#endif
+  ssq_base(nm, St, qp, P);
+}
+void mbs_ssq_portable(int nm, const double *St, const double *q, double *P, double *qp) {
+  const int nmp = (nm + 3) & ~3;
+  if (nm < MBS_SS_TRI) {
+    memset(P, 0, sizeof(double) * 9 * (size_t)nmp);
+    matvec_add_base(9 * nmp, nm, St, 9 * nmp, q, 1.0, P);
+    return;
+  }
+  memcpy(qp, q, sizeof(double) * (size_t)nm);
+  for (int k = nm; k < nmp; k++) qp[k] = 0;
+  ssq_base(nm, St, qp, P);
+}
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {
   for (int i = 0; i < m; i++) y[i] = 0;
   matvec_add(m, n, A, m, x, alpha, y);
 }
+// --- full coupling: the sums over the modes four modes to a vector ----------------------------
+// The body's full-coupling arrays in b->pk (mbs_body_consts; nmp = nm rounded up to 4, every
+// array over the modes padded with zeros to nmp, "i-major": entry i of mode k at k + nmp i):
+// SS (mbs_ss_pack), P = SS q (9), XX_k, XT_k (9 each), S1_k (3), the rows of SSx (3 nmp x nm:
+// row k + nmp a, column l, SSx[a + 3k + 3 nm l]), cor (3), H_k = XT_k + P_k (9), q, q', q''
+// padded (3), the modal rows' inertia terms (1)
+typedef struct full_ws {
+  double *St, *P, *XX, *XT, *S1, *SX, *cor, *H, *q, *qd, *qdd, *v;
+  int nmp;
+} full_ws;
+static size_t full_size(int nm) {
+  const size_t nmp = (size_t)((nm + 3) & ~3);
+  return mbs_ss_size(nm) + (9 + 18 + 3 + 3 + 9 + 3 + 1) * nmp + 3 * nmp * (size_t)nm;
+}
+static full_ws full_at(const mbody *b) {
+  full_ws f;
+  const size_t nmp = (size_t)((b->nm + 3) & ~3);
+  f.nmp = (int)nmp;
+  f.St = b->pk, f.P = f.St + mbs_ss_size(b->nm);
+  f.XX = f.P + 9 * nmp, f.XT = f.XX + 9 * nmp, f.S1 = f.XT + 9 * nmp, f.SX = f.S1 + 3 * nmp;
+  f.cor = f.SX + 3 * nmp * (size_t)b->nm, f.H = f.cor + 3 * nmp, f.q = f.H + 9 * nmp;
+  f.qd = f.q + nmp, f.qdd = f.qd + nmp, f.v = f.qdd + nmp;
+  return f;
+}
+static void full_consts(const mbody *b) {
+  const full_ws f = full_at(b);
+  const int nm = b->nm, nmp = f.nmp;
+  const size_t n1 = (size_t)nm;
+  mbs_ss_pack(nm, b->SS, f.St);
+  memset(f.XX, 0, sizeof(double) * (21 + 3 * n1) * (size_t)nmp);  // XX, XT, S1 and SX
+  for (int k = 0; k < nm; k++) {
+    for (int i = 0; i < 9; i++)
+      f.XX[k + nmp * i] = b->XX[i + 9 * k], f.XT[k + nmp * i] = b->XT[i + 9 * k];
+    for (int a = 0; a < 3; a++) f.S1[k + nmp * a] = b->S1[a + 3 * k];
+    // SSx[a + 3k + 3 nm l] = (int rho S_k x S_l)_a = eps_abc SS_bc,kl, as fmbd_mbs.c forms it
+    for (size_t l = 0; l < n1; l++) {
+      const double *S = b->SS + 9 * (size_t)k + 9 * n1 * l;
+      double *o = f.SX + k + 3 * (size_t)nmp * l;
+      o[0] = S[1 + 3 * 2] - S[2 + 3 * 1];
+      o[nmp] = S[2 + 3 * 0] - S[0 + 3 * 2];
+      o[2 * nmp] = S[0 + 3 * 1] - S[1 + 3 * 0];
+    }
+  }
+  memset(f.cor, 0, sizeof(double) * 16 * (size_t)nmp);  // cor, H, the padded q, q', q'', v
+}
+
+// The sums of a full-coupling evaluation over the modes, in lanes of four modes (lane e: the
+// modes k = e mod 4, zero padding past nm), each sum's lanes added as ((0 + 1) + (2 + 3)):
+// fs_inertia: J_i = sum q_k (XX_k,i + P_k,i), H_i = sum q'_k H_k,i with H_k = XT_k + P_k (stored
+// in f.H for the modal rows and the block), c_a = sum q_k S1_k,a, s1qd_a = sum q'_k S1_k,a;
+// fs_rows: the modal rows' inertia terms v_k = y . H_k + ag . S1_k + w2 . cor_k (y: 9 weights, ag
+// and w2: 3), the rigid rows' s1a_a = sum q''_k S1_k,a and hq_i = sum q''_k H_k,i (the
+// antisymmetric entries 1, 2, 3, 5, 6, 7: Mwf q''). One body each for the forms below: GCC's and
+// clang's vector extension (four doubles: two SSE2 operations where the processor has no AVX,
+// the same operations per lane, so the same bits), chosen when called as matvec_add is, or plain
+// C per lane where there is no vector extension
+#define FS_RED(v) (((v)[0] + (v)[1]) + ((v)[2] + (v)[3]))
+#if defined(__GNUC__)
+typedef double v4g __attribute__((vector_size(32), aligned(sizeof(double)), may_alias));
+#define G4(p) (*(const v4g *)(p))
+__attribute__((always_inline)) static inline void fs_inertia_body(const full_ws *f, double *J,
+                                                                  double *H, double *c,
+                                                                  double *s1qd) {
+  const int nmp = f->nmp;
+  v4g aj[9], ah[9], ac[3], as[3];
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) aj[i] = ah[i] = (v4g){0, 0, 0, 0};
+  _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) ac[a] = as[a] = (v4g){0, 0, 0, 0};
+  for (int k = 0; k < nmp; k += 4) {
+    const v4g q = G4(f->q + k), qd = G4(f->qd + k);
+    _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) {
+      const v4g p = G4(f->P + k + nmp * i), h = G4(f->XT + k + nmp * i) + p;
+      aj[i] += q * (G4(f->XX + k + nmp * i) + p);
+      *(v4g *)(f->H + k + nmp * i) = h;
+      ah[i] += qd * h;
+    }
+    _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) {
+      const v4g s = G4(f->S1 + k + nmp * a);
+      ac[a] += q * s, as[a] += qd * s;
+    }
+  }
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) J[i] = FS_RED(aj[i]), H[i] = FS_RED(ah[i]);
+  _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) c[a] = FS_RED(ac[a]), s1qd[a] = FS_RED(as[a]);
+}
+__attribute__((always_inline)) static inline void fs_rows_body(const full_ws *f, const double *y,
+                                                               const double *ag, const double *w2,
+                                                               bool acc, double *s1a, double *hq) {
+  const int nmp = f->nmp;
+  v4g a1[3] = {{0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}}, a2[9];
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) a2[i] = (v4g){0, 0, 0, 0};
+  for (int k = 0; k < nmp; k += 4) {
+    v4g v = (v4g){0, 0, 0, 0};
+    _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) v += y[i] * G4(f->H + k + nmp * i);
+    _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) v += ag[a] * G4(f->S1 + k + nmp * a);
+    _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) v += w2[a] * G4(f->cor + k + nmp * a);
+    *(v4g *)(f->v + k) = v;
+    if (acc) {
+      const v4g qdd = G4(f->qdd + k);
+      _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) a1[a] += qdd * G4(f->S1 + k + nmp * a);
+      _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) a2[i] += qdd * G4(f->H + k + nmp * i);
+    }
+  }
+  _Pragma("GCC unroll 9") for (int a = 0; a < 3; a++) s1a[a] = FS_RED(a1[a]);
+  _Pragma("GCC unroll 9") for (int i = 0; i < 9; i++) hq[i] = FS_RED(a2[i]);
+}
+#else
+static void fs_inertia_body(const full_ws *f, double *J, double *H, double *c, double *s1qd) {
+  const int nmp = f->nmp;
+  double aj[9][4] = {{0}}, ah[9][4] = {{0}}, ac[3][4] = {{0}}, as[3][4] = {{0}};
+  for (int k = 0; k < nmp; k++) {
+    const int e = k & 3;
+    const double q = f->q[k], qd = f->qd[k];
+    for (int i = 0; i < 9; i++) {
+      const double p = f->P[k + nmp * i], h = f->XT[k + nmp * i] + p;
+      aj[i][e] += q * (f->XX[k + nmp * i] + p);
+      f->H[k + nmp * i] = h;
+      ah[i][e] += qd * h;
+    }
+    for (int a = 0; a < 3; a++) {
+      const double s = f->S1[k + nmp * a];
+      ac[a][e] += q * s, as[a][e] += qd * s;
+    }
+  }
+  for (int i = 0; i < 9; i++) J[i] = FS_RED(aj[i]), H[i] = FS_RED(ah[i]);
+  for (int a = 0; a < 3; a++) c[a] = FS_RED(ac[a]), s1qd[a] = FS_RED(as[a]);
+}
+static void fs_rows_body(const full_ws *f, const double *y, const double *ag, const double *w2,
+                         bool acc, double *s1a, double *hq) {
+  const int nmp = f->nmp;
+  double a1[3][4] = {{0}}, a2[9][4] = {{0}};
+  for (int k = 0; k < nmp; k++) {
+    const int e = k & 3;
+    double v = 0;
+    for (int i = 0; i < 9; i++) v += y[i] * f->H[k + nmp * i];
+    for (int a = 0; a < 3; a++) v += ag[a] * f->S1[k + nmp * a];
+    for (int a = 0; a < 3; a++) v += w2[a] * f->cor[k + nmp * a];
+    f->v[k] = v;
+    if (acc) {
+      for (int a = 0; a < 3; a++) a1[a][e] += f->qdd[k] * f->S1[k + nmp * a];
+      for (int i = 0; i < 9; i++) a2[i][e] += f->qdd[k] * f->H[k + nmp * i];
+    }
+  }
+  for (int a = 0; a < 3; a++) s1a[a] = FS_RED(a1[a]);
+  for (int i = 0; i < 9; i++) hq[i] = FS_RED(a2[i]);
+}
+#endif
+static void fs_inertia_base(const full_ws *f, double *J, double *H, double *c, double *s1qd) {
+  fs_inertia_body(f, J, H, c, s1qd);
+}
+static void fs_rows_base(const full_ws *f, const double *y, const double *ag, const double *w2,
+                         bool acc, double *s1a, double *hq) {
+  fs_rows_body(f, y, ag, w2, acc, s1a, hq);
+}
+#ifdef MBS_VEC4
+__attribute__((target("avx2"))) static void fs_inertia_avx2(const full_ws *f, double *J, double *H,
+                                                            double *c, double *s1qd) {
+  fs_inertia_body(f, J, H, c, s1qd);
+}
+__attribute__((target("avx2"))) static void fs_rows_avx2(const full_ws *f, const double *y,
+                                                         const double *ag, const double *w2,
+                                                         bool acc, double *s1a, double *hq) {
+  fs_rows_body(f, y, ag, w2, acc, s1a, hq);
+}
+#endif
+static void fs_inertia(const full_ws *f, double *J, double *H, double *c, double *s1qd) {
+#ifdef MBS_VEC4
+  if (__builtin_cpu_supports("avx2")) {
+    fs_inertia_avx2(f, J, H, c, s1qd);
+    return;
+  }
+#endif
+  fs_inertia_base(f, J, H, c, s1qd);
+}
+static void fs_rows(const full_ws *f, const double *y, const double *ag, const double *w2, bool acc,
+                    double *s1a, double *hq) {
+#ifdef MBS_VEC4
+  if (__builtin_cpu_supports("avx2")) {
+    fs_rows_avx2(f, y, ag, w2, acc, s1a, hq);
+    return;
+  }
+#endif
+  fs_rows_base(f, y, ag, w2, acc, s1a, hq);
+}
+static void pad_copy(int nm, int nmp, const double *x, double *y) {
+  memcpy(y, x, sizeof(double) * (size_t)nm);
+  for (int k = nm; k < nmp; k++) y[k] = 0;
+}
+
 // --- parts shared by modal bodies (mbs_body_eval) and full FE bodies (mbs_fe_eval) -------
 // the frame's kinematics: A(p/|p|), G(p), |p| into the body's workspace, body angular velocity
 // w = 2 G p' (also b->wb) and acceleration wd = 2 G p'' (zero without pdd)
@@ -309,7 +663,13 @@ int mbs_body_consts(mbody *b) {
     }
     if (b->partial) Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
   }
-  if (!b->partial || nm == 0) return FMBD_OK;
+  if (nm == 0) return FMBD_OK;
+  if (!b->partial) {  // full coupling: SS packed, the arrays of its sums (full_ws)
+    FMBD_CHECK(b->pk = fmbd_malloc(sizeof(double) * full_size(nm)), FMBD_ERR_NOMEM,
+               "out of memory");
+    full_consts(b);
+    return FMBD_OK;
+  }
   FMBD_CHECK(b->pk = fmbd_malloc(sizeof(double) * PK_SIZE * (size_t)nm), FMBD_ERR_NOMEM,
              "out of memory");
   double *E1 = b->pk, *E2 = E1 + 9 * (size_t)nm, *E3 = E2 + 12 * (size_t)nm,
@@ -336,63 +696,32 @@ int mbs_body_consts(mbody *b) {
   return FMBD_OK;
 }
 
-// mbs_body_inert2 (fmbd_mbs_impl.h): the 9 entries of J and the 3 of Mwfqd are independent
-// sums, here each a lane of SSE2 pairs (the scalar loops went through memory at every term: the
-// energy and momentum outputs took 8 % of a 100-mode full-coupling run); each lane does the
-// loops' operations in their order, so the same bits
+// mbs_body_inert2 (fmbd_mbs_impl.h). Full coupling: sum_kl q_k q_l SS_kl = sum_k q_k P_k with
+// P = SS q, and sum_kl q'_k q_l SSx_lk = sum_l q_l (SSx q')_l, by the evaluation's products
+// (mbs_ssq; SSx's rows of full_ws) in its workspace (the outputs are formed between steps): the
+// loops over the pairs (k, l) took 1-2 us an output at 30 modes, 10,000 pairs at 100
 void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd) {
   const int nm = b->nm;
-  double JT[9];  // JT[a + 3 bb] = J[3 a + bb], the order of SS's 3 x 3 blocks
-  for (int a = 0; a < 3; a++) {
-    for (int bb = 0; bb < 3; bb++) JT[a + 3 * bb] = J[3 * a + bb];
-  }
-#if defined(__GNUC__)
-  v2d j0 = ld2(JT), j1 = ld2(JT + 2), j2 = ld2(JT + 4), j3 = ld2(JT + 6), m0 = ld2(Mwfqd);
-#else
-  double j0[2] = {JT[0], JT[1]}, j1[2] = {JT[2], JT[3]}, j2[2] = {JT[4], JT[5]},
-         j3[2] = {JT[6], JT[7]}, m0[2] = {Mwfqd[0], Mwfqd[1]};
-#endif
-  double j8 = JT[8], m2 = Mwfqd[2];
-  for (int k = 0; k < nm; k++) {
-    for (int l = 0; l < nm && !b->partial; l++) {
-      const double *S = b->SS + 9 * k + 9 * (size_t)nm * l;
-      const double f = q[k] * q[l];
-      if (f != 0) {
-#if defined(__GNUC__)
-        const v2d F = {f, f};
-        j0 += F * ld2(S), j1 += F * ld2(S + 2), j2 += F * ld2(S + 4), j3 += F * ld2(S + 6);
-#else
-        for (int i = 0; i < 2; i++) {
-          j0[i] += f * S[i], j1[i] += f * S[2 + i], j2[i] += f * S[4 + i], j3[i] += f * S[6 + i];
-        }
-#endif
-        j8 += f * S[8];
+  if (!b->partial && nm > 0) {
+    const full_ws f = full_at(b);
+    const int nmp = f.nmp;
+    mbs_ssq(nm, f.St, q, f.P, f.v);
+    matvec(3 * nmp, nm, f.SX, qd, 1.0, f.cor);
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) {
+        const double *P = f.P + (size_t)nmp * (a + 3 * bb);
+        double t = 0;
+        for (int k = 0; k < nm; k++) t += q[k] * P[k];
+        J[3 * a + bb] += t;
       }
-      const double *sx = b->SSx + 3 * l + 3 * (size_t)nm * k;
-      const double g = qd[k] * q[l];
-#if defined(__GNUC__)
-      m0 += (v2d){g, g} * ld2(sx);
-#else
-      m0[0] += g * sx[0], m0[1] += g * sx[1];
-#endif
-      m2 += g * sx[2];
+      const double *t3 = f.cor + (size_t)nmp * a;
+      double t = 0;
+      for (int l = 0; l < nm; l++) t += q[l] * t3[l];
+      Mwfqd[a] += t;
     }
-    const double *xs = b->XSx + 3 * k;
-#if defined(__GNUC__)
-    m0 += (v2d){qd[k], qd[k]} * ld2(xs);
-#else
-    m0[0] += qd[k] * xs[0], m0[1] += qd[k] * xs[1];
-#endif
-    m2 += qd[k] * xs[2];
   }
-  memcpy(JT, &j0, 2 * sizeof(double));
-  memcpy(JT + 2, &j1, 2 * sizeof(double));
-  memcpy(JT + 4, &j2, 2 * sizeof(double));
-  memcpy(JT + 6, &j3, 2 * sizeof(double));
-  memcpy(Mwfqd, &m0, 2 * sizeof(double));
-  JT[8] = j8, Mwfqd[2] = m2;
-  for (int a = 0; a < 3; a++) {
-    for (int bb = 0; bb < 3; bb++) J[3 * a + bb] = JT[a + 3 * bb];
+  for (int k = 0; k < nm; k++) {
+    for (int a = 0; a < 3; a++) Mwfqd[a] += qd[k] * b->XSx[a + 3 * k];
   }
 }
 
@@ -423,7 +752,7 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double s1qd[3] = {0, 0, 0};
   // a partial body with diagonal Mff and Kff (the usual one): its residual by products over the
   // modes with the constant arrays b->pk (mbs_body_consts): other round-off than the loops below
-  const bool fast = b->pk && b->mdiag && b->kdiag;
+  const bool fast = b->partial && b->pk && b->mdiag && b->kdiag;
   const double *E1 = b->pk, *E2 = E1 + 9 * (size_t)nm, *E3 = E2 + 12 * (size_t)nm,
                *PG = E3 + 6 * (size_t)nm;
   if (fast) {
@@ -449,66 +778,17 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
     }
     Jl[3] = Jl[1], Jl[6] = Jl[2], Jl[7] = Jl[5];
   } else if (nm > 0) {
-    double *P = b->P;  // P = SS q, SS as a (9 nm) x nm column-major matrix
-    matvec(9 * nm, nm, b->SS, q, 1.0, P);
-#if defined(__GNUC__)
-    // the loop below's 9 + 9 + 3 + 3 sums as lanes of SSE2 pairs, J transposed (lane a + 3 bb:
-    // the order of XS_k and P_k), with XX_k = XS_k + XS_k' and XT_k = XS_k' made at load: each
-    // lane does the loop's operations in its order (the same bits); the scalar loop kept Jl and
-    // H in memory, a third of this function's time with full coupling at 100 modes
-    double JT[9], cs[6] = {cl[0], cl[1], cl[2], 0, 0, 0};
+    // full coupling: P = SS q (mbs_ssq), then c, J, H, S1 q' and H_k in lanes of four modes
+    const full_ws f = full_at(b);
+    pad_copy(nm, f.nmp, q, f.q);
+    pad_copy(nm, f.nmp, qd, f.qd);
+    mbs_ssq(nm, f.St, q, f.P, f.v);  // f.v: mbs_ssq's workspace (the modal rows' come later)
+    double Ju[9], cu[3];
+    fs_inertia(&f, Ju, H, cu, s1qd);
     for (int a = 0; a < 3; a++) {
-      for (int bb = 0; bb < 3; bb++) JT[a + 3 * bb] = Jl[3 * a + bb];
+      cl[a] += cu[a];
+      for (int bb = 0; bb < 3; bb++) Jl[3 * a + bb] += Ju[a + 3 * bb];
     }
-    v2d j0 = ld2(JT), j1 = ld2(JT + 2), j2 = ld2(JT + 4), j3 = ld2(JT + 6);
-    v2d h0 = {0, 0}, h1 = h0, h2 = h0, h3 = h0, c01 = ld2(cs), s01 = h0;
-    double j8 = JT[8], h8 = 0, c2 = cl[2], s2 = 0;
-    for (int k = 0; k < nm; k++) {
-      const double *XX = b->XX + 9 * k, *XT = b->XT + 9 * k, *Pk = P + 9 * k, *S1 = b->S1 + 3 * k;
-      double *Hk = b->Hk + 9 * k;
-      const v2d Q = {q[k], q[k]}, QD = {qd[k], qd[k]};
-      c01 += ld2(S1) * Q, c2 += S1[2] * q[k];
-      s01 += ld2(S1) * QD, s2 += S1[2] * qd[k];
-      v2d p0 = ld2(Pk), p1 = ld2(Pk + 2), p2 = ld2(Pk + 4), p3 = ld2(Pk + 6);
-      j0 += Q * (ld2(XX) + p0), j1 += Q * (ld2(XX + 2) + p1);
-      j2 += Q * (ld2(XX + 4) + p2), j3 += Q * (ld2(XX + 6) + p3);
-      j8 += q[k] * (XX[8] + Pk[8]);
-      v2d k0 = ld2(XT) + p0, k1 = ld2(XT + 2) + p1, k2 = ld2(XT + 4) + p2, k3 = ld2(XT + 6) + p3;
-      memcpy(Hk, &k0, sizeof k0), memcpy(Hk + 2, &k1, sizeof k1);
-      memcpy(Hk + 4, &k2, sizeof k2), memcpy(Hk + 6, &k3, sizeof k3);
-      Hk[8] = XT[8] + Pk[8];
-      double *Mw = b->Mwf + 3 * k;
-      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
-      h0 += QD * k0, h1 += QD * k1, h2 += QD * k2, h3 += QD * k3, h8 += qd[k] * Hk[8];
-    }
-    memcpy(JT, &j0, sizeof j0), memcpy(JT + 2, &j1, sizeof j1);
-    memcpy(JT + 4, &j2, sizeof j2), memcpy(JT + 6, &j3, sizeof j3), JT[8] = j8;
-    for (int a = 0; a < 3; a++) {
-      for (int bb = 0; bb < 3; bb++) Jl[3 * a + bb] = JT[a + 3 * bb];
-    }
-    memcpy(H, &h0, sizeof h0), memcpy(H + 2, &h1, sizeof h1);
-    memcpy(H + 4, &h2, sizeof h2), memcpy(H + 6, &h3, sizeof h3), H[8] = h8;
-    memcpy(cs, &c01, sizeof c01), memcpy(cs + 3, &s01, sizeof s01);
-    cl[0] = cs[0], cl[1] = cs[1], cl[2] = c2;
-    s1qd[0] = cs[3], s1qd[1] = cs[4], s1qd[2] = s2;
-#else
-    for (int k = 0; k < nm; k++) {
-      const double *X = b->XS + 9 * k, *Pk = P + 9 * k;
-      double *Hk = b->Hk + 9 * k;
-      for (int a = 0; a < 3; a++) {
-        cl[a] += b->S1[a + 3 * k] * q[k];
-        s1qd[a] += b->S1[a + 3 * k] * qd[k];
-        for (int bb = 0; bb < 3; bb++) {
-          // J_ab += q_k (XS_abk + XS_bak) + q_k P_k,ab; H_k,ab = XS_bak + P_k,ab
-          Jl[3 * a + bb] += q[k] * (X[a + 3 * bb] + X[bb + 3 * a] + Pk[a + 3 * bb]);
-          Hk[a + 3 * bb] = X[bb + 3 * a] + Pk[a + 3 * bb];
-        }
-      }
-      double *Mw = b->Mwf + 3 * k;
-      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
-      for (int i = 0; i < 9; i++) H[i] += qd[k] * Hk[i];
-    }
-#endif
     // symmetrise J (round-off)
     for (int a = 0; a < 3; a++) {
       for (int bb = a + 1; bb < 3; bb++) {
@@ -541,7 +821,17 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
       MB(3 + a, 3 + bb) = I[3 * a + bb];
     }
   }
-  for (int k = 0; k < nm && (B || !fast); k++) {  // fast: the residual does not read them
+  if (B && nm > 0 && !b->partial) {  // H_k and Mwf_k per mode for the block (partial: constant)
+    const full_ws f = full_at(b);
+    for (int k = 0; k < nm; k++) {
+      double *Hk = b->Hk + 9 * k, *Mw = b->Mwf + 3 * k;
+      for (int i = 0; i < 9; i++) Hk[i] = f.H[k + (size_t)f.nmp * i];
+      Mw[0] = Hk[5] - Hk[7], Mw[1] = Hk[6] - Hk[2], Mw[2] = Hk[1] - Hk[3];
+    }
+  }
+  // the coupling columns of Mb (A S1_k, Mwf_k and their transposes) only for the block: the
+  // residual takes their products from S1, H_k and P directly below
+  for (int k = 0; k < nm && B; k++) {
     double as[3];
     mv3(A, b->S1 + 3 * k, as);
     for (int a = 0; a < 3; a++) {
@@ -557,27 +847,15 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double Iw[3];
   mbs_rigid_qv(A, w, c, s1qd, I, H, trH, rb, Iw);
   double ww = dot3(w, w);
-  double *cor = b->cor;         // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry)
-  if (nm > 0 && !b->partial) {  // partial: SSx = 0, cor stays zero
-    matvec(3 * nm, nm, b->SSx, qd, -1.0, cor);
-  }
-  for (int k = 0; k < nm && fast; k++)  // the inertia terms added below (PG)
-    rb[6 + k] = b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
-  for (int k = 0; k < nm && !fast; k++) {
-    const double *Hk = b->Hk + 9 * k;
-    double wHw = 0;
-    for (int a = 0; a < 3; a++) {
-      for (int bb = 0; bb < 3; bb++) wHw += w[a] * Hk[a + 3 * bb] * w[bb];
+  // cor_k = sum_l q'_l SSx[l,k] = -sum_l SSx[k,l] q'_l (antisymmetry), in full_ws's rows (per
+  // mode for the block); partial: SSx = 0, cor stays zero
+  double *cor = b->cor;
+  if (nm > 0 && !b->partial) {
+    const full_ws f = full_at(b);
+    matvec(3 * f.nmp, nm, f.SX, qd, -1.0, f.cor);
+    for (int k = 0; k < nm && B; k++) {
+      for (int a = 0; a < 3; a++) cor[a + 3 * k] = f.cor[k + (size_t)f.nmp * a];
     }
-    double v = wHw - ww * (Hk[0] + Hk[4] + Hk[8]);
-    if (!b->partial) v += 2 * dot3(w, cor + 3 * k);
-    if (b->kdiag) {
-      v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
-    } else {
-      for (int l = 0; l < nm; l++)
-        v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
-    }
-    rb[6 + k] = v;
   }
   // gravity
   double gl[3];
@@ -585,35 +863,89 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double cg[3];
   cross3(c, gl, cg);
   for (int a = 0; a < 3; a++) rb[a] -= b->m * m->g[a], rb[3 + a] -= cg[a];
-  for (int k = 0; k < nm && !fast; k++) rb[6 + k] -= dot3(b->S1 + 3 * k, gl);
+  // ag = A'(R'' - g): the modal rows' S1_k . A'R'' (Mb's coupling row) and - S1_k . A'g (gravity)
+  double ag[3], ra[3];
+  for (int a = 0; a < 3; a++) ra[a] = (xdd ? xdd[a] : 0) - m->g[a];
+  mtv3(A, ra, ag);
+  if (fast) {  // the inertia terms of the modal rows below (PG)
+    for (int k = 0; k < nm; k++)
+      rb[6 + k] = b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+  } else if (nm > 0) {  // (a rigid body has no modal rows)
+    // each modal row: w'H_k w - |w|^2 tr H_k = Y : H_k with Y = w w' - |w|^2 1, the Coriolis
+    // term 2 w . cor_k, Mb's coupling row S1_k . A'R'' + Mwf_k . wd with the gravity S1_k . A'g
+    // (ag), the elastic and damping forces; and the rigid rows' sum_k [S1_k; Mwf_k] q''_k (Mb's
+    // coupling columns times q'', added below with its 6 x 6 block)
+    double Y[9];
+    for (int a = 0; a < 3; a++) {
+      for (int bb = 0; bb < 3; bb++) Y[a + 3 * bb] = w[a] * w[bb] - (a == bb ? ww : 0);
+    }
+    double s1a[3] = {0, 0, 0}, mwa[3] = {0, 0, 0};
+    if (!b->partial) {
+      // full coupling: Y : H_k + Mwf_k . wd with wd's antisymmetric part in Y (Mwf_k = (H_k,21 -
+      // H_k,12, H_k,02 - H_k,20, H_k,10 - H_k,01), entry a + 3b of H_k its (a, b)), S1_k . ag and
+      // 2 w . cor_k in lanes of four modes (fs_rows), the rigid rows' sums over q'' with them
+      const full_ws f = full_at(b);
+      Y[5] += wd[0], Y[7] -= wd[0], Y[6] += wd[1], Y[2] -= wd[1], Y[1] += wd[2], Y[3] -= wd[2];
+      const double w2[3] = {2 * w[0], 2 * w[1], 2 * w[2]};
+      double hq[9];
+      if (xdd) pad_copy(nm, f.nmp, qdd, f.qdd);
+      fs_rows(&f, Y, ag, w2, xdd != NULL, s1a, hq);
+      for (int k = 0; k < nm; k++) rb[6 + k] = f.v[k];
+      if (b->kdiag) {
+        for (int k = 0; k < nm; k++)
+          rb[6 + k] += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+      } else {
+        matvec_add(nm, nm, b->Kff, nm, q, 1.0, rb + 6);
+        matvec_add(nm, nm, b->Dff, nm, qd, 1.0, rb + 6);
+      }
+      mwa[0] = hq[5] - hq[7], mwa[1] = hq[6] - hq[2], mwa[2] = hq[1] - hq[3];
+    }
+    for (int k = 0; k < nm && b->partial; k++) {  // partial coupling: H_k, Mwf_k constant
+      const double *Hk = b->Hk + 9 * k, *S1 = b->S1 + 3 * k, *Mw = b->Mwf + 3 * k;
+      double v = Y[0] * Hk[0] + Y[1] * Hk[1] + Y[2] * Hk[2] + Y[3] * Hk[3] + Y[4] * Hk[4] +
+                 Y[5] * Hk[5] + Y[6] * Hk[6] + Y[7] * Hk[7] + Y[8] * Hk[8];
+      v += S1[0] * ag[0] + S1[1] * ag[1] + S1[2] * ag[2];
+      v += Mw[0] * wd[0] + Mw[1] * wd[1] + Mw[2] * wd[2];
+      if (b->kdiag) {
+        v += b->Kff[k + (size_t)nm * k] * q[k] + b->Dff[k + (size_t)nm * k] * qd[k];
+      } else {
+        for (int l = 0; l < nm; l++)
+          v += b->Kff[k + (size_t)nm * l] * q[l] + b->Dff[k + (size_t)nm * l] * qd[l];
+      }
+      rb[6 + k] = v;
+      if (xdd) {
+        for (int a = 0; a < 3; a++) s1a[a] += S1[a] * qdd[k], mwa[a] += Mw[a] * qdd[k];
+      }
+    }
+    if (xdd) {  // rb += [A S1 q''; Mwf q''] and Mff q''
+      double au[3];
+      mv3(A, s1a, au);
+      for (int a = 0; a < 3; a++) rb[a] += au[a], rb[3 + a] += mwa[a];
+      if (b->mdiag) {
+        for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
+      } else {
+        matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
+      }
+    }
+  }
   mbs_body_loads(m, ib, t, A, q, rb, rb + 6);
   if (fast) {  // rb_k += w' (H_k - tr H_k) w + S1_k . A'(R'' - g) + Mwf_k . wd (+ Mff_kk q''_k)
     double z[12] = {w[0] * w[0], w[1] * w[1], w[2] * w[2], w[0] * w[1], w[0] * w[2], w[1] * w[2]};
-    double ag[3];
-    for (int a = 0; a < 3; a++) ag[a] = (xdd ? xdd[a] : 0) - m->g[a];
-    mtv3(A, ag, z + 6);
+    for (int a = 0; a < 3; a++) z[6 + a] = ag[a];
     z[9] = wd[0], z[10] = wd[1], z[11] = wd[2];
     matvec_add(nm, 12, PG, nm, z, 1.0, rb + 6);
   }
-  // rb += Mb acc_b
-  if (xdd && fast) {  // the rigid rows: Mb's 6 x 6 block, A S1 q'' and Mwf q''
-    double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]}, u3[6], au[3];
+  // rb += Mb acc_b: the rigid rows' 6 x 6 block (the coupling: above, or A S1 q'' and Mwf q'')
+  if (xdd) {
+    double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
     matvec_add(6, 6, Mb, n6, acc6, 1.0, rb);
+  }
+  if (xdd && fast) {
+    double u3[6], au[3];
     matvec(6, nm, E3, qdd, 1.0, u3);
     mv3(A, u3, au);
     for (int a = 0; a < 3; a++) rb[a] += au[a], rb[3 + a] += u3[3 + a];
     for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
-  } else if (xdd) {
-    double acc6[6] = {xdd[0], xdd[1], xdd[2], wd[0], wd[1], wd[2]};
-    matvec_add(n6, 6, Mb, n6, acc6, 1.0, rb);
-    // the columns 6.. as rows 0..5 of Mb and Mff below them (the same pairs of rows, so the
-    // same operations as on the whole columns)
-    matvec_add(6, nm, Mb + (size_t)n6 * 6, n6, qdd, 1.0, rb);
-    if (b->mdiag) {  // the same bits as the product below (it adds exact zeros)
-      for (int k = 0; k < nm; k++) rb[6 + k] += b->Mff[k + (size_t)nm * k] * qdd[k];
-    } else {
-      matvec_add(nm, nm, b->Mff, nm, qdd, 1.0, rb + 6);
-    }
   }
   // r = T' rb
   for (int k = 0; k < nm; k++) r[7 + k] = rb[6 + k];

@@ -153,12 +153,14 @@ typedef struct mbody {
   double *q0, *qd0;
   // --- evaluation workspace (filled by mbs_body_eval) ---
   double A[9], G[12], pn, wb[3], c[3], J[9], I[9];
-  double *P;     // 9 nm: P_k[a + 3b] = sum_l q_l SS[a + 3b + 9k + 9 nm l]
+  double *P;     // 9 nm: unused (full coupling's P = SS q is in pk after SS's triangle)
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
   double *XX;    // 9 nm: XS_k + XS_k' (+ 0 if partial; mbs_body_consts): a partial body's J
   double *XT;    // 9 nm: XS_k' (mbs_body_consts): H_k = XS_k' + P_k with full coupling
-  double *pk;    // partial coupling: PK_SIZE x nm constant arrays (mbs_body_consts), else NULL
+  double *pk;    // constant arrays of mbs_body_consts (NULL without modes): partial coupling
+                 // PK_SIZE x nm; full coupling SS's upper triangle (mbs_ss_pack), then
+                 // mbs_ssq's P (9 nmp) and padded q (nmp) as the evaluation's workspace
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
   bool mdiag;    // Mff diagonal (M-orthonormal modes, the usual modal body): O(nm) Mff products
@@ -396,9 +398,18 @@ void mbs_matvec_add(int m, int n, const double *A, int lda, const double *x, dou
 // same bits: tests/unit/t513)
 void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const double *x, double alpha,
                              double *y);
+// SS (layout of fmbd_mbs.h) as one symmetric matrix of order 3 nm, its upper triangle packed
+// into St (mbs_ss_size(nm) doubles; blocks padded to nmp = nm rounded up to 4; the mean of the
+// two copies of each entry), and P = SS q from it (P[k + nmp (a + 3b)] = sum_l SS_ab,kl q_l,
+// 9 nmp doubles; qp: nmp doubles of workspace): AVX2 where the processor has it, the same bits
+// as the portable form (tests/unit/t513); see fmbd_mbs_body.c
+size_t mbs_ss_size(int nm);
+void mbs_ss_pack(int nm, const double *SS, double *St);
+void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp);
+void mbs_ssq_portable(int nm, const double *St, const double *q, double *P, double *qp);
 // the second-order inertia sums of a modal body's energy and momentum (fmbd_mbs_query.c):
-// J += sum_kl q_k q_l SS_kl (transposed: J_ab += q_k q_l SS_ba,kl, pairs with q_k q_l = 0 left
-// out; none for a partial body), Mwfqd += sum_k q'_k (sum_l q_l SSx_lk + XSx_k), k outer, l inner
+// J += sum_kl q_k q_l SS_kl (J_ab += q_k q_l SS[a + 3b + 9k + 9 nm l]; none for a partial body),
+// Mwfqd += sum_k q'_k (sum_l q_l SSx_lk + XSx_k); full coupling: in the evaluation's workspace
 void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *J, double *Mwfqd);
 // b->pk of a partial body: [S1_k; J's upper XX_k] (9 x nm), [S1_k; H_k] (12 x nm), [S1_k; Mwf_k]
 // (6 x nm), the modal rows' inertia terms (nm x 12); see mbs_body_consts
