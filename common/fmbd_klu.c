@@ -3,6 +3,7 @@
 #include "fmbd_klu.h"
 
 #include <klu.h>
+#include <math.h>
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
@@ -45,7 +46,19 @@ struct fmbd_klu {
   int own;
   SuiteSparse_long *oLp, *oLi, *oUp, *oUi, *oP, *oQ;
   double *oLx, *oUx, *oUi_d, *oy;  // oUi_d: 1 / U's diagonal; oy: work
-  int64_t ocap_l, ocap_u;          // capacities of the L and U arrays
+  // the triangles own_solve reads: the o arrays, or own_refactor's f arrays (own_from_rf)
+  const SuiteSparse_long *sLp, *sLi, *sUp, *sUi;
+  const double *sLx, *sUx;
+  int64_t ocap_l, ocap_u;  // capacities of the L and U arrays
+  // own refactorisation (own_refactor): the pattern of the last full factorisation's L and U in
+  // KLU's stored order (fLp ... fUx, exact zeros kept; the values those of the last
+  // refactorisation), its row permutation's inverse fPinv and column order fQ, the work vector
+  // fX (zero between calls); valid while `rf`; frcond: min / max |U_kk| of the last one
+  int rf, rf_off;  // rf_off: KLU's refactorisation instead (fmbd_klu_set_own_refactor)
+  SuiteSparse_long *fLp, *fLi, *fUp, *fUi, *fPinv, *fQ;
+  double *fLx, *fUx, *fX, frcond;
+  int64_t fzeros;  // exact zeros off the diagonals in the last own_refactor's L and U
+  int64_t fcap_l, fcap_u;
   // the pattern without the entries found exactly zero (red_prepare): KLU's analysis and
   // factor are of it while red > 0 (kAp, kAi then point to rAp, rAi; Ap, Ai stay the
   // caller's); red 0: not yet decided, -1: the caller's pattern for good; nred: analyses
@@ -53,9 +66,10 @@ struct fmbd_klu {
   int red, nred;
   SuiteSparse_long *kAp, *kAi;  // the pattern KLU is given: Ap, Ai or rAp, rAi
   SuiteSparse_long *rAp, *rAi;
-  int64_t *rmap;         // the kept entries' positions in the caller's Ax
-  double *rAx;           // their values
-  unsigned char *rkeep;  // per caller's entry: kept
+  int64_t *rmap;          // the kept entries' positions in the caller's Ax
+  double *rAx;            // their values
+  unsigned char *rkeep;   // per caller's entry: kept
+  int64_t *rdrop, ndrop;  // the dropped entries' positions in the caller's Ax (red_build)
 };
 
 // FMBD_SPARSE_LU = klu | umfpack | auto (unset or empty: auto)
@@ -110,6 +124,8 @@ static int klu_sym(fmbd_klu *F) {
   return FMBD_OK;
 }
 
+static bool own_rf_off(void);
+
 int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu **out) {
   int rc = FMBD_OK;
   *out = NULL;
@@ -123,6 +139,7 @@ int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu *
   for (int64_t i = 0; i <= n; i++) F->Ap[i] = (SuiteSparse_long)Ap[i];
   for (int64_t i = 0; i < nnz; i++) F->Ai[i] = (SuiteSparse_long)Ai[i];
   F->kAp = F->Ap, F->kAi = F->Ai;
+  F->rf_off = own_rf_off();
   F->umf = n > 0 && engine_umf(n, nnz);
   if (!F->umf) {
     FMBD_GCALL(klu_sym(F));
@@ -262,6 +279,157 @@ static void own_extract(fmbd_klu *F) {
     own_drop0(n, F->oLp, F->oLi, F->oLx, 1);
     own_drop0(n, F->oUp, F->oUi, F->oUx, 0);
   }
+  F->sLp = F->oLp, F->sLi = F->oLi, F->sLx = F->oLx, F->sUp = F->oUp, F->sUi = F->oUi;
+  F->sUx = F->oUx;
+  F->own = 1;
+}
+
+// A triangle's columns copied from (Xp, Xi, Xx) into (Yp, Yi, Yx) without their exactly zero
+// entries, the diagonal kept (first in each column when diag_first, else last): own_drop0 into
+// other arrays
+static void own_copy0(int64_t n, const SuiteSparse_long *Xp, const SuiteSparse_long *Xi,
+                      const double *Xx, SuiteSparse_long *Yp, SuiteSparse_long *Yi, double *Yx,
+                      int diag_first) {
+  SuiteSparse_long w = 0;
+  for (int64_t k = 0; k < n; k++) {
+    const SuiteSparse_long p0 = Xp[k], p1 = Xp[k + 1], d = diag_first ? p0 : p1 - 1;
+    Yp[k] = w;
+    for (SuiteSparse_long p = p0; p < p1; p++) {
+      if (Xx[p] == 0 && p != d) continue;
+      Yi[w] = Xi[p], Yx[w] = Xx[p], w++;
+    }
+  }
+  Yp[n] = w;
+}
+
+// After a full factorisation (KLU's, with its pivoting and row scaling): the pattern of its L
+// and U in the order KLU stores them, for own_refactor (F->rf). One diagonal block only, as
+// own_extract; the values extracted are not used (they are of the scaled matrix)
+static void rf_capture(fmbd_klu *F) {
+  F->rf = 0;
+  if (!F->num || !F->sym || F->sym->nblocks != 1) return;
+  const int64_t n = F->n, lnz = F->num->lnz, unz = F->num->unz;
+  if (!F->fX) {
+    size_t m1 = (size_t)n + 1;
+    F->fLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->fUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->fPinv = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->fQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->fX = fmbd_calloc(m1, sizeof(double));
+    if (!F->fLp || !F->fUp || !F->fPinv || !F->fQ || !F->fX) {
+      fmbd_free(F->fLp), fmbd_free(F->fUp), fmbd_free(F->fPinv), fmbd_free(F->fQ);
+      fmbd_free(F->fX);
+      F->fLp = F->fUp = F->fPinv = F->fQ = NULL, F->fX = NULL;
+      return;
+    }
+  }
+  if (!own_grow(&F->fLi, &F->fLx, &F->fcap_l, lnz) || !own_grow(&F->fUi, &F->fUx, &F->fcap_u, unz))
+    return;
+  SuiteSparse_long *P = (SuiteSparse_long *)F->fX;  // n longs fit in n + 1 doubles
+  if (!klu_l_extract(F->num, F->sym, F->fLp, F->fLi, F->fLx, F->fUp, F->fUi, F->fUx, NULL, NULL,
+                     NULL, P, F->fQ, NULL, NULL, &F->kc)) {
+    memset(F->fX, 0, sizeof(double) * (size_t)(n + 1));
+    return;
+  }
+  bool ok = true;
+  for (int64_t k = 0; k < n; k++) {
+    F->fPinv[P[k]] = k;
+    SuiteSparse_long l0 = F->fLp[k], u1 = F->fUp[k + 1];
+    if (l0 >= F->fLp[k + 1] || F->fLi[l0] != k || u1 <= F->fUp[k] || F->fUi[u1 - 1] != k)
+      ok = false;
+  }
+  memset(F->fX, 0, sizeof(double) * (size_t)(n + 1));
+  F->rf = ok;
+}
+
+// The refactorisation of ax (KLU's pattern kAp, kAi) with the pivots of the last full
+// factorisation, without row scaling: KLU's refactorisation (klu_refactor.c, its unscaled
+// branch: the column scattered, U's column by the updates of the earlier columns of L in the
+// order KLU stores them, L's column divided by the pivot) with the same operations in the same
+// order, so the same bits, on arrays of our own: no packed storage to walk, and the factor is
+// then in the form the own solves read (no klu_l_extract at each refactorisation; bench/README,
+// "Fewer Newton iterations with a fresh matrix"). Returns false at a zero or non-finite pivot or
+// when min / max |U_kk| <= RCOND_MIN (KLU's cheap rcond, the test of fmbd_klu_factor): the caller
+// factorises afresh with pivoting
+static bool own_refactor(fmbd_klu *F, const double *ax) {
+  const int64_t n = F->n;
+  const SuiteSparse_long *Ap = F->kAp, *Ai = F->kAi, *Lp = F->fLp, *Li = F->fLi, *Up = F->fUp,
+                         *Ui = F->fUi, *Pinv = F->fPinv, *Q = F->fQ;
+  double *Lx = F->fLx, *Ux = F->fUx, *X = F->fX, umin = INFINITY, umax = 0;
+  bool ok = true;
+  int64_t z = 0;
+  for (int64_t k = 0; k < n; k++) {
+    const SuiteSparse_long c = Q[k];
+    for (SuiteSparse_long p = Ap[c]; p < Ap[c + 1]; p++) X[Pinv[Ai[p]]] = ax[p];
+    const SuiteSparse_long u1 = Up[k + 1] - 1;  // U's diagonal last
+    for (SuiteSparse_long up = Up[k]; up < u1; up++) {
+      const SuiteSparse_long j = Ui[up];
+      const double ujk = X[j];
+      X[j] = 0;
+      Ux[up] = ujk;
+      z += ujk == 0;
+      for (SuiteSparse_long p = Lp[j] + 1; p < Lp[j + 1]; p++) X[Li[p]] -= Lx[p] * ujk;
+    }
+    const double ukk = X[k];
+    X[k] = 0;
+    Ux[u1] = ukk;
+    const double a = fabs(ukk);
+    if (!(a > 0) || !isfinite(a)) ok = false;  // the rest still computed: X left zero
+    if (a < umin) umin = a;
+    if (a > umax) umax = a;
+    for (SuiteSparse_long p = Lp[k] + 1; p < Lp[k + 1]; p++) {
+      const SuiteSparse_long i = Li[p];
+      Lx[p] = X[i] / ukk;
+      z += Lx[p] == 0;
+      X[i] = 0;
+    }
+  }
+  F->fzeros = z;
+  F->frcond = ok && umax > 0 ? umin / umax : 0;
+  return ok && F->frcond > RCOND_MIN;
+}
+
+// the own solves' factor from own_refactor's: its exact zeros dropped as own_extract does
+// (into the o arrays) where they are at least 1/8 of the entries (a planar chain's, "Exact zeros
+// of the planar chains"), else solved on the f arrays as they are: subtracting the few 0 y_k
+// costs less than a copy of the factor at each refactorisation (the pendulum's order-44
+// complement: 7 zeros in 493 entries), and gives the same numbers but the sign of a zero
+static void own_from_rf(fmbd_klu *F) {
+  const int64_t n = F->n;
+  F->own = 0;
+  if (!F->oy) {
+    size_t m1 = (size_t)n + 1;
+    F->oLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oP = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+    F->oUi_d = fmbd_malloc(sizeof(double) * m1);
+    F->oy = fmbd_malloc(sizeof(double) * m1);
+    if (!F->oLp || !F->oUp || !F->oP || !F->oQ || !F->oUi_d || !F->oy) {
+      fmbd_free(F->oLp), fmbd_free(F->oUp), fmbd_free(F->oP), fmbd_free(F->oQ);
+      fmbd_free(F->oUi_d), fmbd_free(F->oy);
+      F->oLp = F->oUp = F->oP = F->oQ = NULL, F->oUi_d = F->oy = NULL;
+      return;
+    }
+  }
+  const int64_t lnz = F->fLp[n], unz = F->fUp[n];
+  for (int64_t k = 0; k < n; k++) {
+    F->oP[F->fPinv[k]] = k;
+    F->oQ[k] = F->fQ[k];
+    F->oUi_d[k] = 1 / F->fUx[F->fUp[k + 1] - 1];
+  }
+  if (keep_zeros() || 8 * F->fzeros < lnz + unz) {
+    F->sLp = F->fLp, F->sLi = F->fLi, F->sLx = F->fLx, F->sUp = F->fUp, F->sUi = F->fUi;
+    F->sUx = F->fUx;
+  } else {
+    if (!own_grow(&F->oLi, &F->oLx, &F->ocap_l, lnz) ||
+        !own_grow(&F->oUi, &F->oUx, &F->ocap_u, unz))
+      return;
+    own_copy0(n, F->fLp, F->fLi, F->fLx, F->oLp, F->oLi, F->oLx, 1);
+    own_copy0(n, F->fUp, F->fUi, F->fUx, F->oUp, F->oUi, F->oUx, 0);
+    F->sLp = F->oLp, F->sLi = F->oLi, F->sLx = F->oLx, F->sUp = F->oUp, F->sUi = F->oUi;
+    F->sUx = F->oUx;
+  }
   F->own = 1;
 }
 
@@ -269,8 +437,8 @@ static void own_extract(fmbd_klu *F) {
 static void own_solve(fmbd_klu *F, double *b) {
   const int64_t n = F->n;
   double *y = F->oy;
-  const SuiteSparse_long *Lp = F->oLp, *Li = F->oLi, *Up = F->oUp, *Ui = F->oUi;
-  const double *Lx = F->oLx, *Ux = F->oUx, *Ud = F->oUi_d;
+  const SuiteSparse_long *Lp = F->sLp, *Li = F->sLi, *Up = F->sUp, *Ui = F->sUi;
+  const double *Lx = F->sLx, *Ux = F->sUx, *Ud = F->oUi_d;
   for (int64_t k = 0; k < n; k++) y[k] = b[F->oP[k]];
   for (int64_t k = 0; k < n; k++) {
     double yk = y[k];
@@ -304,10 +472,14 @@ static void own_solve(fmbd_klu *F, double *b) {
 // the kept pattern (rkeep) in rAp, rAi, rmap
 static void red_build(fmbd_klu *F) {
   int64_t w = 0;
+  F->ndrop = 0;
   for (int64_t c = 0; c < F->n; c++) {
     F->rAp[c] = (SuiteSparse_long)w;
     for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++)
-      if (F->rkeep[p]) F->rAi[w] = F->Ai[p], F->rmap[w] = p, w++;
+      if (F->rkeep[p])
+        F->rAi[w] = F->Ai[p], F->rmap[w] = p, w++;
+      else
+        F->rdrop[F->ndrop++] = p;
   }
   F->rAp[F->n] = (SuiteSparse_long)w;
   F->kAp = F->rAp, F->kAi = F->rAi;
@@ -317,7 +489,7 @@ static void red_build(fmbd_klu *F) {
 static void red_forget(fmbd_klu *F) {
   if (F->num) klu_l_free_numeric(&F->num, &F->kc);
   if (F->sym) klu_l_free_symbolic(&F->sym, &F->kc);
-  F->own = 0;
+  F->own = 0, F->rf = 0;
 }
 
 // before a KLU factorisation of Ax: the pattern's reduction decided or checked; *kax the
@@ -338,7 +510,9 @@ static void red_prepare(fmbd_klu *F, const double *Ax, double **kax) {
     F->rmap = fmbd_malloc(sizeof(int64_t) * (size_t)nnz);
     F->rAx = fmbd_malloc(sizeof(double) * (size_t)nnz);
     F->rkeep = fmbd_malloc((size_t)nnz);
-    if (!F->rAp || !F->rAi || !F->rmap || !F->rAx || !F->rkeep) return;  // freed at destroy
+    F->rdrop = fmbd_malloc(sizeof(int64_t) * (size_t)nnz);
+    if (!F->rAp || !F->rAi || !F->rmap || !F->rAx || !F->rkeep || !F->rdrop)
+      return;  // freed at destroy
     for (int64_t c = 0; c < n; c++)
       for (SuiteSparse_long p = F->Ap[c]; p < F->Ap[c + 1]; p++)
         F->rkeep[p] = Ax[p] != 0 || F->Ai[p] == c;
@@ -346,9 +520,11 @@ static void red_prepare(fmbd_klu *F, const double *Ax, double **kax) {
     red_build(F);
     red_forget(F);
   } else {
-    bool grow = false;
-    for (int64_t p = 0; p < nnz; p++)
-      if (!F->rkeep[p] && Ax[p] != 0) F->rkeep[p] = 1, grow = true;
+    bool grow = false;  // only the dropped entries read (rdrop)
+    for (int64_t e = 0; e < F->ndrop; e++) {
+      const int64_t p = F->rdrop[e];
+      if (Ax[p] != 0) F->rkeep[p] = 1, grow = true;
+    }
     if (grow) {
       red_forget(F);
       if (++F->nred > RED_MAX) {
@@ -361,6 +537,18 @@ static void red_prepare(fmbd_klu *F, const double *Ax, double **kax) {
   const int64_t nk = F->rAp[n];
   for (int64_t k = 0; k < nk; k++) F->rAx[k] = Ax[F->rmap[k]];
   *kax = F->rAx;
+}
+
+// FMBD_KLU_OWN_REFACTOR=0: KLU's refactorisation and klu_l_extract (own_refactor's comment)
+static bool own_rf_off(void) {
+  static int off = -1;
+  if (off < 0)
+    off = getenv("FMBD_KLU_OWN_REFACTOR") && !strcmp(getenv("FMBD_KLU_OWN_REFACTOR"), "0");
+  return off;
+}
+
+void fmbd_klu_set_own_refactor(fmbd_klu *F, int on) {
+  if (F) F->rf_off = !on;
 }
 
 int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
@@ -387,6 +575,13 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     return klu_full(F, ax);
   }
   red_prepare(F, Ax, &ax);
+  if (F->num && F->rf && !F->rf_off) {
+    if (own_refactor(F, ax)) {
+      own_from_rf(F);
+      if (F->own) return FMBD_OK;
+    }
+    klu_l_free_numeric(&F->num, &F->kc);  // a full factorisation below, with pivoting
+  }
   if (F->num) {
     // the refactorisation without KLU's row scaling (scale -1: no scale factors, no checks of
     // the fixed pattern). Scaling serves the choice of pivots, which a refactorisation does
@@ -409,7 +604,9 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
   }
   if (!F->num) {
     F->own = 0;
+    F->rf = 0;
     FMBD_CALL(klu_full(F, ax));
+    rf_capture(F);
   }
   return FMBD_OK;
 }
@@ -436,6 +633,7 @@ int fmbd_klu_solve(fmbd_klu *F, double *b) {
 double fmbd_klu_rcond(fmbd_klu *F) {
   if (F->unum) return F->urcond;
   if (!F->num) return 0;
+  if (F->rf && F->own) return F->frcond;  // own_refactor's (KLU's numeric object is older)
   if (!klu_l_rcond(F->sym, F->num, &F->kc)) return 0;
   return F->kc.rcond;
 }
@@ -458,7 +656,7 @@ void fmbd_klu_drop_factor(fmbd_klu *F) {
   if (!F) return;
   if (F->num) klu_l_free_numeric(&F->num, &F->kc);
   umf_free_numeric(F);
-  F->own = 0;
+  F->own = 0, F->rf = 0;
 }
 
 void fmbd_klu_destroy(fmbd_klu **Fp) {
@@ -470,9 +668,12 @@ void fmbd_klu_destroy(fmbd_klu **Fp) {
   if (F->usym) umfpack_dl_free_symbolic(&F->usym);
   fmbd_free(F->Ap), fmbd_free(F->Ai);
   fmbd_free(F->rAp), fmbd_free(F->rAi), fmbd_free(F->rmap), fmbd_free(F->rAx), fmbd_free(F->rkeep);
+  fmbd_free(F->rdrop);
   fmbd_free(F->uWi), fmbd_free(F->uW), fmbd_free(F->uX);
   fmbd_free(F->oLp), fmbd_free(F->oLi), fmbd_free(F->oLx), fmbd_free(F->oUp), fmbd_free(F->oUi);
   fmbd_free(F->oUx), fmbd_free(F->oP), fmbd_free(F->oQ), fmbd_free(F->oUi_d), fmbd_free(F->oy);
+  fmbd_free(F->fLp), fmbd_free(F->fLi), fmbd_free(F->fLx), fmbd_free(F->fUp), fmbd_free(F->fUi);
+  fmbd_free(F->fUx), fmbd_free(F->fPinv), fmbd_free(F->fQ), fmbd_free(F->fX);
   fmbd_free(F);
   *Fp = NULL;
 }

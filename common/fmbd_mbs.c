@@ -112,6 +112,7 @@ void fmbd_mbs_destroy(fmbd_mbs **mp) {
     fmbd_free(m->lamh[k]);
   }
   fmbd_free(m->dpos);
+  fmbd_free(m->qpar);
   if (m->bpos) {
     for (int i = 0; i < m->nb; i++) fmbd_free(m->bpos[i]);
     fmbd_free(m->bpos);

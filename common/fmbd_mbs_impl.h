@@ -278,6 +278,7 @@ struct fmbd_mbs {
   double *dyp;      // the multipliers' increments of the last Newton iteration
   bool jw_ok;       // the equations' jw formed from the last evaluated matrix
   int64_t *dpos;    // position of each coordinate's diagonal entry in Ax (-1: not formed there)
+  unsigned char *qpar;  // 1: an elastic coordinate of a modal body (the predictor's parity rule)
   double *res, *rhs, *scale, *nscale, *ascale, *floor_;
   double *rscale;  // round-off scale of each coordinate's Newton increment (fmbd_mbs_init.c)
   double Lref;
@@ -296,6 +297,11 @@ struct fmbd_mbs {
   int64_t worst_dx;  // coordinate of the largest Newton correction
   int64_t worst_dy;  // kept equation of the largest multiplier correction (debug output)
   bool need_factor, after_reject;
+  // the refresh by age (fmbd_mbs_step.c, refresh_age): m->st.steps when the current factor was
+  // formed in a step, and the age at which it is refreshed at a step's start (0: not decided
+  // yet, -1: never)
+  int64_t fact_steps;
+  int refresh_age;
   // --- sparse matrix and KLU ---
   int64_t nnz;
   double *Ax;       // values in the pattern analysed by klu (compressed columns)

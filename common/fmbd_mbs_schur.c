@@ -48,7 +48,8 @@ typedef struct sbody {
   int64_t *pu, *pv;  // Ax positions of (q_k, c_j) at pu[k + nm j], (c_j, q_k) at pv[j + nc k]
                      // (-1: structurally zero)
   int64_t *ps;       // Sx positions of (cs[i], cs[j]) at ps[i + nc j]
-  double *L;         // nm x nm: Cholesky factor (lower) of C; diag: C's diagonal (nm)
+  double *L;         // nm x nm: Cholesky factor (lower) of C; diag: C's diagonal (nm), then
+                     // its inverse (nm)
   double cf[3];      // (cm, cc, ck) of L
   bool have_L;
   bool diag;  // Mff, Kff (and Dff) diagonal (b->mdiag, b->kdiag): C diagonal, O(nm nc) and O(nm)
@@ -297,7 +298,7 @@ int mbs_schur_factor(fmbd_mbs *m) {
         FMBD_CHECK(d > 0 && isfinite(d), FMBD_ERR_SINGULAR,
                    "body '%s': modal block not positive definite (coordinate %d: %g)", b->name,
                    k + 1, d);
-        sb->L[k] = d;
+        sb->L[k] = d, sb->L[nm + k] = 1 / d;
       }
       sb->cf[0] = cm, sb->cf[1] = cc, sb->cf[2] = ck;
       sb->have_L = true;
@@ -313,9 +314,10 @@ int mbs_schur_factor(fmbd_mbs *m) {
       sb->W[e] = sb->pu[e] >= 0 ? m->Ax[sb->pu[e]] : 0;
       sb->V[e] = sb->pv[e] >= 0 ? m->Ax[sb->pv[e]] : 0;
     }
-    if (sb->diag) {
+    if (sb->diag) {  // by the inverted diagonal (no division in the loop)
+      const double *iL = sb->L + nm;
       for (int j = 0; j < nc; j++) {
-        for (int k = 0; k < nm; k++) sb->W[k + (size_t)nm * j] /= sb->L[k];
+        for (int k = 0; k < nm; k++) sb->W[k + (size_t)nm * j] *= iL[k];
       }
     } else {
       cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, nm, nc, 1.0,
@@ -347,7 +349,8 @@ int mbs_schur_solve(fmbd_mbs *m, double *rhs) {
     sbody *sb = &s->sb[k];
     const int nm = sb->nm, nc = sb->nc;
     if (sb->diag) {
-      for (int k = 0; k < nm; k++) sb->y[k] = rhs[sb->qoff + k] / sb->L[k];
+      const double *iL = sb->L + nm;
+      for (int k = 0; k < nm; k++) sb->y[k] = rhs[sb->qoff + k] * iL[k];
     } else {
       memcpy(sb->y, rhs + sb->qoff, sizeof(double) * (size_t)nm);
       cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, nm, sb->L, nm, sb->y, 1);

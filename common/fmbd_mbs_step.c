@@ -196,6 +196,47 @@ static void pred_score(fmbd_mbs *m, double h) {
   m->pred_n++;
 }
 
+// The REFRESH BY AGE: with a modal body of the size whose block fmbd_mbs_schur.c eliminates (at
+// least SCHUR_NM_MIN modes; the rule is the same on either path, FMBD_MBS_SCHUR=0 too), the
+// factor is formed anew at the start of a step once it is 3 steps old, or 2 where a body has
+// full inertia coupling and the elastic coordinates are at least half the order of what remains
+// (N - nm, the Schur complement's order), never where that order exceeds 16 nm; besides the
+// refresh when Newton contracts slowly (THETA_REFACTOR) or h changed. Measured on the quadruple
+// pendulum (bench/README.md, "Fewer Newton iterations: a fresh matrix by age"; 30 modes, full
+// coupling, fixed 1.75e-3 s, `-vv`): a factor formed at an iterate of the step contracts by about
+// 1e-4, one of the step before by 0.05 (median; 0.09 two steps before): the links' rotation (|w| h
+// about 0.03 a step) and the velocity terms move the matrix, while the first increment is 1e3-3e3
+// tolerances, mostly the elastic coordinates' predictor error, whose rows are constant. A fresh
+// factor converges in 2.3 iterations a step, a stale one in 3.3-3.7; a factorisation (the
+// elimination, nm nc^2, and KLU on the complement) with the matrix's evaluation costs about two
+// iterations there, where an iteration evaluates the 12 nm^2 products of full coupling (SS q, SSx
+// q') and the complement is of order 44. Run CPU (medians of 5), none / age 1 / 2 / 3: 0.0664 /
+// 0.0630 / 0.0609 / 0.0631 s. Partial coupling (an iteration of a few nm products), 1.4e-3 s:
+// 0.0572 / - / 0.0536 / 0.0503 s; 20 rigid links ending in the 30-mode rod (complement of order
+// 231, fixed 1e-3 s, 1 s): 0.0352 / - / 0.0390 / 0.0319 s; 5 and 10 links: age 3 best too (7 %);
+// 100 links (complement of order 1111, 0.3 s): main 0.0442 s, age 3 0.0452 s: where the rigid
+// part's factorisation and evaluation outweigh the modal body's, a fresher factor no longer pays,
+// so none beyond a complement of 16 times the elastic coordinates. Rigid and full FE bodies: none
+// (the factor is the whole matrix's KLU). FMBD_MBS_REFRESH = N > 0 forces age N for any model, 0
+// none.
+static int refresh_age(const fmbd_mbs *m) {
+  const char *e = getenv("FMBD_MBS_REFRESH");
+  if (e && *e) {
+    int v = atoi(e);
+    return v > 0 ? v : -1;
+  }
+  int64_t nm = 0;
+  bool full = false;
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (b->fe || b->share >= 0 || b->nm < SCHUR_NM_MIN) continue;
+    nm += b->nm;
+    full = full || !b->partial;
+  }
+  if (nm == 0 || m->N - nm > 16 * nm) return -1;
+  return full && 2 * nm >= m->N - nm ? 2 : 3;
+}
+
 // the contraction rate from which increments within tolerance are taken as round-off
 // stagnation once a factor of the attempt is in use (attempt's convergence test)
 #define STALL_THETA 0.5
@@ -221,9 +262,32 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
   double w[PRED_NH + 1], wl[PRED_NH + 1];
   pred_weights(m, h, npx, w);
   pred_weights(m, h, npl, wl);
+  // The elastic coordinates of modal bodies (m->qpar) by the line through x''_n-1 and x''_n-3,
+  // the steps of t_n+1's parity: their modes above the step's resolution (the pendulum's rod,
+  // 1-29 kHz at h = 1.75e-3 s: omega h 11-320) carry the generalized-alpha's step-to-step
+  // sawtooth, x''_k = s(t_k) + (-1)^k a(t_k) with s and a smooth, which the quadratic
+  // extrapolation (3, -3, 1) multiplies by 7 while the line over every other step follows both.
+  // Measured offline on the converged x'' of the 30-mode pendulum (fixed 1.75e-3 s, error of
+  // the extrapolation in units of the Newton tolerance, median over the steps of the largest
+  // over the elastic coordinates): quadratic 360, linear 182, constant 96, x''_n-1 23, the
+  // parity line 21; on the links' coordinates the quadratic stays best among these (55 against
+  // 122 for the parity line). Iterations a step: 2.80 -> 2.73 (30 modes, full coupling, 1.75e-3
+  // s), 2.95 -> 2.78 (partial, 1.4e-3 s), 2.68 -> 2.61 (100 modes); bench/README.md, "Fewer
+  // Newton iterations: a fresh matrix by age". FMBD_MBS_PRED forces its order on them too.
+  double wq[4] = {0, 0, 0, 0};
+  const bool par = !safe && !pred_forced() && m->nh >= 3;
+  if (par) {
+    const double s1 = -m->hh[0], s3 = -(m->hh[0] + m->hh[1] + m->hh[2]);
+    wq[1] = (h - s3) / (s1 - s3), wq[3] = (h - s1) / (s3 - s1);
+  }
   for (int64_t i = 0; i < n; i++) {
-    double an = m->an[i], xdd1 = w[0] * m->xddn[i];
-    for (int j = 1; j <= npx; j++) xdd1 += w[j] * m->xddh[j - 1][i];
+    double an = m->an[i], xdd1;
+    if (par && m->qpar[i]) {
+      xdd1 = wq[1] * m->xddh[0][i] + wq[3] * m->xddh[2][i];
+    } else {
+      xdd1 = w[0] * m->xddn[i];
+      for (int j = 1; j <= npx; j++) xdd1 += w[j] * m->xddh[j - 1][i];
+    }
     double a1 = ((1 - af) * xdd1 + af * m->xddn[i] - am * an) / (1 - am);
     m->a[i] = a1;
     m->xdd[i] = xdd1;
@@ -235,8 +299,13 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
     // a spurious force that breaks momentum conservation at small steps), but never below
     // the round-off of x_i (at the predicted x_i: the iterates differ from it far below the
     // 1e3 eps of that floor). Once per attempt, not per iteration: 4 % of a chain's run
-    double tx = m->set.newton_tol * fmin(m->nscale[i], m->ascale[i] / bp);
-    tx = fmax(tx, 1e3 * DBL_EPSILON * fmax(fabs(m->x[i]), fmax(m->nscale[i], m->rscale[i])));
+    // (fmin and fmax written out: the scales are positive and finite, a NaN |x_i| gives way
+    // as in fmax; the library calls were 1 % of the pendulum's run)
+    const double ns = m->nscale[i], as = m->ascale[i] / bp, rs = m->rscale[i], ax = fabs(m->x[i]);
+    double tx = m->set.newton_tol * (as < ns ? as : ns);
+    double fl = ns > rs ? ns : rs;
+    fl = 1e3 * DBL_EPSILON * (ax > fl ? ax : fl);
+    tx = fl > tx ? fl : tx;
     m->tx[i] = tx, m->itx[i] = 1 / tx;
   }
   for (int64_t k = 0; k < m->m; k++) {
@@ -246,6 +315,8 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
   }
   if (m->h_fact <= 0 || fabs(h / m->h_fact - 1) > 0.25) m->need_factor = true;
   if (force_fresh) m->need_factor = true;
+  if (!m->refresh_age) m->refresh_age = refresh_age(m);
+  if (m->refresh_age > 0 && m->st.steps - m->fact_steps >= m->refresh_age) m->need_factor = true;
   bool fresh = false;
   double prev = 0;
   bool ity_ok = false;  // m->ity formed for this attempt
@@ -284,6 +355,7 @@ static int attempt(fmbd_mbs *m, double h, bool force_fresh, bool *conv, bool *fr
       FMBD_CALL(fr);
       m->need_factor = false;
       m->h_fact = h;
+      m->fact_steps = m->st.steps;
       fresh = true;
       clk = clk1, clk1 = fmbd_wall_s();
       m->tm_phase[0] += clk1 - clk;

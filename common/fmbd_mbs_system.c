@@ -233,6 +233,14 @@ int mbs_build_pattern(fmbd_mbs *m) {
     if (!b->elim) continue;
     for (int k = 7; k < b->n; k++) m->dpos[mbs_col(b, k)] = -1;
   }
+  // the elastic coordinates of the modal bodies (not full FE bodies, not shared sets): their
+  // predictor extrapolates over every other step (fmbd_mbs_step.c, attempt)
+  FMBD_GALLOC(m->qpar = fmbd_calloc((size_t)m->n + 1, 1));
+  for (int ib = 0; ib < m->nb; ib++) {
+    const mbody *b = &m->b[ib];
+    if (b->fe || b->share >= 0) continue;
+    for (int k = 0; k < b->nm; k++) m->qpar[b->qoff + k] = 1;
+  }
 done:
   fmbd_free(sl), fmbd_free(where), fmbd_free(Ap), fmbd_free(Ai);
   return rc;
