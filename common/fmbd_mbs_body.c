@@ -1018,22 +1018,18 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   }
   // B = T' Z T
   // rows/cols map: x index i -> b index (R: i; p: via 2G; q: i - 1)
-  // first Y = Z T (n6 x n), stored in Cb (without ff: rows 0..5 of the columns 7..)
+  // first Y = Z T (n6 x n): its columns of R and q are Z's own (read in place), those of p
+  // (Z's columns 3..5 times 2 G) formed in Cb (without ff: rows 0..5 of the columns 7..)
   double *Y = Cb;
-  for (int j = 0; j < n; j++) {
-    double *yc = Y + (size_t)n6 * j;
-    if (j < 3 || j >= 7) {
-      int jb = j < 3 ? j : j - 1;
-      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)(ff || j < 3 ? n6 : 6));
-    } else {
-      int c4 = j - 3;
-      double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
-      const double *z3 = Mb + (size_t)n6 * 3, *z4 = Mb + (size_t)n6 * 4, *z5 = Mb + (size_t)n6 * 5;
-      for (int i = 0; i < n6; i++) yc[i] = z3[i] * g0 + z4[i] * g1 + z5[i] * g2;
-    }
+  for (int c4 = 0; c4 < 4; c4++) {
+    double *yc = Y + (size_t)n6 * c4;
+    double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
+    const double *z3 = Mb + (size_t)n6 * 3, *z4 = Mb + (size_t)n6 * 4, *z5 = Mb + (size_t)n6 * 5;
+    for (int i = 0; i < n6; i++) yc[i] = z3[i] * g0 + z4[i] * g1 + z5[i] * g2;
   }
   for (int j = 0; j < n; j++) {
-    const double *yc = Y + (size_t)n6 * j;
+    const double *yc = j < 3 ? Mb + (size_t)n6 * j
+                             : (j < 7 ? Y + (size_t)n6 * (j - 3) : Mb + (size_t)n6 * (j - 1));
     double *bc = B + (size_t)n * j;
     bc[0] = yc[0], bc[1] = yc[1], bc[2] = yc[2];
     for (int c4 = 0; c4 < 4; c4++)
