@@ -261,8 +261,10 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
 }
 
 // The library's own narrow-block supernodal solves (fmbd_chol_set_own_solve; used for blocks of
-// 2 to 8 right-hand sides where the processor has AVX2 and FMA) against CHOLMOD's on the same
-// factor: the full solve and both halves, every width 1..9, a leading dimension above n, and
+// 2 to 8 right-hand sides where the processor has AVX2 and FMA, 9 to 16 where it has AVX-512)
+// against CHOLMOD's on the same factor: the full solve and both halves, every width 1..17 (the
+// kernels' cases: 4-wide rows by one or two vectors, AVX-512 by chunks of 4 columns, groups of
+// fewer than 4 columns and rows not a multiple of 8), a leading dimension above n, and
 // the columns beyond the block untouched. Both are the same substitutions with the sums in
 // another order; each triangular solve is backward stable with |dL| <= gamma_k |L|, k <= n
 // the length of the longest sum (Higham, Accuracy and Stability of Numerical Algorithms, 2nd
@@ -271,7 +273,7 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
 // cond2(A) comes from A's exact eigenvalues (lam_min, lam_max).
 static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const char *what) {
   int64_t n = A->nrows;
-  const int64_t ld = n + 3, wmax = 9;
+  const int64_t ld = n + 3, wmax = 17;
   fmbd_chol *F = NULL;
   EXPECT(fmbd_chol_create_llt(A, &F) == 0, "%s: LL'", what);
   if (!F) return;
