@@ -54,7 +54,7 @@ struct fmbd_klu {
   // KLU's stored order (fLp ... fUx, exact zeros kept; the values those of the last
   // refactorisation), its row permutation's inverse fPinv and column order fQ, the work vector
   // fX (zero between calls); valid while `rf`; frcond: min / max |U_kk| of the last one
-  int rf;
+  int rf, rf_off;  // rf_off: KLU's refactorisation instead (fmbd_klu_set_own_refactor)
   SuiteSparse_long *fLp, *fLi, *fUp, *fUi, *fPinv, *fQ;
   double *fLx, *fUx, *fX, frcond;
   int64_t fzeros;  // exact zeros off the diagonals in the last own_refactor's L and U
@@ -124,6 +124,8 @@ static int klu_sym(fmbd_klu *F) {
   return FMBD_OK;
 }
 
+static bool own_rf_off(void);
+
 int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu **out) {
   int rc = FMBD_OK;
   *out = NULL;
@@ -137,6 +139,7 @@ int fmbd_klu_analyze(int64_t n, const int64_t *Ap, const int64_t *Ai, fmbd_klu *
   for (int64_t i = 0; i <= n; i++) F->Ap[i] = (SuiteSparse_long)Ap[i];
   for (int64_t i = 0; i < nnz; i++) F->Ai[i] = (SuiteSparse_long)Ai[i];
   F->kAp = F->Ap, F->kAi = F->Ai;
+  F->rf_off = own_rf_off();
   F->umf = n > 0 && engine_umf(n, nnz);
   if (!F->umf) {
     FMBD_GCALL(klu_sym(F));
@@ -544,6 +547,10 @@ static bool own_rf_off(void) {
   return off;
 }
 
+void fmbd_klu_set_own_refactor(fmbd_klu *F, int on) {
+  if (F) F->rf_off = !on;
+}
+
 int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
   double *ax = (double *)Ax;  // KLU's prototypes are not const-qualified; it only reads Ax
   F->singular_col = -1;
@@ -568,7 +575,7 @@ int fmbd_klu_factor(fmbd_klu *F, const double *Ax) {
     return klu_full(F, ax);
   }
   red_prepare(F, Ax, &ax);
-  if (F->num && F->rf && !own_rf_off()) {
+  if (F->num && F->rf && !F->rf_off) {
     if (own_refactor(F, ax)) {
       own_from_rf(F);
       if (F->own) return FMBD_OK;

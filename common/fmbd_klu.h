@@ -65,6 +65,10 @@ int fmbd_klu_is_umfpack(const fmbd_klu *F);
 /// refactorisation of one diagonal block, unscaled), 0 when by KLU's or UMFPACK's.
 int fmbd_klu_own_solves(const fmbd_klu *F);
 
+/// @brief Refactorisations by fmbd_klu's own code (on: the default, unless FMBD_KLU_OWN_REFACTOR=0)
+/// or by KLU's klu_l_refactor (off): the same factor bit for bit (tests/unit/t131).
+void fmbd_klu_set_own_refactor(fmbd_klu *F, int on);
+
 /// @brief The entries of the analysed pattern that KLU does not see: those found exactly zero at
 /// the first factorisation and zero since (0: the whole pattern; fmbd_klu.c, red_prepare).
 int64_t fmbd_klu_dropped(const fmbd_klu *F);

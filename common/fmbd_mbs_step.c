@@ -197,38 +197,44 @@ static void pred_score(fmbd_mbs *m, double h) {
 }
 
 // The REFRESH BY AGE: with a modal body of the size whose block fmbd_mbs_schur.c eliminates (at
-// least SCHUR_NM_MIN modes; on either path, FMBD_MBS_SCHUR=0 keeps the same rule), the factor is
-// formed anew at the start of a step once it is 2 steps old (full inertia coupling; 3 with
-// partial coupling only), not only when Newton contracts slowly (THETA_REFACTOR) or h changed.
-// Measured on the quadruple pendulum (bench/README.md, "Fewer Newton iterations: a fresh matrix by
-// age"; 30 modes, full coupling, fixed 1.75e-3 s, `-vv`): a factor formed at an iterate of the
-// step contracts by about 1e-4, one of the step before by 0.05 (median; 0.09 two steps before):
-// the links' rotation (|w| h about 0.03 a step) and the velocity terms move the matrix, while the
-// first increment is 1e3-3e3 tolerances, mostly the elastic coordinates' predictor error, whose
-// rows are constant. A fresh factor converges in 2.3 iterations a step, a stale one in 3.3-3.7,
-// and a factorisation (the elimination, nm nc^2, and KLU on the order-44 complement) with the
-// matrix's evaluation costs about 1.5 iterations there. Iterations and factorisations a step,
-// run CPU (median of 5): the rule on theta alone 3.66 and 0.43, 0.0675 s; age 1 (every step)
-// 2.31 and 1, 0.0655 s; age 2 2.80 and 0.57, 0.0600 s; age 3 3.15 and 0.47, 0.0631 s. With
-// partial coupling an iteration costs less against a factorisation (a few nm products instead of
-// 12 nm^2): age 3 there (30 modes, 1.4e-3 s: 0.0552 s without, 0.0526 at age 2, 0.0541 at 3;
-// 100 modes, 1e-3 s: 0.1210, 0.1215, 0.1153 s). Rigid and full FE bodies: none (their factor is
-// the whole matrix's KLU). FMBD_MBS_REFRESH = N > 0 forces age N for any model, 0 none.
-#define REFRESH_AGE 2
+// least SCHUR_NM_MIN modes; the rule is the same on either path, FMBD_MBS_SCHUR=0 too), the
+// factor is formed anew at the start of a step once it is 3 steps old, or 2 where a body has
+// full inertia coupling and the elastic coordinates are at least half the order of what remains
+// (N - nm, the Schur complement's order), never where that order exceeds 16 nm; besides the
+// refresh when Newton contracts slowly (THETA_REFACTOR) or h changed. Measured on the quadruple
+// pendulum (bench/README.md, "Fewer Newton iterations: a fresh matrix by age"; 30 modes, full
+// coupling, fixed 1.75e-3 s, `-vv`): a factor formed at an iterate of the step contracts by about
+// 1e-4, one of the step before by 0.05 (median; 0.09 two steps before): the links' rotation (|w| h
+// about 0.03 a step) and the velocity terms move the matrix, while the first increment is 1e3-3e3
+// tolerances, mostly the elastic coordinates' predictor error, whose rows are constant. A fresh
+// factor converges in 2.3 iterations a step, a stale one in 3.3-3.7; a factorisation (the
+// elimination, nm nc^2, and KLU on the complement) with the matrix's evaluation costs about two
+// iterations there, where an iteration evaluates the 12 nm^2 products of full coupling (SS q, SSx
+// q') and the complement is of order 44. Run CPU (medians of 5), none / age 1 / 2 / 3: 0.0664 /
+// 0.0630 / 0.0609 / 0.0631 s. Partial coupling (an iteration of a few nm products), 1.4e-3 s:
+// 0.0572 / - / 0.0536 / 0.0503 s; 20 rigid links ending in the 30-mode rod (complement of order
+// 231, fixed 1e-3 s, 1 s): 0.0352 / - / 0.0390 / 0.0319 s; 5 and 10 links: age 3 best too (7 %);
+// 100 links (complement of order 1111, 0.3 s): main 0.0442 s, age 3 0.0452 s: where the rigid
+// part's factorisation and evaluation outweigh the modal body's, a fresher factor no longer pays,
+// so none beyond a complement of 16 times the elastic coordinates. Rigid and full FE bodies: none
+// (the factor is the whole matrix's KLU). FMBD_MBS_REFRESH = N > 0 forces age N for any model, 0
+// none.
 static int refresh_age(const fmbd_mbs *m) {
   const char *e = getenv("FMBD_MBS_REFRESH");
   if (e && *e) {
     int v = atoi(e);
     return v > 0 ? v : -1;
   }
-  int age = -1;
+  int64_t nm = 0;
+  bool full = false;
   for (int ib = 0; ib < m->nb; ib++) {
     const mbody *b = &m->b[ib];
     if (b->fe || b->share >= 0 || b->nm < SCHUR_NM_MIN) continue;
-    if (!b->partial) return REFRESH_AGE;
-    age = REFRESH_AGE + 1;
+    nm += b->nm;
+    full = full || !b->partial;
   }
-  return age;
+  if (nm == 0 || m->N - nm > 16 * nm) return -1;
+  return full && 2 * nm >= m->N - nm ? 2 : 3;
 }
 
 // the contraction rate from which increments within tolerance are taken as round-off
