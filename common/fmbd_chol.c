@@ -1681,6 +1681,25 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   }
   // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
   const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
+  if (block >= 4 && block <= 16 && nrhs > block) {
+    // a width the own solve takes (fe2cb's Ritz vectors' back solve: 12 + 11 columns):
+    // calls of nearly equal widths (at least block / 2 >= 2 columns), each through own_solve
+    // (12 columns 40 against CHOLMOD's 61 ms, bench/README.md "The sweeps' prefetch"), the
+    // workspace n x 16 at most
+    int64_t calls = (nrhs + block - 1) / block, c0 = 0;
+    bool all = true;
+    for (int64_t i = 0; i < calls && all; i++) {
+      int64_t nc = nrhs / calls + (i < nrhs % calls);
+      all = own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
+                      sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nc, X + c0 * ldx, ldx);
+      c0 += all ? nc : 0;
+    }
+    if (all) {
+      F->st.t_solve_s += fmbd_wall_s() - t0;
+      return FMBD_OK;
+    }
+    FMBD_CHECK(c0 == 0, FMBD_ERR_INTERNAL, "own solve refused a block after taking one");
+  }
   double *pt = NULL;  // the permutations done here, a column at a time through pt (n)
   for (int k = 0; k < nsys; k++) {
     if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
