@@ -1155,10 +1155,11 @@ SFN v4d sn_fma(double a, v4d z, v4d s) {
 // column per 8 rows, so they arrive a group ahead of their use. The sweeps stream L from memory
 // once per sweep; the hardware prefetchers alone kept 4-column blocks at about half the
 // streaming rate (each group's 4 columns are 4 new streams of a few hundred rows, a new page
-// each for the larger supernodes). Prefetching into L1 (T0) gained about 5 %, half a group or
-// two groups ahead less than one: the 51 k-dof rod's operator of 4 columns 32 -> 22 ms
-// (bench/README.md "The sweeps' prefetch"). A hint only (it never faults): the addresses, which
-// pass the ends of the factor's block at the first and last supernodes, are formed as integers.
+// each for the larger supernodes). Into L1 (T0) it gained a few per cent only, half a group
+// ahead a third as much, two or three groups ahead no more than one: the 51 k-dof rod's
+// operator of 4 columns 32 -> 22 ms (bench/README.md "The sweeps' prefetch"). A hint only (it never
+// faults): the addresses, which pass the ends of the factor's block at the first and last
+// supernodes, are formed as integers.
 static inline __attribute__((always_inline)) void sn_prefetch4(const double *p, int64_t off,
                                                                int64_t ld) {
   uintptr_t a = (uintptr_t)p + (uintptr_t)(off * (int64_t)sizeof(double)), d = (uintptr_t)ld * 8u;
@@ -1555,12 +1556,17 @@ __attribute__((target("avx512f"))) static void sn_sweeps_avx512(const cholmod_fa
 
 #ifdef FMBD_OWN_SOLVE
 // own_solve's and own_op's conditions, and the workspace allocated on first use
-static bool own_ready(fmbd_chol *F, int64_t nrhs) {
+static bool own_fits(const fmbd_chol *F, int64_t nrhs) {
   const cholmod_factor *L = F->L;
   if (!F->own_solve || nrhs > 16 || nrhs < 2 || !L->is_super || !L->is_ll ||
       L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
     return false;
-  if (nrhs > 8 && !__builtin_cpu_supports("avx512f")) return false;
+  return nrhs <= 8 || __builtin_cpu_supports("avx512f");
+}
+
+static bool own_ready(fmbd_chol *F, int64_t nrhs) {
+  if (!own_fits(F, nrhs)) return false;
+  const cholmod_factor *L = F->L;
   int64_t w = nrhs > 8 ? 4 * ((nrhs + 3) / 4) : 8;
   if (!F->ow || F->ow_w < w) {
     const SuiteSparse_long *pi = L->pi;
@@ -1576,8 +1582,19 @@ static bool own_ready(fmbd_chol *F, int64_t nrhs) {
 }
 #endif
 
-// Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
-// solve); false when not available here (then CHOLMOD's).
+// whether own_solve would take a block of nrhs columns (no workspace allocated here)
+static bool own_could(const fmbd_chol *F, int64_t nrhs) {
+#ifdef FMBD_OWN_SOLVE
+  return own_fits(F, nrhs);
+#else
+  (void)F;
+  (void)nrhs;
+  return false;
+#endif
+}
+
+// Our solve of nrhs <= 16 columns (8 without AVX-512) (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X;
+// both: the full solve); false when not available here (then CHOLMOD's).
 static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
 #ifdef FMBD_OWN_SOLVE
   if (!own_ready(F, nrhs)) return false;
@@ -1674,14 +1691,23 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
              (long long)F->n);
   double t0 = fmbd_wall_s();
+  // the own solve's workspace and CHOLMOD's are not kept side by side: each path gives back
+  // the other's (fe2cb at 100 modes: the blocks of 16 by the own solve, the Ritz vectors' back
+  // solve by CHOLMOD, 64 columns at a time; both kept measured a peak 16 MB higher)
+  const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
+  bool split = block >= 4 && block <= 16 && nrhs > block;  // below: calls of <= block columns
+  if (F->started && (F->X || F->Y || F->E) && own_could(F, split ? block : nrhs)) {
+    cholmod_l_free_dense(&F->X, &F->c);
+    cholmod_l_free_dense(&F->Y, &F->c);
+    cholmod_l_free_dense(&F->E, &F->c);
+  }
   if (own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
                 sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
     F->st.t_solve_s += fmbd_wall_s() - t0;
     return FMBD_OK;
   }
   // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
-  const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
-  if (block >= 4 && block <= 16 && nrhs > block) {
+  if (split) {
     // a width the own solve takes (fe2cb's Ritz vectors' back solve: 12 + 11 columns):
     // calls of nearly equal widths (at least block / 2 >= 2 columns), each through own_solve
     // (12 columns 40 against CHOLMOD's 61 ms, bench/README.md "The sweeps' prefetch"), the
@@ -1700,6 +1726,9 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
     }
     FMBD_CHECK(c0 == 0, FMBD_ERR_INTERNAL, "own solve refused a block after taking one");
   }
+  fmbd_free(F->ow);  // CHOLMOD's solve from here (see above)
+  F->ow = NULL;
+  F->ow_w = 0;
   double *pt = NULL;  // the permutations done here, a column at a time through pt (n)
   for (int k = 0; k < nsys; k++) {
     if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
