@@ -47,7 +47,6 @@ struct fmbd_chol {
   bool own_llt;              // LLT: our numeric LL' (super_factor; default) or CHOLMOD's
   double *ow;                // own_solve's workspace: Z (n x ow_w) and G (largest supernode x ow_w)
   int64_t ow_w;              // its width: 8, or 12 or 16 once a block that wide was solved
-  int64_t ow_mr;             // and its rows beyond n (mapped: n + ow_mr rows of ow_w)
   double sigma;
   double pivot_rtol;
   // supernodal LDL' and LL' (our numeric factorisations on CHOLMOD's supernodal symbolic
@@ -1555,9 +1554,17 @@ __attribute__((target("avx512f"))) static void sn_sweeps_avx512(const cholmod_fa
 }
 #endif
 
-// own_solve's workspace given back to the system
+// own_solve's workspace given back; one wider than 8 columns also to the system (malloc_trim):
+// otherwise fe2cb's 12 columns at 188 k dofs (18 MB, freed after the constraint modes) stayed
+// resident beside the Lanczos run's arrays, the run's peak 14 MB higher; mapped by itself
+// instead, the 51 k run's peak was 4.7 MB higher (its later arrays no longer reused those
+// pages); with the trim both peaks are main's (bench/README.md "The sweeps' prefetch")
 static void ow_free(fmbd_chol *F) {
-  if (F->ow) munmap(F->ow, (size_t)(F->n + F->ow_mr) * (size_t)F->ow_w * sizeof(double));
+  bool wide = F->ow && F->ow_w > 8;
+  fmbd_free(F->ow);
+#ifdef __GLIBC__
+  if (wide) malloc_trim(0);
+#endif
   F->ow = NULL;
   F->ow_w = 0;
 }
@@ -1581,14 +1588,11 @@ static bool own_ready(fmbd_chol *F, int64_t nrhs) {
     int64_t mr = 0;
     for (size_t s = 0; s < L->nsuper; s++) mr = pi[s + 1] - pi[s] > mr ? pi[s + 1] - pi[s] : mr;
     ow_free(F);
-    // mapped by itself and unmapped when given back (ow_free): from the heap, fe2cb's 12 columns
-    // at 188 k dofs (18 MB) stayed resident after the constraint modes, their peak 14 MB higher
     size_t bytes = (size_t)(F->n + mr) * (size_t)w * sizeof(double);
-    void *p = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) return false;  // CHOLMOD's then (it reports its own memory failure)
+    void *p = fmbd_malloc(bytes);
+    if (!p) return false;  // CHOLMOD's then (it reports its own failure)
     F->ow = p;
     F->ow_w = w;
-    F->ow_mr = mr;
   }
   return true;
 }
