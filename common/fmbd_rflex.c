@@ -373,8 +373,9 @@ int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C) {
 static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
                         const double *eig, bool stress, bool no_ss) {
   int rc = FMBD_OK;
-  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL;
-  fmbd_csr *Mn = NULL;
+  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL, *Ui = NULL;
+  int64_t *rows = NULL, *cols = NULL;
+  fmbd_csr *Mn = NULL, *E = NULL;
   int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
   FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
   FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
@@ -391,9 +392,14 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     r->eigenvalue[k] = eig[k];
     r->frequency_hz[k] = sqrt(fmax(eig[k], 0.0)) / (2 * M_PI);
   }
-  // --- nodal motion: U = expand * shapes, (6 nn) x nm ---
-  FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
-  fmbd_csr_matmat(b->expand, nm, r->shapes, ndof, U, 6 * nn);
+  // --- nodal motion: the rows of U = expand * shapes ((6 nn) x nm) that are read: the
+  // interface nodes' six, the translations of every node (Ub, below) and, for a beam body, all
+  // of U. Each row is the same row product whatever rows are taken (fmbd_csr_matmat), so the
+  // same bits as the whole U.
+  FMBD_GALLOC(cols = fmbd_malloc(sizeof(int64_t) * (size_t)ndof + 1));
+  FMBD_GALLOC(rows = fmbd_malloc(sizeof(int64_t) * (size_t)(6 * nn) + 1));
+  for (int64_t j = 0; j < ndof; j++) cols[j] = j;
+  FMBD_GALLOC(Ui = xcalloc((size_t)(6 * nm) + 1, sizeof(double)));
   // interfaces
   r->ninterfaces = b->ninterfaces;
   FMBD_GALLOC(r->interfaces = xcalloc((size_t)b->ninterfaces, sizeof(fmbd_rflex_interface)));
@@ -408,10 +414,14 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     memcpy(it->x0, b->xyz + 3 * fi->node, sizeof it->x0);
     FMBD_GALLOC(it->translation = xcalloc((size_t)(3 * nm), sizeof(double)));
     FMBD_GALLOC(it->rotation = xcalloc((size_t)(3 * nm), sizeof(double)));
+    for (int a = 0; a < 6; a++) rows[a] = 6 * fi->node + a;
+    FMBD_GCALL(fmbd_csr_submatrix(b->expand, 6, rows, ndof, cols, &E));
+    fmbd_csr_matmat(E, nm, r->shapes, ndof, Ui, 6);
+    fmbd_csr_destroy(&E);
     for (int64_t k = 0; k < nm; k++) {
       for (int a = 0; a < 3; a++) {
-        it->translation[a + 3 * k] = U[6 * fi->node + a + 6 * nn * k];
-        it->rotation[a + 3 * k] = U[6 * fi->node + 3 + a + 6 * nn * k];
+        it->translation[a + 3 * k] = Ui[a + 6 * k];
+        it->rotation[a + 3 * k] = Ui[3 + a + 6 * k];
       }
     }
   }
@@ -446,10 +456,11 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
     FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    for (int a = 0; a < 3; a++) {
-      for (int64_t k = 0; k < nm; k++) {
-        for (int64_t p = 0; p < nn; p++) Ub[p + nn * (a * nm + k)] = U[6 * p + a + 6 * nn * k];
-      }
+    for (int a = 0; a < 3; a++) {  // Ua = the rows 6 p + a of expand, times the shapes
+      for (int64_t p = 0; p < nn; p++) rows[p] = 6 * p + a;
+      FMBD_GCALL(fmbd_csr_submatrix(b->expand, nn, rows, ndof, cols, &E));
+      fmbd_csr_matmat(E, nm, r->shapes, ndof, Ub + nn * a * nm, nn);
+      fmbd_csr_destroy(&E);
     }
     FMBD_GCALL(fmbd_rflex_nodal_mass(b, &Mn));
     fmbd_csr_matmat(Mn, 3 * nm, Ub, nn, Wa, nn);
@@ -475,6 +486,8 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
       // fmbd_rflex_rigid_coupling's C' shapes, which the full FE bodies use; summed in this
       // order they keep the reduced bodies' round-off, to which the QZ reference of
       // tests/py/test_gmsolve.py is sensitive.)
+      FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+      fmbd_csr_matmat(b->expand, nm, r->shapes, ndof, U, 6 * nn);
       FMBD_GALLOC(WM = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
       FMBD_GCALL(consistent_weighted_full(b, nm, U, WM));
       for (int64_t k = 0; k < nm; k++) {
@@ -523,6 +536,10 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
   if (stress) FMBD_GCALL(fmbd_rflex_form_stress(r, b, -1, NULL));
 done:
   fmbd_free(U);
+  fmbd_free(Ui);
+  fmbd_free(rows);
+  fmbd_free(cols);
+  fmbd_csr_destroy(&E);
   fmbd_free(Wa);
   fmbd_free(Ub);
   fmbd_csr_destroy(&Mn);
