@@ -655,6 +655,8 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
       r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
     }
   }
+  fmbd_free(Wa);  // not held through rflex_finish's arrays (ns x nm: the peak memory)
+  Wa = NULL;
   // mass-normalised modes of the reduced problem: Mff = I, Kff = diag(chibar)
   FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
   FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));

@@ -83,7 +83,7 @@ static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, int64_t keep, fmbd
   fmbd_fe_body *desc = NULL;
   double *Xi = NULL, *chibar = NULL;
   *out = NULL;
-  FMBD_GCALL(fmbd_cb_read(f, &cb));
+  FMBD_GCALL(fmbd_cb_read_basis(f, &cb));
   FMBD_GCALL(fmbd_fe_read(f, &desc));
   int64_t nr = cb->nr, nm = nr - cb->n_rigid;
   if (keep > 0 && keep < nm) nm = keep;
