@@ -283,6 +283,38 @@ int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out) {
   return FMBD_OK;
 }
 
+// m4 (4 nn) = [M_n 1, M_n x_0, M_n x_1, M_n x_2], the nodal mass of fmbd_rflex_nodal_mass
+// times the rigid fields S1 and XS weigh the motion by (x_a: the node coordinates), summed
+// element by element for the scalar consistent mass (the matrix is not assembled).
+static int mass_moments(const fmbd_fe_body *b, double *m4) {
+  int64_t nn = b->nnodes;
+  memset(m4, 0, sizeof(double) * (size_t)(4 * nn));
+  if (!fmbd_rflex_consistent_invariants(b)) {
+    for (int64_t p = 0; p < nn; p++) {
+      double m = b->node_mass ? b->node_mass[p] : 0;
+      m4[p] = m;
+      for (int a = 0; a < 3; a++) m4[nn * (1 + a) + p] = m * b->xyz[3 * p + a];
+    }
+    return FMBD_OK;
+  }
+  int k = b->tet_nodes;
+  double xyz[30], Me[100], vol;
+  for (int64_t e = 0; e < b->ntet; e++) {
+    const int64_t *nd = b->tet + (int64_t)k * e;
+    for (int i = 0; i < k; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
+    FMBD_CALL(fmbd_fe_tet_matrices(k, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
+    for (int i = 0; i < k; i++) {
+      double f[4] = {0, 0, 0, 0};
+      for (int j = 0; j < k; j++) {
+        f[0] += Me[k * i + j];
+        for (int a = 0; a < 3; a++) f[1 + a] += Me[k * i + j] * xyz[3 * j + a];
+      }
+      for (int c = 0; c < 4; c++) m4[nn * c + nd[i]] += f[c];
+    }
+  }
+  return FMBD_OK;
+}
+
 // True when the rigid-flexible coupling comes from the full consistent mass (beam elements).
 bool fmbd_rflex_beam_coupling(const fmbd_fe_body *b) {
   return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->nbeam > 0 && b->beam &&
@@ -373,7 +405,7 @@ int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C) {
 static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
                         const double *eig, bool stress, bool no_ss) {
   int rc = FMBD_OK;
-  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL, *Ui = NULL;
+  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL, *Ui = NULL, *m4 = NULL;
   int64_t *rows = NULL, *cols = NULL;
   fmbd_csr *Mn = NULL, *E = NULL;
   int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
@@ -450,31 +482,38 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
   memcpy(r->Kff, Kff, sizeof(double) * (size_t)(nm * nm));
   if (nm > 0) {
     // Ub: component b of the nodal motion (nn x nm per b); Wa = M_n Ua, the mass-weighted
-    // motion, with M_n the body's nodal mass: the scalar consistent mass of the solid elements
-    // (the one the modes come from: M = M_n (x) I3 on the translations) for a consistent-mass
-    // solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
-    //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
+    // motion (for SS only), with M_n the body's nodal mass: the scalar consistent mass of the solid
+    // elements (the one the modes come from: M = M_n (x) I3 on the translations) for a
+    // consistent-mass solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
+    //   S1_k,b = 1' M_n Ub_k,  XS_k,ab = x_a' M_n Ub_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
+    if (!no_ss) FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
     for (int a = 0; a < 3; a++) {  // Ua = the rows 6 p + a of expand, times the shapes
       for (int64_t p = 0; p < nn; p++) rows[p] = 6 * p + a;
       FMBD_GCALL(fmbd_csr_submatrix(b->expand, nn, rows, ndof, cols, &E));
       fmbd_csr_matmat(E, nm, r->shapes, ndof, Ub + nn * a * nm, nn);
       fmbd_csr_destroy(&E);
     }
-    FMBD_GCALL(fmbd_rflex_nodal_mass(b, &Mn));
-    fmbd_csr_matmat(Mn, 3 * nm, Ub, nn, Wa, nn);
+    // S1 and XS weigh the motion by four fields (M_n symmetric): S1_k,b = (M_n 1)' Ub_k,
+    // XS_k,ab = (M_n x_a)' Ub_k, formed element by element (mass_moments); the 3 nm products
+    // M_n Ub only for SS
+    FMBD_GALLOC(m4 = xcalloc((size_t)(4 * nn), sizeof(double)));
+    FMBD_GCALL(mass_moments(b, m4));
     for (int bb = 0; bb < 3; bb++) {
       for (int64_t k = 0; k < nm; k++) {
-        const double *w = Wa + nn * (bb * nm + k);
+        const double *u = Ub + nn * (bb * nm + k);
         double s1 = 0.0, xs[3] = {0.0, 0.0, 0.0};
         for (int64_t p = 0; p < nn; p++) {
-          s1 += w[p];
-          for (int a = 0; a < 3; a++) xs[a] += r->node_xyz[3 * p + a] * w[p];
+          s1 += m4[p] * u[p];
+          for (int a = 0; a < 3; a++) xs[a] += m4[nn * (1 + a) + p] * u[p];
         }
         r->S1[bb + 3 * k] = s1;
         for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
       }
+    }
+    if (!no_ss) {
+      FMBD_GCALL(fmbd_rflex_nodal_mass(b, &Mn));
+      fmbd_csr_matmat(Mn, 3 * nm, Ub, nn, Wa, nn);
     }
     if (fmbd_rflex_beam_coupling(b)) {
       // the rigid-flexible coupling from the consistent mass M the modes come from (docs/THEORY.md
@@ -537,6 +576,7 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
 done:
   fmbd_free(U);
   fmbd_free(Ui);
+  fmbd_free(m4);
   fmbd_free(rows);
   fmbd_free(cols);
   fmbd_csr_destroy(&E);
