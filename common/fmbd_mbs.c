@@ -76,7 +76,7 @@ static void body_free(mbody *b) {
   fmbd_free(b->name);
   fmbd_free(b->S1), fmbd_free(b->XS), fmbd_free(b->SS), fmbd_free(b->Mff), fmbd_free(b->Kff);
   fmbd_free(b->Dff), fmbd_free(b->XSx), fmbd_free(b->SSx), fmbd_free(b->q0), fmbd_free(b->qd0);
-  fmbd_free(b->P), fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
+  fmbd_free(b->Hk), fmbd_free(b->Mwf), fmbd_free(b->cor);
   fmbd_free(b->XX), fmbd_free(b->XT), fmbd_free(b->pk);
   mbs_fe_free(&b->fe);
 }
@@ -329,14 +329,13 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
     b->SSx = fmbd_calloc(3 * n1 * n1, sizeof(double));
     b->q0 = fmbd_calloc(n1, sizeof(double));
     b->qd0 = fmbd_calloc(n1, sizeof(double));
-    b->P = fmbd_calloc(9 * n1, sizeof(double));
     b->Hk = fmbd_calloc(9 * n1, sizeof(double));
     b->Mwf = fmbd_calloc(3 * n1, sizeof(double));
     b->cor = fmbd_calloc(3 * n1, sizeof(double));
     b->XX = fmbd_malloc(sizeof(double) * 9 * n1);
     b->XT = fmbd_malloc(sizeof(double) * 9 * n1);
     FMBD_CHECK(b->S1 && b->XS && b->SS && b->Mff && b->Kff && b->Dff && b->XSx && b->SSx && b->q0 &&
-                   b->qd0 && b->P && b->Hk && b->Mwf && b->cor && b->XX && b->XT,
+                   b->qd0 && b->Hk && b->Mwf && b->cor && b->XX && b->XT,
                FMBD_ERR_NOMEM, "out of memory");
     memcpy(b->S1, d->S1, sizeof(double) * 3 * n1);
     memcpy(b->XS, d->XS, sizeof(double) * 9 * n1);
@@ -393,6 +392,10 @@ int fmbd_mbs_add_flex(fmbd_mbs *m, const char *name, const fmbd_mbs_flex_data *d
         o[2] = S[0 + 3 * 1] - S[1 + 3 * 0];
       }
     }
+    // SS is read at load only: its packed triangle (full coupling, in b->pk) and SSx hold what
+    // the evaluation and the outputs use
+    fmbd_free(b->SS);
+    b->SS = NULL;
   }
   if (id) *id = m->nb - 1;
   return FMBD_OK;

@@ -198,11 +198,20 @@ static size_t ss_off(size_t j) {
 // Below MBS_SS_TRI modes the full (9 nmp) x nm product is faster (the loops over a block's 4 x 4
 // groups have short runs: measured one evaluation's SS q at 30 modes 0.67 us packed against 0.62
 // full, 40 modes 0.98 against 1.09, 100 modes 5.9 against 10.6): there St holds SS whole, row
-// k + nmp (a + 3b), column l, so that P = St q has the same layout
+// k + nm (a + 3b), column l (not padded: the product reads SS from L2 at 30 modes, and padding
+// the rows to 4 modes cost 1 % of the pendulum's run), and P = St q is spread to its rows of nmp
 #define MBS_SS_TRI 40
 size_t mbs_ss_size(int nm) {
   const size_t nmp = (size_t)((nm + 3) & ~3);
-  return nm >= MBS_SS_TRI ? ss_off(3 * nmp) : 9 * nmp * (size_t)nm;
+  return nm >= MBS_SS_TRI ? ss_off(3 * nmp) : 9 * (size_t)nm * (size_t)nm;
+}
+// rows of n entries at stride n (9 of them) to stride np, zeros after each (in place: the last
+// row first)
+static void spread_rows(int rows, int n, int np, double *P) {
+  for (int i = rows - 1; i >= 0; i--) {
+    memmove(P + (size_t)np * i, P + (size_t)n * i, sizeof(double) * (size_t)n);
+    for (int k = n; k < np; k++) P[(size_t)np * i + k] = 0;
+  }
 }
 void mbs_ss_pack(int nm, const double *SS, double *St) {
   const size_t n1 = (size_t)nm;
@@ -210,8 +219,7 @@ void mbs_ss_pack(int nm, const double *SS, double *St) {
   if (nm < MBS_SS_TRI) {
     for (size_t l = 0; l < n1; l++) {
       for (int i = 0; i < 9; i++) {
-        for (int k = 0; k < nmp; k++)
-          St[k + nmp * i + 9 * nmp * l] = k < nm ? SS[i + 9 * k + 9 * n1 * l] : 0;
+        for (int k = 0; k < nm; k++) St[k + nm * i + 9 * n1 * l] = SS[i + 9 * k + 9 * n1 * l];
       }
     }
     return;
@@ -311,8 +319,9 @@ __attribute__((target("avx2"))) static void ssq_avx2(int nm, const double *restr
 void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp) {
   const int nmp = (nm + 3) & ~3;
   if (nm < MBS_SS_TRI) {
-    memset(P, 0, sizeof(double) * 9 * (size_t)nmp);
-    matvec_add(9 * nmp, nm, St, 9 * nmp, q, 1.0, P);
+    memset(P, 0, sizeof(double) * 9 * (size_t)nm);
+    matvec_add(9 * nm, nm, St, 9 * nm, q, 1.0, P);
+    spread_rows(9, nm, nmp, P);
     return;
   }
   memcpy(qp, q, sizeof(double) * (size_t)nm);
@@ -328,8 +337,9 @@ void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp) {
 void mbs_ssq_portable(int nm, const double *St, const double *q, double *P, double *qp) {
   const int nmp = (nm + 3) & ~3;
   if (nm < MBS_SS_TRI) {
-    memset(P, 0, sizeof(double) * 9 * (size_t)nmp);
-    matvec_add_base(9 * nmp, nm, St, 9 * nmp, q, 1.0, P);
+    memset(P, 0, sizeof(double) * 9 * (size_t)nm);
+    matvec_add_base(9 * nm, nm, St, 9 * nm, q, 1.0, P);
+    spread_rows(9, nm, nmp, P);
     return;
   }
   memcpy(qp, q, sizeof(double) * (size_t)nm);
@@ -344,16 +354,16 @@ static void matvec(int m, int n, const double *restrict A, const double *restric
 // --- full coupling: the sums over the modes four modes to a vector ----------------------------
 // The body's full-coupling arrays in b->pk (mbs_body_consts; nmp = nm rounded up to 4, every
 // array over the modes padded with zeros to nmp, "i-major": entry i of mode k at k + nmp i):
-// SS (mbs_ss_pack), P = SS q (9), XX_k, XT_k (9 each), S1_k (3), the rows of SSx (3 nmp x nm:
-// row k + nmp a, column l, SSx[a + 3k + 3 nm l]), cor (3), H_k = XT_k + P_k (9), q, q', q''
-// padded (3), the modal rows' inertia terms (1)
+// SS (mbs_ss_pack), P = SS q (9), XX_k, XT_k (9 each), S1_k (3), the rows of SSx (3 nm x nm,
+// not padded: row k + nm a, column l, SSx[a + 3k + 3 nm l]), cor (3), H_k = XT_k + P_k (9), q,
+// q', q'' padded (3), the modal rows' inertia terms (1)
 typedef struct full_ws {
   double *St, *P, *XX, *XT, *S1, *SX, *cor, *H, *q, *qd, *qdd, *v;
   int nmp;
 } full_ws;
 static size_t full_size(int nm) {
   const size_t nmp = (size_t)((nm + 3) & ~3);
-  return mbs_ss_size(nm) + (9 + 18 + 3 + 3 + 9 + 3 + 1) * nmp + 3 * nmp * (size_t)nm;
+  return mbs_ss_size(nm) + (9 + 18 + 3 + 3 + 9 + 3 + 1) * nmp + 3 * (size_t)nm * (size_t)nm;
 }
 static full_ws full_at(const mbody *b) {
   full_ws f;
@@ -361,7 +371,7 @@ static full_ws full_at(const mbody *b) {
   f.nmp = (int)nmp;
   f.St = b->pk, f.P = f.St + mbs_ss_size(b->nm);
   f.XX = f.P + 9 * nmp, f.XT = f.XX + 9 * nmp, f.S1 = f.XT + 9 * nmp, f.SX = f.S1 + 3 * nmp;
-  f.cor = f.SX + 3 * nmp * (size_t)b->nm, f.H = f.cor + 3 * nmp, f.q = f.H + 9 * nmp;
+  f.cor = f.SX + 3 * (size_t)b->nm * (size_t)b->nm, f.H = f.cor + 3 * nmp, f.q = f.H + 9 * nmp;
   f.qd = f.q + nmp, f.qdd = f.qd + nmp, f.v = f.qdd + nmp;
   return f;
 }
@@ -370,7 +380,7 @@ static void full_consts(const mbody *b) {
   const int nm = b->nm, nmp = f.nmp;
   const size_t n1 = (size_t)nm;
   mbs_ss_pack(nm, b->SS, f.St);
-  memset(f.XX, 0, sizeof(double) * (21 + 3 * n1) * (size_t)nmp);  // XX, XT, S1 and SX
+  memset(f.XX, 0, sizeof(double) * (21 * (size_t)nmp + 3 * n1 * n1));  // XX, XT, S1, SX
   for (int k = 0; k < nm; k++) {
     for (int i = 0; i < 9; i++)
       f.XX[k + nmp * i] = b->XX[i + 9 * k], f.XT[k + nmp * i] = b->XT[i + 9 * k];
@@ -378,10 +388,10 @@ static void full_consts(const mbody *b) {
     // SSx[a + 3k + 3 nm l] = (int rho S_k x S_l)_a = eps_abc SS_bc,kl, as fmbd_mbs.c forms it
     for (size_t l = 0; l < n1; l++) {
       const double *S = b->SS + 9 * (size_t)k + 9 * n1 * l;
-      double *o = f.SX + k + 3 * (size_t)nmp * l;
+      double *o = f.SX + k + 3 * n1 * l;
       o[0] = S[1 + 3 * 2] - S[2 + 3 * 1];
-      o[nmp] = S[2 + 3 * 0] - S[0 + 3 * 2];
-      o[2 * nmp] = S[0 + 3 * 1] - S[1 + 3 * 0];
+      o[nm] = S[2 + 3 * 0] - S[0 + 3 * 2];
+      o[2 * nm] = S[0 + 3 * 1] - S[1 + 3 * 0];
     }
   }
   memset(f.cor, 0, sizeof(double) * 16 * (size_t)nmp);  // cor, H, the padded q, q', q'', v
@@ -706,7 +716,8 @@ void mbs_body_inert2(const mbody *b, const double *q, const double *qd, double *
     const full_ws f = full_at(b);
     const int nmp = f.nmp;
     mbs_ssq(nm, f.St, q, f.P, f.v);
-    matvec(3 * nmp, nm, f.SX, qd, 1.0, f.cor);
+    matvec(3 * nm, nm, f.SX, qd, 1.0, f.cor);
+    spread_rows(3, nm, nmp, f.cor);
     for (int a = 0; a < 3; a++) {
       for (int bb = 0; bb < 3; bb++) {
         const double *P = f.P + (size_t)nmp * (a + 3 * bb);
@@ -852,7 +863,8 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   double *cor = b->cor;
   if (nm > 0 && !b->partial) {
     const full_ws f = full_at(b);
-    matvec(3 * f.nmp, nm, f.SX, qd, -1.0, f.cor);
+    matvec(3 * nm, nm, f.SX, qd, -1.0, f.cor);
+    spread_rows(3, nm, f.nmp, f.cor);
     for (int k = 0; k < nm && B; k++) {
       for (int a = 0; a < 3; a++) cor[a + 3 * k] = f.cor[k + (size_t)f.nmp * a];
     }
@@ -1006,22 +1018,18 @@ void mbs_body_eval(fmbd_mbs *m, int ib, double t, const double *xg, const double
   }
   // B = T' Z T
   // rows/cols map: x index i -> b index (R: i; p: via 2G; q: i - 1)
-  // first Y = Z T (n6 x n), stored in Cb (without ff: rows 0..5 of the columns 7..)
+  // first Y = Z T (n6 x n): its columns of R and q are Z's own (read in place), those of p
+  // (Z's columns 3..5 times 2 G) formed in Cb (without ff: rows 0..5 of the columns 7..)
   double *Y = Cb;
-  for (int j = 0; j < n; j++) {
-    double *yc = Y + (size_t)n6 * j;
-    if (j < 3 || j >= 7) {
-      int jb = j < 3 ? j : j - 1;
-      memcpy(yc, Mb + (size_t)n6 * jb, sizeof(double) * (size_t)(ff || j < 3 ? n6 : 6));
-    } else {
-      int c4 = j - 3;
-      double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
-      const double *z3 = Mb + (size_t)n6 * 3, *z4 = Mb + (size_t)n6 * 4, *z5 = Mb + (size_t)n6 * 5;
-      for (int i = 0; i < n6; i++) yc[i] = z3[i] * g0 + z4[i] * g1 + z5[i] * g2;
-    }
+  for (int c4 = 0; c4 < 4; c4++) {
+    double *yc = Y + (size_t)n6 * c4;
+    double g0 = 2 * G[c4], g1 = 2 * G[4 + c4], g2 = 2 * G[8 + c4];
+    const double *z3 = Mb + (size_t)n6 * 3, *z4 = Mb + (size_t)n6 * 4, *z5 = Mb + (size_t)n6 * 5;
+    for (int i = 0; i < n6; i++) yc[i] = z3[i] * g0 + z4[i] * g1 + z5[i] * g2;
   }
   for (int j = 0; j < n; j++) {
-    const double *yc = Y + (size_t)n6 * j;
+    const double *yc = j < 3 ? Mb + (size_t)n6 * j
+                             : (j < 7 ? Y + (size_t)n6 * (j - 3) : Mb + (size_t)n6 * (j - 1));
     double *bc = B + (size_t)n * j;
     bc[0] = yc[0], bc[1] = yc[1], bc[2] = yc[2];
     for (int c4 = 0; c4 < 4; c4++)

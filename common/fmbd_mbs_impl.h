@@ -144,7 +144,8 @@ typedef struct mbody {
   int nm, n;    // modes; coordinates 7 + nm
   int64_t off;  // first coordinate in x
   double m, c0[3], J0[9];
-  double *S1, *XS, *SS, *Mff, *Kff, *Dff;  // layouts of fmbd_mbs.h; Dff nm x nm
+  double *S1, *XS, *SS, *Mff, *Kff, *Dff;  // layouts of fmbd_mbs.h; Dff nm x nm; SS freed
+                                           // after load (packed in pk, and SSx)
   double *XSx;                             // 3 x nm: int rho x0 x S_k
   double *SSx;                 // 3 x nm x nm: SSx[a + 3 l + 3 nm k] = (int rho S_l x S_k)_a
   double snorm;                // scale of the normalisation equation
@@ -153,7 +154,6 @@ typedef struct mbody {
   double *q0, *qd0;
   // --- evaluation workspace (filled by mbs_body_eval) ---
   double A[9], G[12], pn, wb[3], c[3], J[9], I[9];
-  double *P;     // 9 nm: unused (full coupling's P = SS q is in pk after SS's triangle)
   double *Hk;    // 9 nm: H_k[a + 3b] = int rho S_k,a u_b
   double *Mwf;   // 3 x nm
   double *XX;    // 9 nm: XS_k + XS_k' (+ 0 if partial; mbs_body_consts): a partial body's J
@@ -164,7 +164,7 @@ typedef struct mbody {
   double *cor;   // 3 x nm: sum_l q'_l int rho S_l x S_k
   bool kdiag;    // Kff and Dff diagonal (the usual modal body): O(nm) elastic forces
   bool mdiag;    // Mff diagonal (M-orthonormal modes, the usual modal body): O(nm) Mff products
-  bool partial;  // partial inertia coupling: SS and SSx are zero, P and cor stay zero (not formed)
+  bool partial;  // partial inertia coupling: SSx is zero and cor stays zero (not formed)
   double wB[3];  // wb at the last block evaluation (mbs_body_eval with B; mbs_body_ff)
   bool elim;     // modal block eliminated (fmbd_mbs_schur.c): mbs_eval_system leaves it out of Ax
   mbs_fe *fe;    // a full FE body (nm = n FE dofs, no dense modal arrays), else NULL
@@ -400,9 +400,9 @@ void mbs_matvec_add_portable(int m, int n, const double *A, int lda, const doubl
                              double *y);
 // SS (layout of fmbd_mbs.h) as one symmetric matrix of order 3 nm, its upper triangle packed
 // into St (mbs_ss_size(nm) doubles; blocks padded to nmp = nm rounded up to 4; the mean of the
-// two copies of each entry), and P = SS q from it (P[k + nmp (a + 3b)] = sum_l SS_ab,kl q_l,
-// 9 nmp doubles; qp: nmp doubles of workspace): AVX2 where the processor has it, the same bits
-// as the portable form (tests/unit/t513); see fmbd_mbs_body.c
+// two copies of each entry; below 40 modes SS whole, re-laid), and P = SS q from it (P[k + nmp (a +
+// 3b)] = sum_l SS_ab,kl q_l, 9 nmp doubles; qp: nmp doubles of workspace): AVX2 where the processor
+// has it, the same bits as the portable form (tests/unit/t513); see fmbd_mbs_body.c
 size_t mbs_ss_size(int nm);
 void mbs_ss_pack(int nm, const double *SS, double *St);
 void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp);
