@@ -553,17 +553,19 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         }
       }
     }
-    // SS: 9 products of nm x nn by nn x nm, the largest part of the build with many modes; a
-    // body for partial inertia coupling takes it as zero (fmbd_mbs_add_flex), so none is made
+    // SS: products of nm x nn by nn x nm, the largest part of the build with many modes; a
+    // body for partial inertia coupling takes it as zero (fmbd_mbs_add_flex), so none is made.
+    // M_n symmetric: SS_lk,ba = Ub_l' M_n Ua_k = SS_kl,ab, so the 6 products a <= b give all 9
     r->ss_omitted = no_ss;
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
     for (int a = 0; a < 3 && !no_ss; a++) {
-      for (int bb = 0; bb < 3; bb++) {
+      for (int bb = a; bb < 3; bb++) {
         fmbd_dense_gemm('T', 'N', nm, nm, nn, 1.0, Wa + nn * a * nm, nn, Ub + nn * bb * nm, nn, 0.0,
                         Sab, nm);
         for (int64_t l = 0; l < nm; l++) {
           for (int64_t k = 0; k < nm; k++) {
             r->SS[a + 3 * bb + 9 * k + 9 * nm * l] = Sab[k + nm * l];
+            if (bb != a) r->SS[bb + 3 * a + 9 * l + 9 * nm * k] = Sab[k + nm * l];
           }
         }
       }
