@@ -650,7 +650,8 @@ static int check_body(const fmbd_fe_body *b) {
 }
 
 // --- secondary reduction ------------------------------------------------------------------
-int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+// *release (in->release) freed and set NULL once the shapes are formed
+static int rflex_build(const fmbd_rflex_input *in, double **release, fmbd_rflex **out) {
   int rc = FMBD_OK;
   fmbd_rflex *r = NULL;
   double *Wa = NULL, *Mff = NULL, *Kff = NULL;
@@ -676,15 +677,21 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   r->nnodes = b->nnodes;
   FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
   // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
-  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  // interior dofs 0..ns-1 in order (fe2cb's usual partition): qs straight into the shapes' rows
+  // (the same products, another leading dimension), else through an ns x nm copy
+  bool direct = true;
+  for (int64_t i = 0; i < ns && direct; i++) direct = in->interior_dofs[i] == i;
+  if (!direct) FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  double *Q = direct ? r->shapes : Wa;
+  int64_t ldq = direct ? ndof : ns;
   if (nd > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
+    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Q, ldq);
   }
   if (nb > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
+    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Q, ldq);
   }
   for (int64_t k = 0; k < nm; k++) {
-    for (int64_t i = 0; i < ns; i++) {
+    for (int64_t i = 0; i < ns && !direct; i++) {
       int64_t row = in->interior_dofs[i];
       FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
                   (long long)row);
@@ -699,6 +706,8 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   }
   fmbd_free(Wa);  // not held through rflex_finish's arrays (ns x nm: the peak memory)
   Wa = NULL;
+  fmbd_free(*release);  // Phi, when the caller hands it over
+  *release = NULL;
   // mass-normalised modes of the reduced problem: Mff = I, Kff = diag(chibar)
   FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
   FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
@@ -714,6 +723,13 @@ done:
   fmbd_free(Mff);
   fmbd_free(Kff);
   fmbd_rflex_destroy(&r);
+  return rc;
+}
+
+int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+  double *release = in->release;
+  int rc = rflex_build(in, &release, out);
+  fmbd_free(release);
   return rc;
 }
 

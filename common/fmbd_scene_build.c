@@ -95,9 +95,10 @@ static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, int64_t keep, fmbd
     memcpy(Xi + nr * j, cb->Xi + nr * k, sizeof(double) * (size_t)nr);
     j++;
   }
-  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary,
-                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
-                         chibar, Xi,      nr,     stress,       no_ss};
+  fmbd_rflex_input mi = {desc,    cb->ns, cb->nb,  cb->interior, cb->boundary, cb->nd,
+                         cb->Phi, cb->ns, cb->Psi, nm,           chibar,       Xi,
+                         nr,      stress, no_ss,   cb->Phi};
+  cb->Phi = NULL;  // handed over: freed once the shapes are formed (the load's peak)
   FMBD_GCALL(fmbd_rflex_build(&mi, out));
   if (desc_out) {
     *desc_out = desc;

@@ -99,9 +99,9 @@ int main(void) {
     chif[k] = cb->chibar[nrig + k];
     memcpy(Xif + nr * k, cb->Xi + nr * (nrig + k), sizeof(double) * (size_t)nr);
   }
-  fmbd_rflex_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary,
-                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
-                         chif,   Xif,     nr,     true,         false};
+  fmbd_rflex_input mi = {b,       cb->ns, cb->nb,  cb->interior, cb->boundary, cb->nd,
+                         cb->Phi, cb->ns, cb->Psi, nm,           chif,         Xif,
+                         nr,      true,   false,   NULL};
   fmbd_rflex *rf = NULL;
   EXPECT(fmbd_rflex_build(&mi, &rf) == 0, "build: %s", fmbd_err_get()->msg);
   // shapes' M shapes = I: T0' M T0 = M_ (closed form) and Xi' M_ Xi = I; round-off of the
