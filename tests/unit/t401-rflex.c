@@ -184,6 +184,35 @@ int main(void) {
     fmbd_rflex_destroy(&rk);
     mi.nm = nm;
   }
+  // the interior dofs listed in reverse (Phi's and Psi's rows with them): the shapes through the
+  // ns x nm copy instead of straight into their rows; the same shapes up to the products'
+  // round-off (1e-12 of the largest entry, as above; a misplaced row is O(1) off)
+  {
+    int64_t ns = cb->ns, nb = cb->nb, nd = cb->nd;
+    int64_t *irev = calloc((size_t)ns, sizeof(int64_t));
+    double *prev = calloc((size_t)(ns * (nd + nb)), sizeof(double)), *srev = prev + ns * nd;
+    for (int64_t i = 0; i < ns; i++) {
+      irev[i] = cb->interior[ns - 1 - i];
+      for (int64_t j = 0; j < nd; j++) prev[i + ns * j] = cb->Phi[ns - 1 - i + ns * j];
+      for (int64_t j = 0; j < nb; j++) srev[i + ns * j] = cb->Psi[ns - 1 - i + ns * j];
+    }
+    fmbd_rflex_input mr = mi;
+    mr.interior_dofs = irev, mr.Phi = prev, mr.Psi = srev, mr.ldphi = ns;
+    fmbd_rflex *rr = NULL;
+    EXPECT(fmbd_rflex_build(&mr, &rr) == 0 && rr, "build, interior reversed: %s",
+           fmbd_err_get()->msg);
+    if (rr && rf) {
+      double big = 0, d = 0;
+      for (int64_t e = 0; e < n * nm; e++) {
+        big = fmax(big, fabs(rf->shapes[e]));
+        d = fmax(d, fabs(rf->shapes[e] - rr->shapes[e]));
+      }
+      EXPECT(d <= 1e-12 * big, "interior reversed: shapes differ by %g (largest %g)", d, big);
+    }
+    fmbd_rflex_destroy(&rr);
+    free(irev);
+    free(prev);
+  }
   // first moment and mass from /body
   EXPECT(rf->mass == b->mass && fabs(rf->first_moment[0] - b->mass * b->center_of_mass[0]) < 1e-15,
          "mass / first moment");
