@@ -283,9 +283,9 @@ int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out) {
   return FMBD_OK;
 }
 
-// m4 (4 nn) = [M_n 1, M_n x_0, M_n x_1, M_n x_2], the nodal mass of fmbd_rflex_nodal_mass
-// times the rigid fields S1 and XS weigh the motion by (x_a: the node coordinates), summed
-// element by element for the scalar consistent mass (the matrix is not assembled).
+// m4 (4 nn) = [M_n 1, M_n x_0, M_n x_1, M_n x_2]: the nodal mass of fmbd_rflex_nodal_mass
+// times the four fields by which S1 and XS weigh the motion (1 and the node coordinates x_a),
+// summed element by element for the scalar consistent mass (no matrix assembled).
 static int mass_moments(const fmbd_fe_body *b, double *m4) {
   int64_t nn = b->nnodes;
   memset(m4, 0, sizeof(double) * (size_t)(4 * nn));
