@@ -1243,7 +1243,9 @@ static int read_cm(fmbd_h5 *f, const char *path, int64_t rows, int64_t cols, dou
   return fmbd_h5_read_f64_cm(f, path, &r, &c, A);
 }
 
-int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
+// basis_only: what a body of the modes needs (fmbd_cb_read_basis), not cbcheck's /cb/A,
+// KsinvA, KsinvMsKsinvA, PhitA and /reduced/M, K
+static int cb_read(fmbd_h5 *f, bool basis_only, fmbd_cb **out) {
   int rc = FMBD_OK;
   fmbd_cb *cb = NULL;
   char *method = NULL;
@@ -1340,13 +1342,17 @@ int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
   FMBD_GCALL(read_cm(f, "/cb/Phi", ns, nd, &cb->Phi));
   if (!strcmp(cb->method, "cb")) {
     FMBD_GCALL(read_cm(f, "/cb/Psi", ns, nb, &cb->Psi));
+  }
+  if (!strcmp(cb->method, "cb") && !basis_only) {
     FMBD_GCALL(read_cm(f, "/cb/A", ns, nb, &cb->A));
     FMBD_GCALL(read_cm(f, "/cb/KsinvA", ns, nb, &cb->KsinvA));
     FMBD_GCALL(read_cm(f, "/cb/KsinvMsKsinvA", ns, nb, &cb->KsinvMsKsinvA));
     FMBD_GCALL(read_cm(f, "/cb/PhitA", nd, nb, &cb->PhitA));
   }
-  FMBD_GCALL(read_cm(f, "/reduced/M", nr, nr, &cb->Mr));
-  FMBD_GCALL(read_cm(f, "/reduced/K", nr, nr, &cb->Kr));
+  if (!basis_only) {
+    FMBD_GCALL(read_cm(f, "/reduced/M", nr, nr, &cb->Mr));
+    FMBD_GCALL(read_cm(f, "/reduced/K", nr, nr, &cb->Kr));
+  }
   {
     int64_t d = nr;
     FMBD_GCALL(fmbd_h5_read_f64(f, "/reduced/eigenvalues", 1, &d, &cb->chibar));
@@ -1378,4 +1384,12 @@ done:
   fmbd_free(method);
   fmbd_cb_destroy(&cb);
   return rc;
+}
+
+int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out) {
+  return cb_read(f, false, out);
+}
+
+int fmbd_cb_read_basis(fmbd_h5 *f, fmbd_cb **out) {
+  return cb_read(f, true, out);
 }

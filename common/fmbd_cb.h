@@ -156,5 +156,9 @@ int fmbd_cb_write(fmbd_h5 *f, const fmbd_cb *cb);
 /// the major version, the shapes against each other, and index ranges).
 /// @param[out] out caller destroys with fmbd_cb_destroy
 int fmbd_cb_read(fmbd_h5 *f, fmbd_cb **out);
+/// @brief fmbd_cb_read without what only cbcheck's estimates use (/cb/A, KsinvA,
+/// KsinvMsKsinvA, PhitA, /reduced/M, K: left NULL): the shapes of the modes, Phi, Psi, Xi and
+/// the eigenvalues, for a modal body (fmbd-run's .cb.h5 bodies). The same checks.
+int fmbd_cb_read_basis(fmbd_h5 *f, fmbd_cb **out);
 
 #endif

@@ -400,9 +400,9 @@ int fmbd_check_rflex(fmbd_check *c, const fmbd_est_modes *m, const double *Xi, i
              "%s: no solid elements (/mesh/elements/tet4 or tet10)%s: no modal stress written",
              fmbd_h5_name(c->cbf), c->desc->nbeam > 0 ? ", beams only" : "");
   }
-  fmbd_rflex_input mi = {c->desc, cb->ns,  cb->nb, cb->interior, cb->boundary,
-                         nd,      cb->Phi, cb->ns, cb->Psi,      *nkept,
-                         chif,    Xif,     ldx,    stress,       false};
+  fmbd_rflex_input mi = {c->desc, cb->ns, cb->nb,  cb->interior, cb->boundary, nd,
+                         cb->Phi, cb->ns, cb->Psi, *nkept,       chif,         Xif,
+                         ldx,     stress, false,   NULL};
   rc = fmbd_rflex_build(&mi, rf);
 done:
   fmbd_free(chif);

@@ -45,7 +45,8 @@ struct fmbd_chol {
   int64_t solve_width;       // columns per cholmod_l_solve2 call (0: 64)
   bool own_solve;            // narrow blocks through own_solve where available (default)
   bool own_llt;              // LLT: our numeric LL' (super_factor; default) or CHOLMOD's
-  double *ow;                // own_solve's workspace: Z (n x 8) and G (largest supernode x 8)
+  double *ow;                // own_solve's workspace: Z (n x ow_w) and G (largest supernode x ow_w)
+  int64_t ow_w;              // its width: 8, or 12 or 16 once a block that wide was solved
   double sigma;
   double pivot_rtol;
   // supernodal LDL' and LL' (our numeric factorisations on CHOLMOD's supernodal symbolic
@@ -1124,10 +1125,12 @@ static int check_pivots(fmbd_chol *F, int ok, double sigma, const double *dg) {
 // the lower part of each diagonal block is read (the upper is not kept: release_zero_pages).
 // Compiled for AVX2 and FMA (4-wide vectors of the compiler's vector extensions, each product
 // and sum as one fused multiply-add, the sums in the order written) and chosen when called
-// (__builtin_cpu_supports); elsewhere (another processor, another compiler, FMBD_NO_VECTOR), for
-// single vectors (CHOLMOD's BLAS-2 path is faster: 28 against 37 ms) and for blocks of more
-// than 8 columns (about as fast: two passes here would take 52 + 31 and 2 x 52 ms at 12 and 16
-// columns against CHOLMOD's 86 and 104 ms), CHOLMOD's solve. The results agree with CHOLMOD's to
+// (__builtin_cpu_supports); blocks of 5 to 16 columns by the AVX-512 kernels below where the
+// processor has them (8, 12, 16 columns: 29, 40, 50 ms against CHOLMOD's 49, 61, 72 ms and
+// these kernels' 33, 51, 63 ms by 8 and 12 or 16 wide rows, bench/README.md "The sweeps'
+// prefetch"); elsewhere (another processor, another compiler, FMBD_NO_VECTOR), for single
+// vectors (CHOLMOD's BLAS-2 path is faster: 28 against 37 ms) and, without AVX-512, for blocks
+// of more than 8 columns, CHOLMOD's solve. The results agree with CHOLMOD's to
 // round-off (the same substitutions, the sums in another order and fused: tests/unit/t300
 // compares them, within the triangular solves' error bound).
 #ifdef FMBD_HAVE_V4D  // fmbd_vec.h: x86-64, GCC or clang, not FMBD_NO_VECTOR
@@ -1147,6 +1150,25 @@ SFN v4d sn_fma(double a, v4d z, v4d s) {
   return (v4d)_mm256_fmadd_pd(_mm256_set1_pd(a), (__m256d)z, (__m256d)s);
 }
 
+// The next group's 4 columns of L (the forward sweep's; the backward sweep's: the previous
+// group's), at the rows of the current one, asked for into the L2 cache: one cache line of each
+// column per 8 rows, so they arrive a group ahead of their use. The sweeps stream L from memory
+// once per sweep; the hardware prefetchers alone kept 4-column blocks at about half the
+// streaming rate (each group's 4 columns are 4 new streams of a few hundred rows, a new page
+// each for the larger supernodes). Into L1 (T0) it gained a few per cent only, half a group
+// ahead a third as much, two or three groups ahead no more than one: the 51 k-dof rod's
+// operator of 4 columns 32 -> 22 ms (bench/README.md "The sweeps' prefetch"). A hint only (it never
+// faults): the addresses, which pass the ends of the factor's block at the first and last
+// supernodes, are formed as integers.
+static inline __attribute__((always_inline)) void sn_prefetch4(const double *p, int64_t off,
+                                                               int64_t ld) {
+  uintptr_t a = (uintptr_t)p + (uintptr_t)(off * (int64_t)sizeof(double)), d = (uintptr_t)ld * 8u;
+  _mm_prefetch((const char *)a, _MM_HINT_T1);
+  _mm_prefetch((const char *)(a + d), _MM_HINT_T1);
+  _mm_prefetch((const char *)(a + 2 * d), _MM_HINT_T1);
+  _mm_prefetch((const char *)(a + 3 * d), _MM_HINT_T1);
+}
+
 // T[i] -= L[i] Y[0] + L[i + ld] Y[1] + L[i + 2 ld] Y[2] + L[i + 3 ld] Y[3] for i < nr (in that
 // order); rows of nv 4-wide vectors (row stride 4 nv)
 SFN void sn_upd4(int64_t nr, const double *L, int64_t ld, const double *Y, double *T, int nv) {
@@ -1161,6 +1183,7 @@ SFN void sn_upd4(int64_t nr, const double *L, int64_t ld, const double *Y, doubl
   const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
   for (int64_t i = 0; i < nr; i++) {
     double *t = T + i * w;
+    if ((i & 7) == 0) sn_prefetch4(L0, i + 4 * ld, ld);
     for (int v = 0; v < nv; v++) {
       v4d x = sn_fnma(L0[i], y0[v], LD4(t + 4 * v));
       x = sn_fnma(L1[i], y1[v], x);
@@ -1194,6 +1217,7 @@ SFN void sn_dot4(int64_t nr, const double *L, int64_t ld, const double *T, doubl
   int64_t i = 0;
   for (; i + 1 < nr; i += 2) {
     const double *t = T + i * w;
+    if ((i & 7) == 0) sn_prefetch4(L0, i - 4 * ld, ld);
     for (int v = 0; v < nv; v++) {
       v4d z = LD4(t + 4 * v), y = LD4(t + w + 4 * v);
       s0[v] = sn_fma(L0[i], z, s0[v]);
@@ -1311,35 +1335,289 @@ __attribute__((target("avx2,fma"))) static void sn_sweeps_avx2_2(const cholmod_f
                                                                  int bwd, double *Z, double *G) {
   sn_sweeps(L, fwd, bwd, Z, G, 2);
 }
+// --- the same sweeps with AVX-512, the supernode's rows column by column ---------------------
+// For blocks of 5 to 16 columns (Z's rows padded to nc = 8, 12 or 16 values); blocks of 2 to 4
+// stay with the kernels above, which stream L as fast (memory-bound there: 17 ms a full solve
+// of 4 columns with either). The kernels above hold one row of the block per vector, so each
+// entry of L is a
+// broadcast load of its own: about ten instructions per row of 4 entries. Here the gathered
+// rows G are stored column by column (ldg = the supernode's row count; column c of the block
+// at G + c ldg), so 8 consecutive entries of a column of L are one vector load, used for 4
+// columns of the block at a time (a pass over the rows per 4 columns) against broadcasts of the
+// group's 4 x 4 values held in registers: 4 loads of L, 4 loads and 4 stores of G and 16 FMAs per 8
+// rows of 4 columns of L, about three times fewer instructions. Forward: the same operations in the
+// same order as sn_upd4 / sn_upd and the same triangles (scalar here, the same roundings), so the
+// same bits. Backward: each of the 16 sums over the rows below the group is kept in 8 lanes (lane l
+// the rows i = l mod 8) and added at the end, another order of the same sums than sn_dot4's even
+// and odd rows: the result differs at round-off (tests/unit/t300 compares the solves with
+// CHOLMOD's within the triangular solves' bound).
+#define SN5 static inline __attribute__((always_inline, target("avx512f")))
+
+// T_c[i] -= L[i] y[0][c] + ... + L[i + (g-1) ld] y[g-1][c] for i < nr, c < nc (in that order
+// per entry): T_c = T + c ldt; y[q][c] = Y[q + c ldt] (the group's own rows of G). The 16
+// broadcasts and the 4 columns' vectors in named variables (arrays of vectors were kept on the
+// stack by the compiler)
+SN5 void s5_upd(int64_t nr, const double *L, int64_t ld, int g, const double *Y, double *T,
+                int64_t ldt, int nc) {
+  for (int c0 = 0; c0 < nc; c0 += 4) {
+    const double *Yc = Y + c0 * ldt;
+    double *T0 = T + c0 * ldt, *T1 = T0 + ldt, *T2 = T1 + ldt, *T3 = T2 + ldt;
+    const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
+    if (g < 4) {  // short groups: scalar broadcasts reloaded, masked rows
+      for (int64_t i = 0; i < nr; i += 8) {
+        __mmask8 m = nr - i >= 8 ? 0xff : (__mmask8)((1u << (nr - i)) - 1u);
+        for (int c = 0; c < 4; c++) {
+          double *t = T0 + c * ldt + i;
+          __m512d x = _mm512_maskz_loadu_pd(m, t);
+          for (int q = 0; q < g; q++)
+            x = _mm512_fnmadd_pd(_mm512_maskz_loadu_pd(m, L + q * ld + i),
+                                 _mm512_set1_pd(Yc[q + c * ldt]), x);
+          _mm512_mask_storeu_pd(t, m, x);
+        }
+      }
+      continue;
+    }
+#define S5Y(q, c) const __m512d y##q##c = _mm512_set1_pd(Yc[q + c * ldt])
+    S5Y(0, 0);
+    S5Y(1, 0);
+    S5Y(2, 0);
+    S5Y(3, 0);
+    S5Y(0, 1);
+    S5Y(1, 1);
+    S5Y(2, 1);
+    S5Y(3, 1);
+    S5Y(0, 2);
+    S5Y(1, 2);
+    S5Y(2, 2);
+    S5Y(3, 2);
+    S5Y(0, 3);
+    S5Y(1, 3);
+    S5Y(2, 3);
+    S5Y(3, 3);
+#undef S5Y
+    for (int64_t i = 0; i < nr; i += 8) {
+      __mmask8 m = nr - i >= 8 ? 0xff : (__mmask8)((1u << (nr - i)) - 1u);
+      __m512d l0 = _mm512_maskz_loadu_pd(m, L0 + i), l1 = _mm512_maskz_loadu_pd(m, L1 + i);
+      __m512d l2 = _mm512_maskz_loadu_pd(m, L2 + i), l3 = _mm512_maskz_loadu_pd(m, L3 + i);
+      sn_prefetch4(L0, i + 4 * ld, ld);
+#define S5U(c)                                                                   \
+  {                                                                              \
+    __m512d x = _mm512_fnmadd_pd(l0, y0##c, _mm512_maskz_loadu_pd(m, T##c + i)); \
+    x = _mm512_fnmadd_pd(l1, y1##c, x);                                          \
+    x = _mm512_fnmadd_pd(l2, y2##c, x);                                          \
+    _mm512_mask_storeu_pd(T##c + i, m, _mm512_fnmadd_pd(l3, y3##c, x));          \
+  }
+      S5U(0) S5U(1) S5U(2) S5U(3)
+#undef S5U
+    }
+  }
+}
+
+// Y[q + c ldt] -= sum_{i < nr} L[i + q ld] T_c[i] for q < g, c < nc
+SN5 void s5_dot(int64_t nr, const double *L, int64_t ld, int g, const double *T, double *Y,
+                int64_t ldt, int nc) {
+  for (int c0 = 0; c0 < nc; c0 += 4) {
+    double *Yc = Y + c0 * ldt;
+    const double *T0 = T + c0 * ldt, *T1 = T0 + ldt, *T2 = T1 + ldt, *T3 = T2 + ldt;
+    if (g < 4) {
+      for (int q = 0; q < g; q++) {
+        for (int c = 0; c < 4; c++) {
+          __m512d a = _mm512_setzero_pd();
+          for (int64_t i = 0; i < nr; i += 8) {
+            __mmask8 m = nr - i >= 8 ? 0xff : (__mmask8)((1u << (nr - i)) - 1u);
+            a = _mm512_fmadd_pd(_mm512_maskz_loadu_pd(m, L + q * ld + i),
+                                _mm512_maskz_loadu_pd(m, T0 + c * ldt + i), a);
+          }
+          Yc[q + c * ldt] -= _mm512_reduce_add_pd(a);
+        }
+      }
+      continue;
+    }
+    const double *L0 = L, *L1 = L + ld, *L2 = L + 2 * ld, *L3 = L + 3 * ld;
+#define S5Z(q, c) __m512d s##q##c = _mm512_setzero_pd()
+    S5Z(0, 0);
+    S5Z(1, 0);
+    S5Z(2, 0);
+    S5Z(3, 0);
+    S5Z(0, 1);
+    S5Z(1, 1);
+    S5Z(2, 1);
+    S5Z(3, 1);
+    S5Z(0, 2);
+    S5Z(1, 2);
+    S5Z(2, 2);
+    S5Z(3, 2);
+    S5Z(0, 3);
+    S5Z(1, 3);
+    S5Z(2, 3);
+    S5Z(3, 3);
+#undef S5Z
+    for (int64_t i = 0; i < nr; i += 8) {
+      __mmask8 m = nr - i >= 8 ? 0xff : (__mmask8)((1u << (nr - i)) - 1u);
+      __m512d l0 = _mm512_maskz_loadu_pd(m, L0 + i), l1 = _mm512_maskz_loadu_pd(m, L1 + i);
+      __m512d l2 = _mm512_maskz_loadu_pd(m, L2 + i), l3 = _mm512_maskz_loadu_pd(m, L3 + i);
+      sn_prefetch4(L0, i - 4 * ld, ld);
+#define S5D(c)                                      \
+  {                                                 \
+    __m512d t = _mm512_maskz_loadu_pd(m, T##c + i); \
+    s0##c = _mm512_fmadd_pd(l0, t, s0##c);          \
+    s1##c = _mm512_fmadd_pd(l1, t, s1##c);          \
+    s2##c = _mm512_fmadd_pd(l2, t, s2##c);          \
+    s3##c = _mm512_fmadd_pd(l3, t, s3##c);          \
+  }
+      S5D(0) S5D(1) S5D(2) S5D(3)
+#undef S5D
+    }
+#define S5R(q, c) Yc[q + c * ldt] -= _mm512_reduce_add_pd(s##q##c)
+    S5R(0, 0);
+    S5R(1, 0);
+    S5R(2, 0);
+    S5R(3, 0);
+    S5R(0, 1);
+    S5R(1, 1);
+    S5R(2, 1);
+    S5R(3, 1);
+    S5R(0, 2);
+    S5R(1, 2);
+    S5R(2, 2);
+    S5R(3, 2);
+    S5R(0, 3);
+    S5R(1, 3);
+    S5R(2, 3);
+    S5R(3, 3);
+#undef S5R
+  }
+}
+
+// sn_sweeps with G column by column (nc = 4 or 8 columns of Z's rows of nc)
+SN5 void s5_sweeps(const cholmod_factor *L, int fwd, int bwd, double *Z, double *G, int nc) {
+  const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+  const double *Lx = L->x;
+  const int64_t ns = (int64_t)L->nsuper;
+  for (int64_t s = 0; fwd && s < ns; s++) {
+    int64_t k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s], ldg = nsrow;
+    const double *Ld = Lx + px[s];
+    const SuiteSparse_long *rows = Ls + pi[s];
+    for (int64_t i = 0; i < nscol; i++)
+      for (int c = 0; c < nc; c++) G[i + c * ldg] = Z[(k1 + i) * nc + c];
+    for (int c = 0; c < nc; c++) memset(G + c * ldg + nscol, 0, (size_t)(nsrow - nscol) * 8);
+    for (int64_t j = 0; j < nscol; j += 4) {
+      int g = nscol - j < 4 ? (int)(nscol - j) : 4;
+      for (int q = 0; q < g; q++) {  // the g x g triangle (sn_sweeps' operations)
+        const double *lc = Ld + (j + q) * nsrow;
+        for (int c = 0; c < nc; c++) {
+          double *zc = G + c * ldg + j;
+          zc[q] = zc[q] / lc[j + q];
+          for (int r = q + 1; r < g; r++) zc[r] = zc[r] - lc[j + r] * zc[q];
+        }
+      }
+      int64_t i0 = j + g;
+      s5_upd(nsrow - i0, Ld + i0 + j * nsrow, nsrow, g, G + j, G + i0, ldg, nc);
+    }
+    for (int64_t i = 0; i < nscol; i++)
+      for (int c = 0; c < nc; c++) Z[(k1 + i) * nc + c] = G[i + c * ldg];
+    for (int64_t i = nscol; i < nsrow; i++) {
+      double *z = Z + rows[i] * nc;
+      for (int c = 0; c < nc; c++) z[c] = z[c] + G[i + c * ldg];
+    }
+  }
+  for (int64_t s = ns - 1; bwd && s >= 0; s--) {
+    int64_t k1 = super[s], nscol = super[s + 1] - k1, nsrow = pi[s + 1] - pi[s], ldg = nsrow;
+    const double *Ld = Lx + px[s];
+    const SuiteSparse_long *rows = Ls + pi[s];
+    for (int64_t i = 0; i < nsrow; i++) {
+      const double *z = Z + (i < nscol ? k1 + i : rows[i]) * nc;
+      for (int c = 0; c < nc; c++) G[i + c * ldg] = z[c];
+    }
+    for (int64_t j = ((nscol - 1) / 4) * 4; j >= 0; j -= 4) {
+      int g = nscol - j < 4 ? (int)(nscol - j) : 4;
+      int64_t i0 = j + g;
+      s5_dot(nsrow - i0, Ld + i0 + j * nsrow, nsrow, g, G + i0, G + j, ldg, nc);
+      for (int q = g - 1; q >= 0; q--) {  // the g x g triangle, transposed
+        const double *lc = Ld + (j + q) * nsrow;
+        for (int c = 0; c < nc; c++) {
+          double *zc = G + c * ldg + j;
+          for (int r = q + 1; r < g; r++) zc[q] = zc[q] - lc[j + r] * zc[r];
+          zc[q] = zc[q] / lc[j + q];
+        }
+      }
+    }
+    for (int64_t i = 0; i < nscol; i++)
+      for (int c = 0; c < nc; c++) Z[(k1 + i) * nc + c] = G[i + c * ldg];
+  }
+}
+
+__attribute__((target("avx512f"))) static void sn_sweeps_avx512(const cholmod_factor *L, int fwd,
+                                                                int bwd, double *Z, double *G,
+                                                                int nc) {
+  s5_sweeps(L, fwd, bwd, Z, G, nc);
+}
 #endif
+
+// own_solve's workspace given back; one wider than 8 columns also to the system (malloc_trim):
+// otherwise fe2cb's 12 columns at 188 k dofs (18 MB, freed after the constraint modes) stayed
+// resident beside the Lanczos run's arrays, the run's peak 14 MB higher; mapped by itself
+// instead, the 51 k run's peak was 4.7 MB higher (its later arrays no longer reused those
+// pages); with the trim both peaks are main's (bench/README.md "The sweeps' prefetch")
+static void ow_free(fmbd_chol *F) {
+  bool wide = F->ow && F->ow_w > 8;
+  fmbd_free(F->ow);
+#ifdef __GLIBC__
+  if (wide) malloc_trim(0);
+#endif
+  F->ow = NULL;
+  F->ow_w = 0;
+}
 
 #ifdef FMBD_OWN_SOLVE
 // own_solve's and own_op's conditions, and the workspace allocated on first use
-static bool own_ready(fmbd_chol *F, int64_t nrhs) {
+static bool own_fits(const fmbd_chol *F, int64_t nrhs) {
   const cholmod_factor *L = F->L;
-  if (!F->own_solve || nrhs > 8 || nrhs < 2 || !L->is_super || !L->is_ll ||
+  if (!F->own_solve || nrhs > 16 || nrhs < 2 || !L->is_super || !L->is_ll ||
       L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
     return false;
-  if (!F->ow) {
+  return nrhs <= 8 || __builtin_cpu_supports("avx512f");
+}
+
+static bool own_ready(fmbd_chol *F, int64_t nrhs) {
+  if (!own_fits(F, nrhs)) return false;
+  const cholmod_factor *L = F->L;
+  int64_t w = nrhs > 8 ? 4 * ((nrhs + 3) / 4) : 8;
+  if (!F->ow || F->ow_w < w) {
     const SuiteSparse_long *pi = L->pi;
     int64_t mr = 0;
     for (size_t s = 0; s < L->nsuper; s++) mr = pi[s + 1] - pi[s] > mr ? pi[s + 1] - pi[s] : mr;
-    F->ow = fmbd_malloc((size_t)(F->n + mr) * 8 * sizeof(double));
-    if (!F->ow) return false;  // CHOLMOD's then (it reports its own memory failure)
+    ow_free(F);
+    size_t bytes = (size_t)(F->n + mr) * (size_t)w * sizeof(double);
+    void *p = fmbd_malloc(bytes);
+    if (!p) return false;  // CHOLMOD's then (it reports its own failure)
+    F->ow = p;
+    F->ow_w = w;
   }
   return true;
 }
 #endif
 
-// Our solve of nrhs <= 8 columns (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X; both: the full
-// solve); false when not available here (then CHOLMOD's).
+// whether own_solve would take a block of nrhs columns (no workspace allocated here)
+static bool own_could(const fmbd_chol *F, int64_t nrhs) {
+#ifdef FMBD_OWN_SOLVE
+  return own_fits(F, nrhs);
+#else
+  (void)F;
+  (void)nrhs;
+  return false;
+#endif
+}
+
+// Our solve of nrhs <= 16 columns (8 without AVX-512) (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X;
+// both: the full solve); false when not available here (then CHOLMOD's).
 static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
 #ifdef FMBD_OWN_SOLVE
   if (!own_ready(F, nrhs)) return false;
   const cholmod_factor *L = F->L;
-  int nv = nrhs > 4 ? 2 : 1, w = 4 * nv;
+  int nv = (int)((nrhs + 3) / 4), w = 4 * nv;
   int64_t n = F->n;
-  double *Z = F->ow, *G = F->ow + n * 8;
+  double *Z = F->ow, *G = F->ow + n * F->ow_w;
   const SuiteSparse_long *perm = L->Perm;
   for (int64_t k = 0; k < n; k++) {  // Z = P X (forward) or X (backward), rows of w
     int64_t r = fwd ? perm[k] : k;
@@ -1349,6 +1627,8 @@ static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, i
   }
   if (nv == 1)
     sn_sweeps_avx2_1(L, fwd, bwd, Z, G);
+  else if (__builtin_cpu_supports("avx512f"))
+    sn_sweeps_avx512(L, fwd, bwd, Z, G, w);
   else
     sn_sweeps_avx2_2(L, fwd, bwd, Z, G);
   for (int64_t k = 0; k < n; k++) {  // X = P' Z (backward) or Z (forward)
@@ -1378,7 +1658,7 @@ static bool own_op(fmbd_chol *F, const fmbd_csr *M, int64_t nrhs, const double *
   if (nrhs > 4 || !own_ready(F, nrhs)) return false;
   const cholmod_factor *L = F->L;
   int64_t n = F->n;
-  double *Z = F->ow, *Xt = F->ow + n * 4, *G = F->ow + n * 8;
+  double *Z = F->ow, *Xt = F->ow + n * 4, *G = F->ow + n * F->ow_w;
   const SuiteSparse_long *perm = L->Perm;
   for (int64_t k = 0; k < n; k++) {
     int64_t c = 0;
@@ -1427,13 +1707,42 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   FMBD_CHECK(ldx >= F->n, FMBD_ERR_VALUE, "leading dimension %lld < %lld", (long long)ldx,
              (long long)F->n);
   double t0 = fmbd_wall_s();
+  // the own solve's workspace and CHOLMOD's are not kept side by side: each path gives back
+  // the other's (fe2cb at 100 modes: the blocks of 16 by the own solve, the Ritz vectors' back
+  // solve by CHOLMOD, 64 columns at a time; both kept measured a peak 16 MB higher)
+  const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
+  bool split = block >= 4 && block <= 16 && nrhs > block;  // below: calls of <= block columns
+  if (F->started && (F->X || F->Y || F->E) && own_could(F, split ? block : nrhs)) {
+    cholmod_l_free_dense(&F->X, &F->c);
+    cholmod_l_free_dense(&F->Y, &F->c);
+    cholmod_l_free_dense(&F->E, &F->c);
+  }
   if (own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
                 sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
     F->st.t_solve_s += fmbd_wall_s() - t0;
     return FMBD_OK;
   }
   // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
-  const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
+  if (split) {
+    // a width the own solve takes (fe2cb's Ritz vectors' back solve: 12 + 11 columns):
+    // calls of nearly equal widths (at least block / 2 >= 2 columns), each through own_solve
+    // (12 columns 40 against CHOLMOD's 61 ms, bench/README.md "The sweeps' prefetch"), the
+    // workspace n x 16 at most
+    int64_t calls = (nrhs + block - 1) / block, c0 = 0;
+    bool all = true;
+    for (int64_t i = 0; i < calls && all; i++) {
+      int64_t nc = nrhs / calls + (i < nrhs % calls);
+      all = own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
+                      sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nc, X + c0 * ldx, ldx);
+      c0 += all ? nc : 0;
+    }
+    if (all) {
+      F->st.t_solve_s += fmbd_wall_s() - t0;
+      return FMBD_OK;
+    }
+    FMBD_CHECK(c0 == 0, FMBD_ERR_INTERNAL, "own solve refused a block after taking one");
+  }
+  ow_free(F);         // CHOLMOD's solve from here (see above)
   double *pt = NULL;  // the permutations done here, a column at a time through pt (n)
   for (int k = 0; k < nsys; k++) {
     if (sys[k] == CHOLMOD_P || sys[k] == CHOLMOD_Pt) {
@@ -1554,8 +1863,7 @@ int64_t fmbd_chol_solve_width(const fmbd_chol *F) {
 
 void fmbd_chol_release_workspace(fmbd_chol *F) {
   if (!F) return;
-  fmbd_free(F->ow);
-  F->ow = NULL;
+  ow_free(F);
   if (!F->started) return;
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
@@ -1596,8 +1904,7 @@ int fmbd_chol_drop_numeric(fmbd_chol *F) {
   FMBD_CHECK(F && F->kind == FMBD_CHOL_LLT && F->L && F->L->is_super && F->st.n_factor > 0,
              FMBD_ERR_INTERNAL, "dropping the values of a factor that is not a supernodal LL'");
   if (F->dropped) return FMBD_OK;
-  fmbd_free(F->ow);
-  F->ow = NULL;
+  ow_free(F);
   cholmod_l_free_dense(&F->X, &F->c);
   cholmod_l_free_dense(&F->Y, &F->c);
   cholmod_l_free_dense(&F->E, &F->c);
@@ -1650,7 +1957,7 @@ void fmbd_chol_destroy(fmbd_chol **pF) {
     cholmod_l_free_sparse(&F->S, &F->c);
     cholmod_l_finish(&F->c);
   }
-  fmbd_free(F->ow);
+  ow_free(F);
   fmbd_free(F->Lx);
   fmbd_free(F->kept);
   fmbd_free(F->iperm);

@@ -110,8 +110,9 @@ int fmbd_chol_solve_half(fmbd_chol *F, int which, int64_t nrhs, double *X, int64
 int fmbd_chol_apply_op(fmbd_chol *F, const fmbd_csr *M, int64_t nrhs, const double *X, int64_t ldx,
                        double *W, int64_t ldw, double *Y, double *t_m);
 
-/// @brief Solves of blocks of 1 to 8 right-hand sides with a supernodal LL' factor go through
-/// the library's own sweeps over the factor (4-wide vectors, AVX2; fmbd_chol.c "narrow-block
+/// @brief Solves of blocks of 2 to 8 right-hand sides (2 to 16 where the processor has AVX-512)
+/// with a supernodal LL' factor go through the library's own sweeps over the factor (4-wide
+/// vectors, AVX2, or 8-wide, AVX-512; fmbd_chol.c "narrow-block
 /// supernodal LL' solves") where the processor has them, else through CHOLMOD's (on: the
 /// default). Off: always CHOLMOD's (the tests' reference). The results agree to round-off.
 void fmbd_chol_set_own_solve(fmbd_chol *F, bool on);

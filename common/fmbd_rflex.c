@@ -283,6 +283,38 @@ int fmbd_rflex_nodal_mass(const fmbd_fe_body *b, fmbd_csr **out) {
   return FMBD_OK;
 }
 
+// m4 (4 nn) = [M_n 1, M_n x_0, M_n x_1, M_n x_2]: the nodal mass of fmbd_rflex_nodal_mass
+// times the four fields by which S1 and XS weigh the motion (1 and the node coordinates x_a),
+// summed element by element for the scalar consistent mass (no matrix assembled).
+static int mass_moments(const fmbd_fe_body *b, double *m4) {
+  int64_t nn = b->nnodes;
+  memset(m4, 0, sizeof(double) * (size_t)(4 * nn));
+  if (!fmbd_rflex_consistent_invariants(b)) {
+    for (int64_t p = 0; p < nn; p++) {
+      double m = b->node_mass ? b->node_mass[p] : 0;
+      m4[p] = m;
+      for (int a = 0; a < 3; a++) m4[nn * (1 + a) + p] = m * b->xyz[3 * p + a];
+    }
+    return FMBD_OK;
+  }
+  int k = b->tet_nodes;
+  double xyz[30], Me[100], vol;
+  for (int64_t e = 0; e < b->ntet; e++) {
+    const int64_t *nd = b->tet + (int64_t)k * e;
+    for (int i = 0; i < k; i++) memcpy(xyz + 3 * i, b->xyz + 3 * nd[i], 3 * sizeof(double));
+    FMBD_CALL(fmbd_fe_tet_matrices(k, xyz, b->E, b->nu, b->rho, e, NULL, Me, &vol));
+    for (int i = 0; i < k; i++) {
+      double f[4] = {0, 0, 0, 0};
+      for (int j = 0; j < k; j++) {
+        f[0] += Me[k * i + j];
+        for (int a = 0; a < 3; a++) f[1 + a] += Me[k * i + j] * xyz[3 * j + a];
+      }
+      for (int c = 0; c < 4; c++) m4[nn * c + nd[i]] += f[c];
+    }
+  }
+  return FMBD_OK;
+}
+
 // True when the rigid-flexible coupling comes from the full consistent mass (beam elements).
 bool fmbd_rflex_beam_coupling(const fmbd_fe_body *b) {
   return b->mass_kind == FMBD_FE_MASS_CONSISTENT && b->nbeam > 0 && b->beam &&
@@ -373,8 +405,9 @@ int fmbd_rflex_rigid_coupling(const fmbd_fe_body *b, double *C) {
 static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff, const double *Kff,
                         const double *eig, bool stress, bool no_ss) {
   int rc = FMBD_OK;
-  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL;
-  fmbd_csr *Mn = NULL;
+  double *U = NULL, *Wa = NULL, *Ub = NULL, *Sab = NULL, *WM = NULL, *Ui = NULL, *m4 = NULL;
+  int64_t *rows = NULL, *cols = NULL;
+  fmbd_csr *Mn = NULL, *E = NULL;
   int64_t nm = r->nm, ndof = r->ndof, nn = r->nnodes;
   FMBD_GALLOC(r->eigenvalue = xcalloc((size_t)nm, sizeof(double)));
   FMBD_GALLOC(r->frequency_hz = xcalloc((size_t)nm, sizeof(double)));
@@ -391,9 +424,14 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     r->eigenvalue[k] = eig[k];
     r->frequency_hz[k] = sqrt(fmax(eig[k], 0.0)) / (2 * M_PI);
   }
-  // --- nodal motion: U = expand * shapes, (6 nn) x nm ---
-  FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
-  fmbd_csr_matmat(b->expand, nm, r->shapes, ndof, U, 6 * nn);
+  // --- nodal motion: the rows of U = expand * shapes ((6 nn) x nm) that are read: the
+  // interface nodes' six, the translations of every node (Ub, below) and, for a beam body, all
+  // of U. Each row is the same row product whatever rows are taken (fmbd_csr_matmat), so the
+  // same bits as the whole U.
+  FMBD_GALLOC(cols = fmbd_malloc(sizeof(int64_t) * (size_t)ndof + 1));
+  FMBD_GALLOC(rows = fmbd_malloc(sizeof(int64_t) * (size_t)(6 * nn) + 1));
+  for (int64_t j = 0; j < ndof; j++) cols[j] = j;
+  FMBD_GALLOC(Ui = xcalloc((size_t)(6 * nm) + 1, sizeof(double)));
   // interfaces
   r->ninterfaces = b->ninterfaces;
   FMBD_GALLOC(r->interfaces = xcalloc((size_t)b->ninterfaces, sizeof(fmbd_rflex_interface)));
@@ -408,10 +446,14 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
     memcpy(it->x0, b->xyz + 3 * fi->node, sizeof it->x0);
     FMBD_GALLOC(it->translation = xcalloc((size_t)(3 * nm), sizeof(double)));
     FMBD_GALLOC(it->rotation = xcalloc((size_t)(3 * nm), sizeof(double)));
+    for (int a = 0; a < 6; a++) rows[a] = 6 * fi->node + a;
+    FMBD_GCALL(fmbd_csr_submatrix(b->expand, 6, rows, ndof, cols, &E));
+    fmbd_csr_matmat(E, nm, r->shapes, ndof, Ui, 6);
+    fmbd_csr_destroy(&E);
     for (int64_t k = 0; k < nm; k++) {
       for (int a = 0; a < 3; a++) {
-        it->translation[a + 3 * k] = U[6 * fi->node + a + 6 * nn * k];
-        it->rotation[a + 3 * k] = U[6 * fi->node + 3 + a + 6 * nn * k];
+        it->translation[a + 3 * k] = Ui[a + 6 * k];
+        it->rotation[a + 3 * k] = Ui[3 + a + 6 * k];
       }
     }
   }
@@ -440,30 +482,38 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
   memcpy(r->Kff, Kff, sizeof(double) * (size_t)(nm * nm));
   if (nm > 0) {
     // Ub: component b of the nodal motion (nn x nm per b); Wa = M_n Ua, the mass-weighted
-    // motion, with M_n the body's nodal mass: the scalar consistent mass of the solid elements
-    // (the one the modes come from: M = M_n (x) I3 on the translations) for a consistent-mass
-    // solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
-    //   S1_k,b = 1' Wb_k,  XS_k,ab = x_a' Wb_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
+    // motion (for SS only), with M_n the body's nodal mass: the scalar consistent mass of the solid
+    // elements (the one the modes come from: M = M_n (x) I3 on the translations) for a
+    // consistent-mass solid body, else the lumped nodal masses (docs/THEORY.md section 9). Then
+    //   S1_k,b = 1' M_n Ub_k,  XS_k,ab = x_a' M_n Ub_k,  SS_kl,ab = Ua_k' M_n Ub_l = Wa_k' Ub_l.
     FMBD_GALLOC(Ub = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
-    for (int a = 0; a < 3; a++) {
-      for (int64_t k = 0; k < nm; k++) {
-        for (int64_t p = 0; p < nn; p++) Ub[p + nn * (a * nm + k)] = U[6 * p + a + 6 * nn * k];
-      }
+    if (!no_ss) FMBD_GALLOC(Wa = xcalloc((size_t)(3 * nn * nm), sizeof(double)));
+    for (int a = 0; a < 3; a++) {  // Ua = the rows 6 p + a of expand, times the shapes
+      for (int64_t p = 0; p < nn; p++) rows[p] = 6 * p + a;
+      FMBD_GCALL(fmbd_csr_submatrix(b->expand, nn, rows, ndof, cols, &E));
+      fmbd_csr_matmat(E, nm, r->shapes, ndof, Ub + nn * a * nm, nn);
+      fmbd_csr_destroy(&E);
     }
-    FMBD_GCALL(fmbd_rflex_nodal_mass(b, &Mn));
-    fmbd_csr_matmat(Mn, 3 * nm, Ub, nn, Wa, nn);
+    // S1 and XS weigh the motion by four fields (M_n symmetric): S1_k,b = (M_n 1)' Ub_k,
+    // XS_k,ab = (M_n x_a)' Ub_k, formed element by element (mass_moments); the 3 nm products
+    // M_n Ub only for SS
+    FMBD_GALLOC(m4 = xcalloc((size_t)(4 * nn), sizeof(double)));
+    FMBD_GCALL(mass_moments(b, m4));
     for (int bb = 0; bb < 3; bb++) {
       for (int64_t k = 0; k < nm; k++) {
-        const double *w = Wa + nn * (bb * nm + k);
+        const double *u = Ub + nn * (bb * nm + k);
         double s1 = 0.0, xs[3] = {0.0, 0.0, 0.0};
         for (int64_t p = 0; p < nn; p++) {
-          s1 += w[p];
-          for (int a = 0; a < 3; a++) xs[a] += r->node_xyz[3 * p + a] * w[p];
+          s1 += m4[p] * u[p];
+          for (int a = 0; a < 3; a++) xs[a] += m4[nn * (1 + a) + p] * u[p];
         }
         r->S1[bb + 3 * k] = s1;
         for (int a = 0; a < 3; a++) r->XS[a + 3 * bb + 9 * k] = xs[a];
       }
+    }
+    if (!no_ss) {
+      FMBD_GCALL(fmbd_rflex_nodal_mass(b, &Mn));
+      fmbd_csr_matmat(Mn, 3 * nm, Ub, nn, Wa, nn);
     }
     if (fmbd_rflex_beam_coupling(b)) {
       // the rigid-flexible coupling from the consistent mass M the modes come from (docs/THEORY.md
@@ -475,6 +525,8 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
       // fmbd_rflex_rigid_coupling's C' shapes, which the full FE bodies use; summed in this
       // order they keep the reduced bodies' round-off, to which the QZ reference of
       // tests/py/test_gmsolve.py is sensitive.)
+      FMBD_GALLOC(U = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
+      fmbd_csr_matmat(b->expand, nm, r->shapes, ndof, U, 6 * nn);
       FMBD_GALLOC(WM = xcalloc((size_t)(6 * nn * nm), sizeof(double)));
       FMBD_GCALL(consistent_weighted_full(b, nm, U, WM));
       for (int64_t k = 0; k < nm; k++) {
@@ -501,17 +553,19 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
         }
       }
     }
-    // SS: 9 products of nm x nn by nn x nm, the largest part of the build with many modes; a
-    // body for partial inertia coupling takes it as zero (fmbd_mbs_add_flex), so none is made
+    // SS: products of nm x nn by nn x nm, the largest part of the build with many modes; a
+    // body for partial inertia coupling takes it as zero (fmbd_mbs_add_flex), so none is made.
+    // M_n symmetric: SS_lk,ba = Ub_l' M_n Ua_k = SS_kl,ab, so the 6 products a <= b give all 9
     r->ss_omitted = no_ss;
     FMBD_GALLOC(Sab = xcalloc((size_t)(nm * nm), sizeof(double)));
     for (int a = 0; a < 3 && !no_ss; a++) {
-      for (int bb = 0; bb < 3; bb++) {
+      for (int bb = a; bb < 3; bb++) {
         fmbd_dense_gemm('T', 'N', nm, nm, nn, 1.0, Wa + nn * a * nm, nn, Ub + nn * bb * nm, nn, 0.0,
                         Sab, nm);
         for (int64_t l = 0; l < nm; l++) {
           for (int64_t k = 0; k < nm; k++) {
             r->SS[a + 3 * bb + 9 * k + 9 * nm * l] = Sab[k + nm * l];
+            if (bb != a) r->SS[bb + 3 * a + 9 * l + 9 * nm * k] = Sab[k + nm * l];
           }
         }
       }
@@ -523,6 +577,11 @@ static int rflex_finish(const fmbd_fe_body *b, fmbd_rflex *r, const double *Mff,
   if (stress) FMBD_GCALL(fmbd_rflex_form_stress(r, b, -1, NULL));
 done:
   fmbd_free(U);
+  fmbd_free(Ui);
+  fmbd_free(m4);
+  fmbd_free(rows);
+  fmbd_free(cols);
+  fmbd_csr_destroy(&E);
   fmbd_free(Wa);
   fmbd_free(Ub);
   fmbd_csr_destroy(&Mn);
@@ -591,7 +650,8 @@ static int check_body(const fmbd_fe_body *b) {
 }
 
 // --- secondary reduction ------------------------------------------------------------------
-int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+// *release (in->release) freed and set NULL once the shapes are formed
+static int rflex_build(const fmbd_rflex_input *in, double **release, fmbd_rflex **out) {
   int rc = FMBD_OK;
   fmbd_rflex *r = NULL;
   double *Wa = NULL, *Mff = NULL, *Kff = NULL;
@@ -617,15 +677,21 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
   r->nnodes = b->nnodes;
   FMBD_GALLOC(r->shapes = xcalloc((size_t)(ndof * nm), sizeof(double)));
   // --- shapes: qs = Phi_d Xi_d + Psi Xi_b, qb = Xi_b ---
-  FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  // interior dofs 0..ns-1 in order (fe2cb's usual partition): qs straight into the shapes' rows
+  // (the same products, another leading dimension), else through an ns x nm copy
+  bool direct = true;
+  for (int64_t i = 0; i < ns && direct; i++) direct = in->interior_dofs[i] == i;
+  if (!direct) FMBD_GALLOC(Wa = xcalloc((size_t)(ns * nm), sizeof(double)));
+  double *Q = direct ? r->shapes : Wa;
+  int64_t ldq = direct ? ndof : ns;
   if (nd > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Wa, ns);
+    fmbd_dense_gemm('N', 'N', ns, nm, nd, 1.0, in->Phi, in->ldphi, in->Xi, in->ldxi, 0.0, Q, ldq);
   }
   if (nb > 0) {
-    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Wa, ns);
+    fmbd_dense_gemm('N', 'N', ns, nm, nb, 1.0, in->Psi, ns, in->Xi + nd, in->ldxi, 1.0, Q, ldq);
   }
   for (int64_t k = 0; k < nm; k++) {
-    for (int64_t i = 0; i < ns; i++) {
+    for (int64_t i = 0; i < ns && !direct; i++) {
       int64_t row = in->interior_dofs[i];
       FMBD_GCHECK(row >= 0 && row < ndof, FMBD_ERR_VALUE, "interior dof %lld out of range",
                   (long long)row);
@@ -638,6 +704,10 @@ int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
       r->shapes[row + ndof * k] = in->Xi[nd + j + in->ldxi * k];
     }
   }
+  fmbd_free(Wa);  // not held through rflex_finish's arrays (ns x nm: the peak memory)
+  Wa = NULL;
+  fmbd_free(*release);  // Phi, when the caller hands it over
+  *release = NULL;
   // mass-normalised modes of the reduced problem: Mff = I, Kff = diag(chibar)
   FMBD_GALLOC(Mff = xcalloc((size_t)(nm * nm), sizeof(double)));
   FMBD_GALLOC(Kff = xcalloc((size_t)(nm * nm), sizeof(double)));
@@ -653,6 +723,13 @@ done:
   fmbd_free(Mff);
   fmbd_free(Kff);
   fmbd_rflex_destroy(&r);
+  return rc;
+}
+
+int fmbd_rflex_build(const fmbd_rflex_input *in, fmbd_rflex **out) {
+  double *release = in->release;
+  int rc = rflex_build(in, &release, out);
+  fmbd_free(release);
   return rc;
 }
 

@@ -127,8 +127,11 @@ typedef struct fmbd_rflex_input {
   const double *Xi;      ///< (nd+nb) x nm reduced eigenvectors, M_-orthonormal
   int64_t ldxi;          ///< leading dimension of Xi (>= nd+nb)
   bool stress;           ///< compute /modes/stress (fmbd_fe_nodal_stress)
-  bool no_ss;  ///< for a body with partial inertia coupling only (docs/THEORY.md section 4c,
-               ///< which takes SS as zero): SS not formed, left zero, and r->ss_omitted set
+  bool no_ss;       ///< for a body with partial inertia coupling only (docs/THEORY.md section 4c,
+                    ///< which takes SS as zero): SS not formed, left zero, and r->ss_omitted set
+  double *release;  ///< NULL, or a buffer handed over (fmbd_malloc'd: the caller's Phi), freed
+                    ///< by fmbd_rflex_build once the shapes are formed, before the invariants
+                    ///< (its peak memory), and on every failure
 } fmbd_rflex_input;
 
 /// @brief The secondary reduction [H46-H50]: shapes qF = T0 PhiT (T0 = [Phi_d Psi; 0 I] in

@@ -73,16 +73,20 @@ static int truncate_modes(fmbd_rflex *r, int64_t n) {
 // With desc_out, the body's description is handed to the caller (to form the stress later at
 // the nodes it needs, fmbd_rflex_form_stress).
 // With no_ss, the body is for partial inertia coupling only (fmbd_rflex_input no_ss).
-static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, fmbd_rflex **out,
+// With keep > 0, only the first keep flexible modes are built (those a scene's `modes` keeps:
+// the others' shapes, nodal motion and invariants are never read); keep <= 0 or more than the
+// file has: all of them.
+static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, int64_t keep, fmbd_rflex **out,
                          fmbd_fe_body **desc_out) {
   int rc = FMBD_OK;
   fmbd_cb *cb = NULL;
   fmbd_fe_body *desc = NULL;
   double *Xi = NULL, *chibar = NULL;
   *out = NULL;
-  FMBD_GCALL(fmbd_cb_read(f, &cb));
+  FMBD_GCALL(fmbd_cb_read_basis(f, &cb));
   FMBD_GCALL(fmbd_fe_read(f, &desc));
   int64_t nr = cb->nr, nm = nr - cb->n_rigid;
+  if (keep > 0 && keep < nm) nm = keep;
   FMBD_GALLOC(Xi = fmbd_malloc(sizeof(double) * (size_t)(nr * nm + 1)));
   FMBD_GALLOC(chibar = fmbd_malloc(sizeof(double) * (size_t)(nm + 1)));
   for (int64_t k = 0, j = 0; k < nr && j < nm; k++) {
@@ -91,9 +95,10 @@ static int rflex_from_cb(fmbd_h5 *f, bool stress, bool no_ss, fmbd_rflex **out,
     memcpy(Xi + nr * j, cb->Xi + nr * k, sizeof(double) * (size_t)nr);
     j++;
   }
-  fmbd_rflex_input mi = {desc,   cb->ns,  cb->nb, cb->interior, cb->boundary,
-                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
-                         chibar, Xi,      nr,     stress,       no_ss};
+  fmbd_rflex_input mi = {desc,    cb->ns, cb->nb,  cb->interior, cb->boundary, cb->nd,
+                         cb->Phi, cb->ns, cb->Psi, nm,           chibar,       Xi,
+                         nr,      stress, no_ss,   cb->Phi};
+  cb->Phi = NULL;  // handed over: freed once the shapes are formed (the load's peak)
   FMBD_GCALL(fmbd_rflex_build(&mi, out));
   if (desc_out) {
     *desc_out = desc;
@@ -108,7 +113,7 @@ done:
 }
 
 int fmbd_scene_rflex_from_cb(fmbd_h5 *f, bool stress, fmbd_rflex **out) {
-  return rflex_from_cb(f, stress, false, out, NULL);
+  return rflex_from_cb(f, stress, false, 0, out, NULL);
 }
 
 // --- points --------------------------------------------------------------------------------
@@ -646,7 +651,9 @@ static int load_flex(fmbd_scene_model *m, const fmbd_scene *s, int bi, bool need
     rc = fmbd_h5_check_format(f, FMBD_CB_FORMAT, FMBD_CB_FORMAT_MAJOR);
     if (!rc) {
       // partial inertia coupling takes SS as zero (fmbd_mbs_add_flex): not formed
-      rc = rflex_from_cb(f, false, b->inertia_partial && !b->basis, &m->flex[bi],
+      // and only the modes the scene keeps are built (the others are never read)
+      rc = rflex_from_cb(f, false, b->inertia_partial && !b->basis,
+                         !b->basis && b->modes > 0 ? b->modes : 0, &m->flex[bi],
                          need_stress && !b->basis ? &desc : NULL);
     }
   } else if (format && !strcmp(format, FMBD_FE_FORMAT)) {

@@ -261,8 +261,10 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
 }
 
 // The library's own narrow-block supernodal solves (fmbd_chol_set_own_solve; used for blocks of
-// 2 to 8 right-hand sides where the processor has AVX2 and FMA) against CHOLMOD's on the same
-// factor: the full solve and both halves, every width 1..9, a leading dimension above n, and
+// 2 to 8 right-hand sides where the processor has AVX2 and FMA, 9 to 16 where it has AVX-512)
+// against CHOLMOD's on the same factor: the full solve and both halves, every width 1..17 (the
+// kernels' cases: 4-wide rows by one or two vectors, AVX-512 by chunks of 4 columns, groups of
+// fewer than 4 columns and rows not a multiple of 8), a leading dimension above n, and
 // the columns beyond the block untouched. Both are the same substitutions with the sums in
 // another order; each triangular solve is backward stable with |dL| <= gamma_k |L|, k <= n
 // the length of the longest sum (Higham, Accuracy and Stability of Numerical Algorithms, 2nd
@@ -271,7 +273,7 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
 // cond2(A) comes from A's exact eigenvalues (lam_min, lam_max).
 static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const char *what) {
   int64_t n = A->nrows;
-  const int64_t ld = n + 3, wmax = 9;
+  const int64_t ld = n + 3, wmax = 17;
   fmbd_chol *F = NULL;
   EXPECT(fmbd_chol_create_llt(A, &F) == 0, "%s: LL'", what);
   if (!F) return;
@@ -281,37 +283,43 @@ static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const 
   for (int64_t i = 0; i < ld * (wmax + 1); i++)
     B[i] = sin(0.37 * (double)i) + 0.1 * cos(1.3 * (double)i);
   double cond = lam_max / lam_min, eps = 2.2e-16;
-  for (int64_t w = 1; w <= wmax; w++) {
-    for (int kind = 0; kind < 3; kind++) {  // full solve, forward half, backward half
-      double *out[2] = {X, Y};
-      for (int own = 0; own < 2; own++) {
-        fmbd_chol_set_own_solve(F, own);
-        memcpy(out[own], B, (size_t)(ld * (wmax + 1)) * sizeof(double));
-        int rc = kind == 0 ? fmbd_chol_solve(F, w, out[own], ld)
-                           : fmbd_chol_solve_half(F, kind == 1 ? FMBD_CHOL_FWD : FMBD_CHOL_BWD, w,
-                                                  out[own], ld);
-        EXPECT(rc == 0, "%s: solve %d width %lld own %d: rc %d", what, kind, (long long)w, own, rc);
-      }
-      double bound = 2.0 * (double)n * eps * (kind == 0 ? cond : sqrt(cond));
-      for (int64_t c = 0; c < w; c++) {
-        double e = 0.0, xm = 0.0;
-        for (int64_t i = 0; i < n; i++) {
-          e = fmax(e, fabs(X[i + c * ld] - Y[i + c * ld]));
-          xm = fmax(xm, fabs(X[i + c * ld]));
+  // solve width 6 (calls of at most 6 columns: blocks of 7..17 split into nearly equal own
+  // calls of 4 to 6) and the default (64: one own call up to 16 columns, CHOLMOD's above)
+  for (int64_t sw = 0; sw <= 6; sw += 6)
+    for (int64_t w = 1; w <= wmax; w++) {
+      fmbd_chol_set_solve_width(F, sw);
+      for (int kind = 0; kind < 3; kind++) {  // full solve, forward half, backward half
+        double *out[2] = {X, Y};
+        for (int own = 0; own < 2; own++) {
+          fmbd_chol_set_own_solve(F, own);
+          memcpy(out[own], B, (size_t)(ld * (wmax + 1)) * sizeof(double));
+          int rc = kind == 0 ? fmbd_chol_solve(F, w, out[own], ld)
+                             : fmbd_chol_solve_half(F, kind == 1 ? FMBD_CHOL_FWD : FMBD_CHOL_BWD, w,
+                                                    out[own], ld);
+          EXPECT(rc == 0, "%s: solve %d width %lld own %d: rc %d", what, kind, (long long)w, own,
+                 rc);
         }
-        EXPECT(e <= bound * xm,
-               "%s: solve %d width %lld column %lld: own and CHOLMOD's differ by "
-               "%.3g of %.3g (bound %.3g)",
-               what, kind, (long long)w, (long long)c, e, xm, bound * xm);
+        double bound = 2.0 * (double)n * eps * (kind == 0 ? cond : sqrt(cond));
+        for (int64_t c = 0; c < w; c++) {
+          double e = 0.0, xm = 0.0;
+          for (int64_t i = 0; i < n; i++) {
+            e = fmax(e, fabs(X[i + c * ld] - Y[i + c * ld]));
+            xm = fmax(xm, fabs(X[i + c * ld]));
+          }
+          EXPECT(e <= bound * xm,
+                 "%s: solve %d width %lld column %lld: own and CHOLMOD's differ by "
+                 "%.3g of %.3g (bound %.3g)",
+                 what, kind, (long long)w, (long long)c, e, xm, bound * xm);
+        }
+        // the padding rows and the columns after the block are not touched
+        int same = 1;
+        for (int64_t c = 0; c <= wmax; c++) {
+          for (int64_t i = c < w ? n : 0; i < ld; i++)
+            same = same && Y[i + c * ld] == B[i + c * ld];
+        }
+        EXPECT(same, "%s: solve %d width %lld wrote outside the block", what, kind, (long long)w);
       }
-      // the padding rows and the columns after the block are not touched
-      int same = 1;
-      for (int64_t c = 0; c <= wmax; c++) {
-        for (int64_t i = c < w ? n : 0; i < ld; i++) same = same && Y[i + c * ld] == B[i + c * ld];
-      }
-      EXPECT(same, "%s: solve %d width %lld wrote outside the block", what, kind, (long long)w);
     }
-  }
   // the full solve's backward error, as for CHOLMOD's below: a small multiple of eps
   fmbd_chol_set_own_solve(F, true);
   memcpy(Y, B, (size_t)(ld * 4) * sizeof(double));

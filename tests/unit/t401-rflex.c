@@ -99,9 +99,9 @@ int main(void) {
     chif[k] = cb->chibar[nrig + k];
     memcpy(Xif + nr * k, cb->Xi + nr * (nrig + k), sizeof(double) * (size_t)nr);
   }
-  fmbd_rflex_input mi = {b,      cb->ns,  cb->nb, cb->interior, cb->boundary,
-                         cb->nd, cb->Phi, cb->ns, cb->Psi,      nm,
-                         chif,   Xif,     nr,     true,         false};
+  fmbd_rflex_input mi = {b,       cb->ns, cb->nb,  cb->interior, cb->boundary, cb->nd,
+                         cb->Phi, cb->ns, cb->Psi, nm,           chif,         Xif,
+                         nr,      true,   false,   NULL};
   fmbd_rflex *rf = NULL;
   EXPECT(fmbd_rflex_build(&mi, &rf) == 0, "build: %s", fmbd_err_get()->msg);
   // shapes' M shapes = I: T0' M T0 = M_ (closed form) and Xi' M_ Xi = I; round-off of the
@@ -136,6 +136,82 @@ int main(void) {
     }
     fmbd_rflex_destroy(&rp);
     mi.no_ss = false;
+  }
+  // the first nk modes built alone (fmbd-run's `modes: nk` for a .cb.h5 body): the whole build's
+  // first columns. Only the order of the dense products' sums may differ (BLAS blocking by the
+  // column count), so each entry agrees to a few ulps of the field's largest entry: 1e-12 of it
+  // tolerates that, a wrong or shifted mode is O(1) off. S1 and XS are sums of terms of order
+  // sqrt(m) (|S1_k| <= sqrt(m) |X_k|_M) and sqrt(m) times the body's size, cancelling to
+  // round-off for free-free modes: their scale is that of the terms, not of the result
+  {
+    const int64_t nk = nm - 2;
+    mi.nm = nk;
+    fmbd_rflex *rk = NULL;
+    EXPECT(fmbd_rflex_build(&mi, &rk) == 0 && rk && rk->nm == nk, "build of %lld modes: %s",
+           (long long)nk, fmbd_err_get()->msg);
+    if (rk && rf) {
+      double sm = sqrt(rf->mass), size = 0;
+      for (int64_t p = 0; p < 3 * rf->nnodes; p++) size = fmax(size, fabs(rf->node_xyz[p]));
+#define PREFIX(name, a, b, cnt, scale)                                                         \
+  do {                                                                                         \
+    double big = (scale), d = 0;                                                               \
+    for (int64_t e_ = 0; e_ < (cnt); e_++) {                                                   \
+      big = fmax(big, fabs((a)[e_]));                                                          \
+      d = fmax(d, fabs((a)[e_] - (b)[e_]));                                                    \
+    }                                                                                          \
+    EXPECT(d <= 1e-12 * big, "%lld modes alone: %s differs by %g (largest %g)", (long long)nk, \
+           name, d, big);                                                                      \
+  } while (0)
+      PREFIX("shapes", rf->shapes, rk->shapes, n * nk, 0.0);
+      PREFIX("S1", rf->S1, rk->S1, 3 * nk, sm);
+      PREFIX("XS", rf->XS, rk->XS, 9 * nk, sm * size);
+      for (int i = 0; i < rf->ninterfaces; i++) {
+        PREFIX("interface translation", rf->interfaces[i].translation,
+               rk->interfaces[i].translation, 3 * nk, 0.0);
+        PREFIX("interface rotation", rf->interfaces[i].rotation, rk->interfaces[i].rotation, 3 * nk,
+               0.0);
+      }
+      double *ssw = calloc((size_t)(9 * nk * nk), sizeof(double));
+      for (int64_t l = 0; l < nk; l++) {
+        for (int64_t k = 0; k < nk; k++) {
+          memcpy(ssw + 9 * k + 9 * nk * l, rf->SS + 9 * k + 9 * nm * l, 9 * sizeof(double));
+        }
+      }
+      PREFIX("SS", ssw, rk->SS, 9 * nk * nk, 0.0);
+      free(ssw);
+#undef PREFIX
+    }
+    fmbd_rflex_destroy(&rk);
+    mi.nm = nm;
+  }
+  // the interior dofs listed in reverse (Phi's and Psi's rows with them): the shapes through the
+  // ns x nm copy instead of straight into their rows; the same shapes up to the products'
+  // round-off (1e-12 of the largest entry, as above; a misplaced row is O(1) off)
+  {
+    int64_t ns = cb->ns, nb = cb->nb, nd = cb->nd;
+    int64_t *irev = calloc((size_t)ns, sizeof(int64_t));
+    double *prev = calloc((size_t)(ns * (nd + nb)), sizeof(double)), *srev = prev + ns * nd;
+    for (int64_t i = 0; i < ns; i++) {
+      irev[i] = cb->interior[ns - 1 - i];
+      for (int64_t j = 0; j < nd; j++) prev[i + ns * j] = cb->Phi[ns - 1 - i + ns * j];
+      for (int64_t j = 0; j < nb; j++) srev[i + ns * j] = cb->Psi[ns - 1 - i + ns * j];
+    }
+    fmbd_rflex_input mr = mi;
+    mr.interior_dofs = irev, mr.Phi = prev, mr.Psi = srev, mr.ldphi = ns;
+    fmbd_rflex *rr = NULL;
+    EXPECT(fmbd_rflex_build(&mr, &rr) == 0 && rr, "build, interior reversed: %s",
+           fmbd_err_get()->msg);
+    if (rr && rf) {
+      double big = 0, d = 0;
+      for (int64_t e = 0; e < n * nm; e++) {
+        big = fmax(big, fabs(rf->shapes[e]));
+        d = fmax(d, fabs(rf->shapes[e] - rr->shapes[e]));
+      }
+      EXPECT(d <= 1e-12 * big, "interior reversed: shapes differ by %g (largest %g)", d, big);
+    }
+    fmbd_rflex_destroy(&rr);
+    free(irev);
+    free(prev);
   }
   // first moment and mass from /body
   EXPECT(rf->mass == b->mass && fabs(rf->first_moment[0] - b->mass * b->center_of_mass[0]) < 1e-15,
