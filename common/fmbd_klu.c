@@ -230,27 +230,31 @@ static bool keep_zeros(void) {
   return keep;
 }
 
+// the own solves' per-column arrays (n + 1 each), at the first use: all or none (a failed
+// allocation leaves none behind, and the next call tries again); false when out of memory
+static bool own_cols(fmbd_klu *F) {
+  if (F->oy) return true;
+  size_t m1 = (size_t)F->n + 1;
+  F->oLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+  F->oUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+  F->oP = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+  F->oQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
+  F->oUi_d = fmbd_malloc(sizeof(double) * m1);
+  F->oy = fmbd_malloc(sizeof(double) * m1);
+  if (F->oLp && F->oUp && F->oP && F->oQ && F->oUi_d && F->oy) return true;
+  fmbd_free(F->oLp), fmbd_free(F->oUp), fmbd_free(F->oP), fmbd_free(F->oQ);
+  fmbd_free(F->oUi_d), fmbd_free(F->oy);
+  F->oLp = F->oUp = F->oP = F->oQ = NULL, F->oUi_d = F->oy = NULL;
+  return false;
+}
+
 static void own_extract(fmbd_klu *F) {
   static int off = -1;
   if (off < 0) off = getenv("FMBD_KLU_OWN_SOLVE") && !strcmp(getenv("FMBD_KLU_OWN_SOLVE"), "0");
   F->own = 0;
   if (off || !F->num || !F->sym || F->sym->nblocks != 1 || F->num->Rs) return;
   const int64_t n = F->n, lnz = F->num->lnz, unz = F->num->unz;
-  if (!F->oy) {  // the per-column arrays: all or none
-    size_t m1 = (size_t)n + 1;
-    F->oLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oP = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oUi_d = fmbd_malloc(sizeof(double) * m1);
-    F->oy = fmbd_malloc(sizeof(double) * m1);
-    if (!F->oLp || !F->oUp || !F->oP || !F->oQ || !F->oUi_d || !F->oy) {
-      fmbd_free(F->oLp), fmbd_free(F->oUp), fmbd_free(F->oP), fmbd_free(F->oQ);
-      fmbd_free(F->oUi_d), fmbd_free(F->oy);
-      F->oLp = F->oUp = F->oP = F->oQ = NULL, F->oUi_d = F->oy = NULL;
-      return;
-    }
-  }
+  if (!own_cols(F)) return;
   if (!own_grow(&F->oLi, &F->oLx, &F->ocap_l, lnz) || !own_grow(&F->oUi, &F->oUx, &F->ocap_u, unz))
     return;
   if (!klu_l_extract(F->num, F->sym, F->oLp, F->oLi, F->oLx, F->oUp, F->oUi, F->oUx, NULL, NULL,
@@ -397,21 +401,7 @@ static bool own_refactor(fmbd_klu *F, const double *ax) {
 static void own_from_rf(fmbd_klu *F) {
   const int64_t n = F->n;
   F->own = 0;
-  if (!F->oy) {
-    size_t m1 = (size_t)n + 1;
-    F->oLp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oUp = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oP = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oQ = fmbd_malloc(sizeof(SuiteSparse_long) * m1);
-    F->oUi_d = fmbd_malloc(sizeof(double) * m1);
-    F->oy = fmbd_malloc(sizeof(double) * m1);
-    if (!F->oLp || !F->oUp || !F->oP || !F->oQ || !F->oUi_d || !F->oy) {
-      fmbd_free(F->oLp), fmbd_free(F->oUp), fmbd_free(F->oP), fmbd_free(F->oQ);
-      fmbd_free(F->oUi_d), fmbd_free(F->oy);
-      F->oLp = F->oUp = F->oP = F->oQ = NULL, F->oUi_d = F->oy = NULL;
-      return;
-    }
-  }
+  if (!own_cols(F)) return;
   const int64_t lnz = F->fLp[n], unz = F->fUp[n];
   for (int64_t k = 0; k < n; k++) {
     F->oP[F->fPinv[k]] = k;

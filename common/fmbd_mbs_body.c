@@ -315,36 +315,34 @@ __attribute__((target("avx2"))) static void ssq_avx2(int nm, const double *restr
   }
 }
 #endif
-// P (3 nmp x 3) = St q (St packed by mbs_ss_pack); qp: nmp doubles of workspace
-void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp) {
+// P (3 nmp x 3) = St q (St packed by mbs_ss_pack); qp: nmp doubles of workspace; vec: the
+// vector kernels where the processor has them (else the portable forms, the same bits)
+static void ssq(int nm, const double *St, const double *q, double *P, double *qp, bool vec) {
   const int nmp = (nm + 3) & ~3;
   if (nm < MBS_SS_TRI) {
     memset(P, 0, sizeof(double) * 9 * (size_t)nm);
-    matvec_add(9 * nm, nm, St, 9 * nm, q, 1.0, P);
+    if (vec)
+      matvec_add(9 * nm, nm, St, 9 * nm, q, 1.0, P);
+    else
+      matvec_add_base(9 * nm, nm, St, 9 * nm, q, 1.0, P);
     spread_rows(9, nm, nmp, P);
     return;
   }
   memcpy(qp, q, sizeof(double) * (size_t)nm);
   for (int k = nm; k < nmp; k++) qp[k] = 0;
 #ifdef MBS_VEC4
-  if (__builtin_cpu_supports("avx2")) {
+  if (vec && __builtin_cpu_supports("avx2")) {
     ssq_avx2(nm, St, qp, P);
     return;
   }
 #endif
   ssq_base(nm, St, qp, P);
 }
+void mbs_ssq(int nm, const double *St, const double *q, double *P, double *qp) {
+  ssq(nm, St, q, P, qp, true);
+}
 void mbs_ssq_portable(int nm, const double *St, const double *q, double *P, double *qp) {
-  const int nmp = (nm + 3) & ~3;
-  if (nm < MBS_SS_TRI) {
-    memset(P, 0, sizeof(double) * 9 * (size_t)nm);
-    matvec_add_base(9 * nm, nm, St, 9 * nm, q, 1.0, P);
-    spread_rows(9, nm, nmp, P);
-    return;
-  }
-  memcpy(qp, q, sizeof(double) * (size_t)nm);
-  for (int k = nm; k < nmp; k++) qp[k] = 0;
-  ssq_base(nm, St, qp, P);
+  ssq(nm, St, q, P, qp, false);
 }
 static void matvec(int m, int n, const double *restrict A, const double *restrict x, double alpha,
                    double *restrict y) {
