@@ -195,37 +195,31 @@ for name in ("quadrigid", "quadrigidf", "quad30", "quad30f"):
     print(f"  {name}: link 3 tip vs the peer over 0..2 s: RMS {rms:.3e} m")
 
 # --- cost per step against the number of bodies ------------------------------------------------
-print("\nN-link rigid pendulum (revolute joints about z, gravity -y), fixed 1e-3 s steps, 2 s")
-print(f"{'N':>4s} {'coord':>6s} {'equations':>9s} {'newton/step':>11s} {'us/step':>9s} {'us/body/step':>12s}")
-for N in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 100, 1000):
-    s = ["title: %d-link pendulum" % N, "gravity: [0, -9.81, 0]",
+def chain(N, tag, title, axis):
+    """the N-link chain scene nlink<N><tag>, axis(i) the i-th joint's axis; one table row"""
+    s = ["title: %d-link %s" % (N, title), "gravity: [0, -9.81, 0]",
          "solver: {t_end: %g, step: 1e-3}" % (2 if N <= 20 else 0.2), "bodies:"]
     for i in range(N):
         s.append("  - {name: b%d, geometry: {shape: cylinder, length: 0.3, radius: 0.015, density: 7850, axis: x}, position: [%g, 0, 0]}" % (i, 0.2 + 0.4 * i))
     s.append("joints:")
     for i in range(N):
-        s.append("  - {name: j%d, type: revolute, body1: %s, body2: b%d, point: [%g, 0, 0], axis: z}" % (i, "ground" if i == 0 else "b%d" % (i - 1), i, 0.4 * i))
+        s.append("  - {name: j%d, type: revolute, body1: %s, body2: b%d, point: [%g, 0, 0], axis: %s}" % (i, "ground" if i == 0 else "b%d" % (i - 1), i, 0.4 * i, axis(i)))
     s.append("outputs:\n  every: 0.01\n  points: [{name: tip, body: b%d, point: [0.2, 0, 0]}]" % (N - 1))
-    st = run(f"nlink{N}", "\n".join(s) + "\n")
+    st = run(f"nlink{N}{tag}", "\n".join(s) + "\n")
     if st:
         print(f"{N:4d} {st['coordinates']:6d} {st['equations']:9d} {st['newton_iterations'] / st['steps']:11.2f} "
               f"{1e6 * st['run_cpu_time_s'] / st['steps']:9.1f} {1e6 * st['run_cpu_time_s'] / st['steps'] / N:12.2f}")
+
+HEAD = f"{'N':>4s} {'coord':>6s} {'equations':>9s} {'newton/step':>11s} {'us/step':>9s} {'us/body/step':>12s}"
+print("\nN-link rigid pendulum (revolute joints about z, gravity -y), fixed 1e-3 s steps, 2 s")
+print(HEAD)
+for N in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 100, 1000):
+    chain(N, "", "pendulum", lambda i: "z")
 # the same chains moving in space (every other joint axis tilted out of the plane): the planar
 # chains' out-of-plane unknowns decouple, and fmbd_klu drops the exact zeros that leaves; these
 # rows show the cost where fewer entries are zero (bench/README.md, "Exact zeros of the planar chains")
 print("\nN-link spatial pendulum (joint axes z and (0, 0.6, 0.8) alternating), fixed 1e-3 s steps")
-print(f"{'N':>4s} {'coord':>6s} {'equations':>9s} {'newton/step':>11s} {'us/step':>9s} {'us/body/step':>12s}")
+print(HEAD)
 for N in (10, 100):
-    s = ["title: %d-link spatial pendulum" % N, "gravity: [0, -9.81, 0]",
-         "solver: {t_end: %g, step: 1e-3}" % (2 if N <= 20 else 0.2), "bodies:"]
-    for i in range(N):
-        s.append("  - {name: b%d, geometry: {shape: cylinder, length: 0.3, radius: 0.015, density: 7850, axis: x}, position: [%g, 0, 0]}" % (i, 0.2 + 0.4 * i))
-    s.append("joints:")
-    for i in range(N):
-        s.append("  - {name: j%d, type: revolute, body1: %s, body2: b%d, point: [%g, 0, 0], axis: %s}" % (i, "ground" if i == 0 else "b%d" % (i - 1), i, 0.4 * i, "z" if i % 2 == 0 else "[0, 0.6, 0.8]"))
-    s.append("outputs:\n  every: 0.01\n  points: [{name: tip, body: b%d, point: [0.2, 0, 0]}]" % (N - 1))
-    st = run(f"nlink{N}s", "\n".join(s) + "\n")
-    if st:
-        print(f"{N:4d} {st['coordinates']:6d} {st['equations']:9d} {st['newton_iterations'] / st['steps']:11.2f} "
-              f"{1e6 * st['run_cpu_time_s'] / st['steps']:9.1f} {1e6 * st['run_cpu_time_s'] / st['steps'] / N:12.2f}")
+    chain(N, "s", "spatial pendulum", lambda i: "z" if i % 2 == 0 else "[0, 0.6, 0.8]")
 EOF
