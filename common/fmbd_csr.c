@@ -731,10 +731,24 @@ int fmbd_csr_check(const fmbd_csr *A) {
 }
 
 double fmbd_csr_max_abs(const fmbd_csr *A) {
-  double m = 0.0;
-  for (int64_t p = 0; p < fmbd_csr_nnz(A); p++) m = fmax(m, fabs(A->data[p]));
-  return m;
+  // four running maxima (fmax's one chain took 1.4 ns a value: 11 ms for the 51 k rod's K);
+  // a NaN compares false and is skipped, as fmax skips it
+  double m[4] = {0.0, 0.0, 0.0, 0.0};
+  int64_t nnz = fmbd_csr_nnz(A), p = 0;
+  const double *x = A->data;
+  for (; p + 4 <= nnz; p += 4) {
+    for (int k = 0; k < 4; k++) {
+      double a = fabs(x[p + k]);
+      m[k] = a > m[k] ? a : m[k];
+    }
+  }
+  for (; p < nnz; p++) m[0] = fabs(x[p]) > m[0] ? fabs(x[p]) : m[0];
+  double a = m[0] > m[1] ? m[0] : m[1], b = m[2] > m[3] ? m[2] : m[3];
+  return a > b ? a : b;
 }
+
+// entries ahead whose partners the symmetry walk prefetches
+#define PREFETCH_AHEAD 8
 
 bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
   if (bad_row) *bad_row = -1;
@@ -752,6 +766,11 @@ bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row) {
       for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
         int64_t j = A->indices[p];
         if (j <= i) continue;
+        if (p + PREFETCH_AHEAD < A->indptr[n]) {        // the partner of a later entry: its row's
+          int64_t jf = A->indices[p + PREFETCH_AHEAD];  // cursor is at most one entry behind
+          __builtin_prefetch(A->indices + cur[jf]);
+          __builtin_prefetch(A->data + cur[jf]);
+        }
         int64_t q = cur[j], e = A->indptr[j + 1];
         for (; q < e && A->indices[q] < i; q++) {
           if (fabs(A->data[q]) > tol && j < lower_bad) lower_bad = j;
