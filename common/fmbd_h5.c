@@ -1232,7 +1232,7 @@ static void unshuffle8(const unsigned char *in, size_t c, unsigned char *out) {
 static int read_chunks(hid_t d, hid_t mtype, int64_t n, void *buf) {
   int ok = 0;
   hid_t dcpl = -1, t = -1, sp = -1;
-  unsigned char *raw = NULL, *scratch = NULL;
+  unsigned char *raw = NULL, *scratch = NULL, *seen = NULL;
   size_t raw_cap = 0;
   struct libdeflate_decompressor *dz = NULL;
   hsize_t c = 0, nch = 0;
@@ -1260,7 +1260,8 @@ static int read_chunks(hid_t d, hid_t mtype, int64_t n, void *buf) {
   if ((sp = H5Dget_space(d)) < 0 || H5Dget_num_chunks(d, sp, &nch) < 0 ||
       nch != ((hsize_t)n + c - 1) / c)
     goto out;
-  if (!(dz = libdeflate_alloc_decompressor())) goto out;
+  // each chunk once: a corrupt index naming one offset twice would leave another unread
+  if (!(seen = fmbd_calloc((size_t)nch, 1)) || !(dz = libdeflate_alloc_decompressor())) goto out;
   const size_t cb = (size_t)c * 8;
   for (hsize_t k = 0; k < nch; k++) {
     hsize_t off;
@@ -1268,7 +1269,8 @@ static int read_chunks(hid_t d, hid_t mtype, int64_t n, void *buf) {
     haddr_t addr;
     hsize_t size;
     if (H5Dget_chunk_info(d, sp, k, &off, &mask, &addr, &size) < 0) goto out;
-    if (off % c || off >= (hsize_t)n || size == 0) goto out;
+    if (off % c || off >= (hsize_t)n || size == 0 || seen[off / c]) goto out;
+    seen[off / c] = 1;
     if (size > raw_cap) {
       fmbd_free(raw);
       raw_cap = (size_t)size;
@@ -1314,6 +1316,7 @@ out:
   if (dz) libdeflate_free_decompressor(dz);
   fmbd_free(raw);
   fmbd_free(scratch);
+  fmbd_free(seen);
   if (sp >= 0) H5Sclose(sp);
   if (t >= 0) H5Tclose(t);
   if (dcpl >= 0) H5Pclose(dcpl);
