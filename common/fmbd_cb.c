@@ -133,6 +133,16 @@ int fmbd_cb_check_body(const fmbd_fe_body *b, double sym_rtol) {
   char lab[96];
   const char *name[2] = {"/K", "/M"};
   const fmbd_csr *mat[2] = {b->K, b->M};
+  // both symmetry checks in one walk where M holds K's pattern arrays; the messages below in
+  // the order of the separate checks
+  int64_t sym_bad[2] = {-2, -2};  // -2: not checked yet
+  bool square = true;
+  for (int k = 0; k < 2; k++) {
+    square = square && mat[k] && mat[k]->nrows == b->ndof && mat[k]->ncols == b->ndof;
+  }
+  if (square && b->M->indices == b->K->indices) {
+    fmbd_csr_is_symmetric_pair(b->K, b->M, sym_rtol, sym_bad);
+  }
   for (int k = 0; k < 2; k++) {
     const fmbd_csr *A = mat[k];
     if (!A) {
@@ -144,8 +154,9 @@ int fmbd_cb_check_body(const fmbd_fe_body *b, double sym_rtol) {
       FMBD_FAIL(FMBD_ERR_FORMAT, "shape %lld x %lld, expected %lld x %lld (the rows of /dofs)",
                 (long long)A->nrows, (long long)A->ncols, (long long)b->ndof, (long long)b->ndof);
     }
-    int64_t bad = -1;
-    if (!fmbd_csr_is_symmetric(A, sym_rtol, &bad)) {
+    int64_t bad = sym_bad[k];
+    if (bad == -2) fmbd_csr_is_symmetric(A, sym_rtol, &bad);
+    if (bad >= 0) {
       fmbd_err_context(NULL, name[k]);
       FMBD_FAIL(FMBD_ERR_VALUE,
                 "matrix is not symmetric (|A(i,j) - A(j,i)| > %.0e max|A|) at row %s", sym_rtol,

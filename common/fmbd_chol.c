@@ -579,9 +579,9 @@ static void clear_block(fmbd_chol *F, double *Lx) {
 // The places are found for PREFILL_CHUNK entries at a time, each prefetched for writing as
 // soon as it is known, and then the chunk's sums are made (prefill_sums): the places lie all
 // over the value block (180 MB at 51 k dofs), nearly every one a cache miss, and these now
-// overlap instead of coming one at a time (the 51 k factorisation's prefill 0.07-0.14 ->
-// 0.05-0.10 s, bench/README.md "The factorisations' prefill"). Each place receives one entry
-// of each matrix, so deferring the sums within a pass changes no bit.
+// overlap instead of coming one at a time (0.02 s of the 0.41-0.47 s of a 51 k factorisation,
+// bench/README.md "The factorisations' prefill"). Each place receives one entry of each
+// matrix, so deferring the sums within a pass changes no bit.
 // super_prefill's sums for nb entries of A (pass m: 0 A, and Bs's entry at the same place
 // when given; 1 B alone), ps their positions in A's arrays, xs their places in the factor
 static void prefill_sums(double *const *xs, const int64_t *ps, int64_t nb, const fmbd_csr *A,
