@@ -218,6 +218,34 @@ static void pool_bound(void) {
   }
 }
 
+// The pages [src, src + len) moved to dst (inside a mapping of this process): one mremap where
+// the range is one mapping; one that earlier moves made of several (each moved piece stays its
+// own mapping), which mremap cannot move at once, piece by piece (a failing piece halved). A
+// failed MREMAP_FIXED has already unmapped its destination (Linux mremap_to unmaps it before it
+// looks at the source), which is mapped again, fresh. Returns the bytes moved from the start;
+// SIZE_MAX if a destination could not be mapped again (a hole in dst).
+static size_t g_test_piece = 0;  // fmbd_alloc_pool_test_pieces
+static size_t move_pages(char *src, size_t len, char *dst) {
+  size_t done = 0, piece = len;
+  while (done < len) {
+    if (piece > len - done) piece = len - done;
+    bool fail = g_test_piece && piece > g_test_piece;
+    if (fail) munmap(dst + done, piece);  // as a failed MREMAP_FIXED leaves it
+    if (!fail &&
+        mremap(src + done, piece, piece, MREMAP_MAYMOVE | MREMAP_FIXED, dst + done) != MAP_FAILED) {
+      done += piece;
+      piece = len - done;
+      continue;
+    }
+    if (mmap(dst + done, piece, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_FIXED, -1,
+             0) == MAP_FAILED)
+      return SIZE_MAX;
+    if (piece <= g_page) break;  // a page that does not move: the rest stays fresh
+    piece = (piece / 2 + g_page - 1) / g_page * g_page;
+  }
+  return done;
+}
+
 // a block of len bytes (whole pages); *reused: how many of its first bytes are pool pages
 static char *pool_take(size_t len, size_t *reused) {
   *reused = 0;
@@ -238,11 +266,21 @@ static char *pool_take(size_t len, size_t *reused) {
       if (g_free[k].len > g_free[big].len) big = k;
     size_t take = g_free[big].len < len - *reused ? g_free[big].len : len - *reused;
     char *src = g_free[big].p;
-    size_t res = resident_in(src, take);
-    if (mremap(src, take, take, MREMAP_MAYMOVE | MREMAP_FIXED, p + *reused) == MAP_FAILED)
-      break;  // the range stays where it was; the rest of the block is fresh
-    range_cut(big, take, res, true);
-    *reused += take;
+    size_t res = resident_in(src, take), moved = move_pages(src, take, p + *reused);
+    if (moved == SIZE_MAX) {
+      // no memory to map the hole again: the block given up (the moved pages with it)
+      munmap(p, len);
+      range_unmap_tail(big, g_free[big].len);
+      *reused = 0;
+      return NULL;
+    }
+    if (moved < take) {
+      size_t left = resident_in(src + moved, take - moved);  // not moved: still in the range
+      res = res > left ? res - left : 0;
+    }
+    range_cut(big, moved, res, true);
+    *reused += moved;
+    if (moved < take) break;  // the rest of the block is fresh
   }
   return p;
 }
@@ -303,6 +341,14 @@ int fmbd_alloc_pool(size_t min_block, size_t cap) {
   (void)min_block;
   (void)cap;
   return 0;
+#endif
+}
+
+void fmbd_alloc_pool_test_pieces(size_t bytes) {
+#ifdef FMBD_POOL
+  g_test_piece = bytes;
+#else
+  (void)bytes;
 #endif
 }
 

@@ -50,6 +50,10 @@ int fmbd_alloc_pool(size_t min_block, size_t cap);
 void *fmbd_calloc_dirty(size_t count, size_t size, size_t *dirty);
 /// @brief Give every page the pool keeps back to the system (it stays on).
 void fmbd_alloc_pool_trim(void);
+/// @brief For tests: the pool's moves of more than bytes fail as mremap fails on a range of
+/// several mappings before Linux 6.17 (destination unmapped), so that the piecewise path runs
+/// on any kernel; 0 (the default) switches this off.
+void fmbd_alloc_pool_test_pieces(size_t bytes);
 /// @brief The pool's counters since the start of the process.
 void fmbd_alloc_pool_get_stats(fmbd_alloc_pool_stats *st);
 

@@ -204,10 +204,44 @@ int main(void) {
   EXPECT(e && all(e, n, 0), "calloc over moved and fresh pages: not all zero");
   if (e) memset(e, 0x77, n);
 
+  // --- a block made of moved ranges is several mappings: freed, then moved again into a
+  // larger block (piece by piece), its pages must arrive whole and the rest stay usable ---
+  if (e) {
+    fmbd_free(e);
+    fmbd_alloc_pool_stats s5a = stats();
+    unsigned char *e2 = fmbd_malloc(n + 3 * MIB);
+    fmbd_alloc_pool_stats s5b = stats();
+    EXPECT(e2 && all(e2, n, 0x77), "moved again: the old pages' values");
+    EXPECT(s5b.reused_bytes - s5a.reused_bytes >= n, "moved again: %zu reused",
+           s5b.reused_bytes - s5a.reused_bytes);
+    if (e2) memset(e2, 0x77, n + 3 * MIB);  // every page mapped
+    e = e2;
+    n += 3 * MIB;
+  }
+
+  // --- a range that cannot move at once (before Linux 6.17, one made of several mappings,
+  // as e's was; here every move above 512 KiB fails as it would there): moved piece by piece,
+  // the destination of each failed move mapped again, the block whole and its values kept ---
+  if (e) {
+    fmbd_free(e);
+    fmbd_alloc_pool_test_pieces(512 * 1024);
+    fmbd_alloc_pool_stats s5c = stats();
+    unsigned char *v = fmbd_malloc(n + 5 * MIB);
+    fmbd_alloc_pool_stats s5d = stats();
+    fmbd_alloc_pool_test_pieces(0);
+    EXPECT(v && all(v, n, 0x77), "piece by piece: the old pages' values");
+    EXPECT(s5d.reused_bytes - s5c.reused_bytes >= n, "piece by piece: %zu reused",
+           s5d.reused_bytes - s5c.reused_bytes);
+    if (v) memset(v, 0x77, n + 5 * MIB);  // every page of the block mapped (else a fault here)
+    e = v;
+    n += 5 * MIB;
+  }
+
   // --- realloc of a pool block: grown and shrunk, the contents kept ---
-  unsigned char *f = fmbd_realloc(e, 9 * MIB);
+  size_t nf = n + 3 * MIB;
+  unsigned char *f = fmbd_realloc(e, nf);
   EXPECT(f && all(f, n, 0x77), "grown: the first %zu bytes kept", n);
-  if (f) memset(f + n, 0x66, 9 * MIB - n);
+  if (f) memset(f + n, 0x66, nf - n);
   unsigned char *g = fmbd_realloc(f ? f : e, 2 * MIB + 5);
   EXPECT(g && all(g, n < 2 * MIB + 5 ? n : 2 * MIB + 5, 0x77), "shrunk: the first bytes kept");
   unsigned char *h = fmbd_realloc(g, 10);  // below the pool's size: stays a pool block
