@@ -87,6 +87,9 @@ int fmbd_csr_check(const fmbd_csr *A);
 /// @brief Whether |A(i,j) - A(j,i)| <= rtol * max|A| for all entries (pattern symmetric
 /// too). *bad_row gets the first offending row, or -1.
 bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row);
+/// @brief fmbd_csr_is_symmetric of A and of B (bad[0], bad[1]: each one's first offending row,
+/// or -1), in one walk where B holds A's indptr and indices arrays (fmbd_fe_body's M).
+bool fmbd_csr_is_symmetric_pair(const fmbd_csr *A, const fmbd_csr *B, double rtol, int64_t bad[2]);
 /// @brief max |A(i,j)|.
 double fmbd_csr_max_abs(const fmbd_csr *A);
 /// @brief Diagonal into d (length min(nrows, ncols)).
