@@ -250,6 +250,8 @@ static void test_csr(void) {
   memcpy(A->data, vc, sizeof vc);
   EXPECT(fmbd_h5_write_csr_like(f, "/mats/C", A, "/mats/A") == FMBD_OK, "write like");
   EXPECT(fmbd_h5_write_csr(f, "/mats/D", A) == FMBD_OK, "write D");
+  A->data[3] = NAN;  // row 2, column 2: refused by the shared read too (values checked alone)
+  EXPECT(fmbd_h5_write_csr_like(f, "/mats/N", A, "/mats/A") == FMBD_OK, "write N");
   EXPECT(fmbd_h5_write_csr_like(f, "/mats/F", E, "/mats/A") == FMBD_ERR_INTERNAL,
          "write like with another shape");
   memcpy(A->data, v, sizeof v);
@@ -287,6 +289,12 @@ static void test_csr(void) {
     }
     C->indptr = C->indices = NULL;  // B's, freed with B
     fmbd_csr_destroy(&C);
+    fmbd_err_clear();
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/N", B, "/mats/A", true, &C) == FMBD_ERR_VALUE && !C,
+           "NaN in a shared read");
+    EXPECT(strstr(fmbd_err_get()->msg, "data: NaN at row 2, column 2") != NULL, "msg %s",
+           fmbd_err_get()->msg);
+    expect_ctx(name, "/mats/N", "NaN in a shared read");
   }
   fmbd_csr_destroy(&B);
   // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0
