@@ -758,6 +758,11 @@ static void test_csr_chunks(void) {
   for (int64_t i = 0; i <= small; i++) S->indptr[i] = i;
   for (int64_t i = 0; i < small; i++) S->indices[i] = small - 1 - i, S->data[i] = 0.5 * (i % 3);
   EXPECT(fmbd_h5_write_csr(f, "/small", S) == FMBD_OK, "write small");
+  // a 2-D array in chunks of whole rows (43690 rows of 3: 2 whole chunks and 12623 rows)
+  const int64_t nr = 100003;
+  int64_t *rows = malloc((size_t)nr * 3 * sizeof *rows), rdims[2] = {nr, 3};
+  for (int64_t q = 0; rows && q < nr * 3; q++) rows[q] = (q * 2654435761) % 1000003;
+  EXPECT(rows && fmbd_h5_write_i64(f, "/rows", 2, rdims, rows) == FMBD_OK, "write rows");
   EXPECT(fmbd_h5_commit(&f, 0, 0) == FMBD_OK, "commit");
   hid_t fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT);
   bool sh;
@@ -773,6 +778,16 @@ static void test_csr_chunks(void) {
   }
   filters(fid, "/mass/indices", &sh, &lv, &nf);
   EXPECT(nf == 2 && sh, "indices: %d filters, shuffle %d", nf, sh);
+  filters(fid, "/rows", &sh, &lv, &nf);
+  EXPECT(nf == 2 && sh, "rows: %d filters, shuffle %d", nf, sh);
+  {
+    hid_t d = H5Dopen2(fid, "/rows", H5P_DEFAULT), pl = H5Dget_create_plist(d);
+    hsize_t cd[2] = {0, 0};
+    EXPECT(H5Pget_chunk(pl, 2, cd) == 2 && cd[0] == 43690 && cd[1] == 3, "rows chunk %llu x %llu",
+           (unsigned long long)cd[0], (unsigned long long)cd[1]);
+    H5Pclose(pl);
+    H5Dclose(d);
+  }
   // the address of /mass/data's second chunk, for the corruption below
   haddr_t addr = HADDR_UNDEF;
   hsize_t csize = 0;
@@ -806,6 +821,14 @@ static void test_csr_chunks(void) {
            "small read back");
     fmbd_csr_destroy(&B);
   }
+  {
+    int64_t *back = NULL, bd[2] = {-1, -1};
+    EXPECT(fmbd_h5_read_i64(f, "/rows", 2, bd, &back) == FMBD_OK && bd[0] == nr && bd[1] == 3 &&
+               rows && !memcmp(back, rows, (size_t)nr * 3 * sizeof *rows),
+           "rows read back");
+    fmbd_free(back);
+  }
+  free(rows);
   fmbd_h5_close(&f);
   EXPECT(addr != HADDR_UNDEF && csize > 16, "chunk address");
   if (addr != HADDR_UNDEF && csize > 16) {
