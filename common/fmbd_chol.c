@@ -517,7 +517,7 @@ static int64_t panel(int64_t m, int64_t n, double *A, int64_t lda, double *W, bo
 // calloc'd block is written once per page where the kernels will read (the rows on and below each
 // column's diagonal): the prefill and the updates read each place before writing it, and a first
 // read of an untouched page maps the shared zero page, which the write after it faults again (two
-// page faults per page: 86,000 instead of 44,000 for the 180 MB factor at 51 k dofs,
+// page faults per page: 86,900 instead of 41,900 in the 180 MB factor at 51 k dofs,
 // bench/README.md "The large blocks' pages"); a first write faults once.
 static void clear_block(fmbd_chol *F, double *Lx) {
   const cholmod_factor *L = F->L;

@@ -192,8 +192,9 @@ int main(int argc, char **argv) {
   fmbd_cli_set_verbosity(a.quiet, a.verbose);
   // the large blocks' pages reused from one stage to the next instead of unmapped and faulted
   // again (fmbd_alloc_pool, bounded by the peak the run's memory has reached: bench/README.md
-  // "The large blocks' pages")
-  fmbd_alloc_pool((size_t)1 << 20, SIZE_MAX);
+  // "The large blocks' pages"); FMBD_POOL=0 leaves it off (side-by-side runs)
+  const char *pool_env = getenv("FMBD_POOL");
+  if (!(pool_env && !strcmp(pool_env, "0"))) fmbd_alloc_pool((size_t)1 << 20, SIZE_MAX);
 
   int rc = FMBD_OK;
   fmbd_h5 *in = NULL, *out = NULL;
