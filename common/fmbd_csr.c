@@ -696,6 +696,12 @@ done:
   return rc;
 }
 
+// the error of a value that is not finite, entry p of row i
+static int bad_value(const fmbd_csr *A, int64_t i, int64_t p) {
+  FMBD_FAIL(FMBD_ERR_VALUE, "data: %s at row %lld, column %lld", isnan(A->data[p]) ? "NaN" : "Inf",
+            (long long)i, (long long)A->indices[p]);
+}
+
 int fmbd_csr_check(const fmbd_csr *A) {
   FMBD_CHECK(A->nrows >= 0 && A->ncols >= 0, FMBD_ERR_FORMAT, "negative shape");
   if (A->indptr[0] != 0) {
@@ -721,10 +727,17 @@ int fmbd_csr_check(const fmbd_csr *A) {
       if (p > A->indptr[i] && j <= A->indices[p - 1]) {
         FMBD_FAIL(FMBD_ERR_FORMAT, "indices: not strictly increasing at row %lld", (long long)i);
       }
-      if (!isfinite(A->data[p])) {
-        FMBD_FAIL(FMBD_ERR_VALUE, "data: %s at row %lld, column %lld",
-                  isnan(A->data[p]) ? "NaN" : "Inf", (long long)i, (long long)j);
-      }
+      if (!isfinite(A->data[p])) return bad_value(A, i, p);
+    }
+  }
+  return FMBD_OK;
+}
+
+int fmbd_csr_check_values(const fmbd_csr *A) {
+  const double *x = A->data;
+  for (int64_t i = 0; i < A->nrows; i++) {
+    for (int64_t p = A->indptr[i]; p < A->indptr[i + 1]; p++) {
+      if (!isfinite(x[p])) return bad_value(A, i, p);
     }
   }
   return FMBD_OK;

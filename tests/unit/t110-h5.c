@@ -250,6 +250,8 @@ static void test_csr(void) {
   memcpy(A->data, vc, sizeof vc);
   EXPECT(fmbd_h5_write_csr_like(f, "/mats/C", A, "/mats/A") == FMBD_OK, "write like");
   EXPECT(fmbd_h5_write_csr(f, "/mats/D", A) == FMBD_OK, "write D");
+  A->data[3] = NAN;  // row 2, column 2: refused by the shared read too (values checked alone)
+  EXPECT(fmbd_h5_write_csr_like(f, "/mats/N", A, "/mats/A") == FMBD_OK, "write N");
   EXPECT(fmbd_h5_write_csr_like(f, "/mats/F", E, "/mats/A") == FMBD_ERR_INTERNAL,
          "write like with another shape");
   memcpy(A->data, v, sizeof v);
@@ -287,6 +289,12 @@ static void test_csr(void) {
     }
     C->indptr = C->indices = NULL;  // B's, freed with B
     fmbd_csr_destroy(&C);
+    fmbd_err_clear();
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/N", B, "/mats/A", true, &C) == FMBD_ERR_VALUE && !C,
+           "NaN in a shared read");
+    EXPECT(strstr(fmbd_err_get()->msg, "data: NaN at row 2, column 2") != NULL, "msg %s",
+           fmbd_err_get()->msg);
+    expect_ctx(name, "/mats/N", "NaN in a shared read");
   }
   fmbd_csr_destroy(&B);
   // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0
@@ -750,6 +758,11 @@ static void test_csr_chunks(void) {
   for (int64_t i = 0; i <= small; i++) S->indptr[i] = i;
   for (int64_t i = 0; i < small; i++) S->indices[i] = small - 1 - i, S->data[i] = 0.5 * (i % 3);
   EXPECT(fmbd_h5_write_csr(f, "/small", S) == FMBD_OK, "write small");
+  // a 2-D array in chunks of whole rows (43690 rows of 3: 2 whole chunks and 12623 rows)
+  const int64_t nr = 100003;
+  int64_t *rows = malloc((size_t)nr * 3 * sizeof *rows), rdims[2] = {nr, 3};
+  for (int64_t q = 0; rows && q < nr * 3; q++) rows[q] = (q * 2654435761) % 1000003;
+  EXPECT(rows && fmbd_h5_write_i64(f, "/rows", 2, rdims, rows) == FMBD_OK, "write rows");
   EXPECT(fmbd_h5_commit(&f, 0, 0) == FMBD_OK, "commit");
   hid_t fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT);
   bool sh;
@@ -765,6 +778,16 @@ static void test_csr_chunks(void) {
   }
   filters(fid, "/mass/indices", &sh, &lv, &nf);
   EXPECT(nf == 2 && sh, "indices: %d filters, shuffle %d", nf, sh);
+  filters(fid, "/rows", &sh, &lv, &nf);
+  EXPECT(nf == 2 && sh, "rows: %d filters, shuffle %d", nf, sh);
+  {
+    hid_t d = H5Dopen2(fid, "/rows", H5P_DEFAULT), pl = H5Dget_create_plist(d);
+    hsize_t cd[2] = {0, 0};
+    EXPECT(H5Pget_chunk(pl, 2, cd) == 2 && cd[0] == 43690 && cd[1] == 3, "rows chunk %llu x %llu",
+           (unsigned long long)cd[0], (unsigned long long)cd[1]);
+    H5Pclose(pl);
+    H5Dclose(d);
+  }
   // the address of /mass/data's second chunk, for the corruption below
   haddr_t addr = HADDR_UNDEF;
   hsize_t csize = 0;
@@ -798,6 +821,14 @@ static void test_csr_chunks(void) {
            "small read back");
     fmbd_csr_destroy(&B);
   }
+  {
+    int64_t *back = NULL, bd[2] = {-1, -1};
+    EXPECT(fmbd_h5_read_i64(f, "/rows", 2, bd, &back) == FMBD_OK && bd[0] == nr && bd[1] == 3 &&
+               rows && !memcmp(back, rows, (size_t)nr * 3 * sizeof *rows),
+           "rows read back");
+    fmbd_free(back);
+  }
+  free(rows);
   fmbd_h5_close(&f);
   EXPECT(addr != HADDR_UNDEF && csize > 16, "chunk address");
   if (addr != HADDR_UNDEF && csize > 16) {
