@@ -46,7 +46,8 @@ int64_t fmbd_alloc_count(void) {
 // fresh mapping into whose first pages the ranges are moved, largest first (mremap moves the
 // page table entries: the pages stay resident, nothing is copied or faulted). calloc clears
 // only the reused bytes (the fresh ones are the kernel's zero pages). The kept bytes never
-// exceed g_cap: beyond it, what does not fit is unmapped (the smallest ranges first).
+// exceed g_cap (beyond it, what does not fit is unmapped, the smallest ranges first) nor the
+// peak bound (pool_bound).
 #ifdef FMBD_POOL
 #define LIVE_SLOTS 4096  // open addressing, a power of two (live large blocks: a few hundred)
 #define FREE_MAX 64

@@ -37,9 +37,13 @@ typedef struct {
 } fmbd_alloc_pool_stats;
 /// @brief Opt-in pool of large blocks (Linux; a program that wants it switches it on, the
 /// default is off): from then on each allocation of at least min_block bytes is its own
-/// mapping of whole pages, whose pages are kept when it is freed, at most cap bytes in all,
-/// and handed to the next large allocation (the page table entries moved, the pages resident:
-/// no page fault, no zeroing by the kernel; calloc clears the reused bytes). min_block 0
+/// mapping of whole pages, whose pages are kept when it is freed and handed to the next large
+/// allocation (the page table entries moved, the pages resident: no page fault, no zeroing by
+/// the kernel; calloc clears the reused bytes). Kept: at most cap bytes, and never more
+/// resident pages than the process's memory less the pool's has come down from its largest
+/// value seen so far (looked at on each large allocation and free), so that the pool does not
+/// raise the peak by itself; memory that grows between two looks while it holds pages can
+/// (fmbd_alloc_pool_trim before such a stage). min_block 0
 /// switches it off and unmaps what it keeps (blocks still allocated are freed as before).
 /// Returns 1 where the pool exists, 0 where it does not (then nothing changes).
 int fmbd_alloc_pool(size_t min_block, size_t cap);
