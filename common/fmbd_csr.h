@@ -84,9 +84,15 @@ int fmbd_csr_ptap(const fmbd_csr *A, const fmbd_csr *P, fmbd_csr **out);
 /// names the array and row (e.g. "indptr: not increasing at row 12"); the caller adds the
 /// file and group via fmbd_err_context before.
 int fmbd_csr_check(const fmbd_csr *A);
+/// @brief fmbd_csr_check's test of the values alone (all finite), for a matrix whose pattern
+/// arrays are those of one already checked (fmbd_h5_read_csr_like's shared read).
+int fmbd_csr_check_values(const fmbd_csr *A);
 /// @brief Whether |A(i,j) - A(j,i)| <= rtol * max|A| for all entries (pattern symmetric
 /// too). *bad_row gets the first offending row, or -1.
 bool fmbd_csr_is_symmetric(const fmbd_csr *A, double rtol, int64_t *bad_row);
+/// @brief fmbd_csr_is_symmetric of A and of B (bad[0], bad[1]: each one's first offending row,
+/// or -1), in one walk where B holds A's indptr and indices arrays (fmbd_fe_body's M).
+bool fmbd_csr_is_symmetric_pair(const fmbd_csr *A, const fmbd_csr *B, double rtol, int64_t bad[2]);
 /// @brief max |A(i,j)|.
 double fmbd_csr_max_abs(const fmbd_csr *A);
 /// @brief Diagonal into d (length min(nrows, ncols)).

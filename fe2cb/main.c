@@ -190,6 +190,11 @@ int main(int argc, char **argv) {
     return fmbd_cli_finish(st < 0 ? 0 : st);
   }
   fmbd_cli_set_verbosity(a.quiet, a.verbose);
+  // the large blocks' pages reused from one stage to the next instead of unmapped and faulted
+  // again (fmbd_alloc_pool, bounded by the peak the run's memory has reached: bench/README.md
+  // "The large blocks' pages"); FMBD_POOL=0 leaves it off (side-by-side runs)
+  const char *pool_env = getenv("FMBD_POOL");
+  if (!(pool_env && !strcmp(pool_env, "0"))) fmbd_alloc_pool((size_t)1 << 20, SIZE_MAX);
 
   int rc = FMBD_OK;
   fmbd_h5 *in = NULL, *out = NULL;
@@ -226,6 +231,16 @@ int main(int argc, char **argv) {
   FMBD_GCALL(fmbd_cb_reduce_take(&body->K, &body->M, body->dofs, nb, boundary, &a.cb, &cb));
   fmbd_progress(NULL);
   fmbd_log(FMBD_LOG_DEBUG, "peak memory after the reduction: %.0f MB", peak_mb());
+  {
+    fmbd_alloc_pool_stats ps;
+    fmbd_alloc_pool_get_stats(&ps);
+    fmbd_log(FMBD_LOG_DEBUG,
+             "large blocks: %lld, %.0f MB of their pages reused, %.0f MB fresh; %.0f MB given "
+             "back, %.0f MB kept (%.0f MB resident)",
+             (long long)ps.blocks, ps.reused_bytes / 1048576.0, ps.fresh_bytes / 1048576.0,
+             ps.unmapped_bytes / 1048576.0, ps.kept_bytes / 1048576.0,
+             ps.kept_resident_bytes / 1048576.0);
+  }
   cb->fe_file = fmbd_strdup(strcmp(a.input, "-") ? a.input : "(stdin)");
   snprintf(cb->fe_sha256, sizeof cb->fe_sha256, "%s", fmbd_h5_sha256(in));
 

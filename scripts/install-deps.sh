@@ -4,7 +4,7 @@
 set -euo pipefail
 PKGS=(gcc g++ make pkg-config
       libgmsh-dev gmsh libhdf5-dev hdf5-tools libopenblas-dev liblapacke-dev libarpack2-dev
-      libsuitesparse-dev libcgal-dev libyaml-dev zlib1g-dev
+      libsuitesparse-dev libcgal-dev libyaml-dev zlib1g-dev libdeflate-dev
       python3-h5py python3-numpy python3-scipy python3-matplotlib python3-meshio calculix-ccx valgrind
       clang-format bsdutils util-linux man-db groff-base
       # issue 13: the batch example (/usr/bin/time; bc for bench/batch.sh) and fe2cb-mpi

@@ -6,6 +6,101 @@
 #include "check.h"
 #include "fmbd.h"
 
+// The first offending row of a dense matrix D with stored-entry mask S (n x n, row-major), as
+// fmbd_csr_is_symmetric defines it, by brute force: the first row i holding an entry (i, j),
+// j > i, that differs from D(j, i) by more than tol; else the first row j holding an entry
+// (j, i), i < j, above tol whose partner (i, j) is not stored; else -1.
+static int64_t dense_bad_row(int n, const double *D, const unsigned char *S, double tol) {
+  for (int i = 0; i < n; i++)
+    for (int j = i + 1; j < n; j++)
+      if (S[i * n + j] && fabs(D[i * n + j] - D[j * n + i]) > tol) return i;
+  for (int j = 0; j < n; j++)
+    for (int i = 0; i < j; i++)
+      if (S[j * n + i] && !S[i * n + j] && fabs(D[j * n + i]) > tol) return j;
+  return -1;
+}
+
+// fmbd_csr_is_symmetric and fmbd_csr_is_symmetric_pair (one walk over two value arrays on
+// one pattern) against dense_bad_row on random patterns: symmetric values, then value
+// defects and one-sided entries, some above and some below the tolerance
+static void random_symmetry(void) {
+  unsigned seed = 12345u;
+#define RND() (seed = seed * 1103515245u + 12345u, (double)((seed >> 8) & 0xffffff) / 16777216.0)
+  enum { N = 24 };
+  double D[2][N * N];
+  unsigned char S[N * N];
+  for (int trial = 0; trial < 400; trial++) {
+    int n = 1 + (int)(RND() * N);
+    double dens = 0.05 + 0.5 * RND(), rtol = 1e-6;
+    for (int i = 0; i < n; i++) {
+      for (int j = 0; j <= i; j++) {
+        unsigned char st = i == j || RND() < dens;
+        S[i * n + j] = S[j * n + i] = st;
+        for (int m = 0; m < 2; m++) D[m][i * n + j] = D[m][j * n + i] = st ? RND() - 0.5 : 0.0;
+      }
+    }
+    D[0][0] = D[1][0] = 1.0;  // max|D| = 1: tol = rtol
+    int ndef = (int)(RND() * 4);
+    for (int k = 0; k < ndef; k++) {
+      int m = RND() < 0.5, i = (int)(RND() * n), j = (int)(RND() * n);
+      if (i == j) continue;
+      // below or above the tolerance (the values' round-off, 1e-16, far from either side)
+      static const double sizes[4] = {0.3, 0.9, 1.5, 30.0};
+      double size = sizes[(int)(RND() * 4)] * rtol;
+      if (RND() < 0.5 && S[i * n + j]) {
+        D[m][i * n + j] += size;  // a value defect
+      } else if (!S[i * n + j]) {
+        S[i * n + j] = 1;  // a one-sided entry (both matrices hold the pattern)
+        D[m][i * n + j] = size;
+        D[1 - m][i * n + j] = 0.0;
+      }
+    }
+    fmbd_csr *A = NULL, *B = NULL;
+    int64_t nnz = 0;
+    for (int q = 0; q < n * n; q++) nnz += S[q];
+    EXPECT(fmbd_csr_create(n, n, nnz, &A) == 0 && fmbd_csr_create(n, n, nnz, &B) == 0, "create");
+    if (!A || !B) break;
+    nnz = 0;
+    for (int i = 0; i < n; i++) {
+      A->indptr[i] = nnz;
+      for (int j = 0; j < n; j++) {
+        if (!S[i * n + j]) continue;
+        A->indices[nnz] = j;
+        A->data[nnz] = D[0][i * n + j];
+        B->data[nnz++] = D[1][i * n + j];
+      }
+    }
+    A->indptr[n] = nnz;
+    int64_t ref[2] = {dense_bad_row(n, D[0], S, rtol), dense_bad_row(n, D[1], S, rtol)};
+    int64_t one[2], pair[2];
+    bool ok0 = fmbd_csr_is_symmetric(A, rtol, &one[0]);
+    EXPECT(ok0 == (ref[0] < 0) && one[0] == ref[0], "trial %d: A row %lld, expected %lld", trial,
+           (long long)one[0], (long long)ref[0]);
+    // B on A's pattern arrays (as fmbd_fe_body's M on K's), then on copies of them
+    int64_t *own_p = B->indptr, *own_i = B->indices;
+    B->indptr = A->indptr;
+    B->indices = A->indices;
+    bool ok1 = fmbd_csr_is_symmetric(B, rtol, &one[1]);
+    EXPECT(ok1 == (ref[1] < 0) && one[1] == ref[1], "trial %d: B row %lld, expected %lld", trial,
+           (long long)one[1], (long long)ref[1]);
+    bool okp = fmbd_csr_is_symmetric_pair(A, B, rtol, pair);
+    EXPECT(okp == (ref[0] < 0 && ref[1] < 0) && pair[0] == ref[0] && pair[1] == ref[1],
+           "trial %d: shared pattern rows %lld %lld, expected %lld %lld", trial, (long long)pair[0],
+           (long long)pair[1], (long long)ref[0], (long long)ref[1]);
+    for (int i = 0; i <= n; i++) own_p[i] = A->indptr[i];
+    for (int64_t q = 0; q < nnz; q++) own_i[q] = A->indices[q];
+    B->indptr = own_p;
+    B->indices = own_i;
+    okp = fmbd_csr_is_symmetric_pair(A, B, rtol, pair);
+    EXPECT(okp == (ref[0] < 0 && ref[1] < 0) && pair[0] == ref[0] && pair[1] == ref[1],
+           "trial %d: copied pattern rows %lld %lld, expected %lld %lld", trial, (long long)pair[0],
+           (long long)pair[1], (long long)ref[0], (long long)ref[1]);
+    fmbd_csr_destroy(&A);
+    fmbd_csr_destroy(&B);
+  }
+#undef RND
+}
+
 int main(void) {
   // 1-D chain of 4 two-dof elements over 5 dofs, element matrix [1 -1; -1 1]
   int64_t ed[8] = {0, 1, 1, 2, 2, 3, 3, 4};
@@ -102,5 +197,6 @@ int main(void) {
   fmbd_csr_destroy(&P);
   fmbd_csr_destroy(&C);
   fmbd_csr_destroy(&C);
+  random_symmetry();
   TEST_EXIT();
 }

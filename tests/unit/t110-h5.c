@@ -250,6 +250,8 @@ static void test_csr(void) {
   memcpy(A->data, vc, sizeof vc);
   EXPECT(fmbd_h5_write_csr_like(f, "/mats/C", A, "/mats/A") == FMBD_OK, "write like");
   EXPECT(fmbd_h5_write_csr(f, "/mats/D", A) == FMBD_OK, "write D");
+  A->data[3] = NAN;  // row 2, column 2: refused by the shared read too (values checked alone)
+  EXPECT(fmbd_h5_write_csr_like(f, "/mats/N", A, "/mats/A") == FMBD_OK, "write N");
   EXPECT(fmbd_h5_write_csr_like(f, "/mats/F", E, "/mats/A") == FMBD_ERR_INTERNAL,
          "write like with another shape");
   memcpy(A->data, v, sizeof v);
@@ -287,6 +289,12 @@ static void test_csr(void) {
     }
     C->indptr = C->indices = NULL;  // B's, freed with B
     fmbd_csr_destroy(&C);
+    fmbd_err_clear();
+    EXPECT(fmbd_h5_read_csr_like(f, "/mats/N", B, "/mats/A", true, &C) == FMBD_ERR_VALUE && !C,
+           "NaN in a shared read");
+    EXPECT(strstr(fmbd_err_get()->msg, "data: NaN at row 2, column 2") != NULL, "msg %s",
+           fmbd_err_get()->msg);
+    expect_ctx(name, "/mats/N", "NaN in a shared read");
   }
   fmbd_csr_destroy(&B);
   // row blocks (fmbd_h5_read_csr_rows): every r0 <= r1 gives rows r0..r1-1 of A, indptr from 0
@@ -719,6 +727,131 @@ static void test_csr_filters(void) {
   fmbd_csr_destroy(&A);
 }
 
+// CSR arrays of several chunks, the last one partial (fmbd_h5.c read_chunks: each chunk
+// decompressed into the array, shuffled ones through a scratch chunk): every filter layout the
+// writer chooses (indices shuffle + deflate; values deflate, shuffle + deflate, none) read back
+// bit for bit; chunk lengths that are and are not multiples of the unshuffle's 16-element
+// blocks; a chunk with one byte changed on disk refused (Adler-32) with HDF5's message
+static void test_csr_chunks(void) {
+  const char *name = tmp("csrc.h5");
+  const int64_t big = 300003, small = 20003;  // 131072-element chunks: 2 whole + 37859
+  fmbd_csr *A[3] = {NULL, NULL, NULL}, *S = NULL;
+  fmbd_h5 *f = NULL;
+  EXPECT(fmbd_h5_create(name, "fmbd-test", "1.0", &f) == FMBD_OK, "create");
+  const char *path[3] = {"/mass", "/smooth", "/random"};
+  uint64_t s = 7;
+  for (int k = 0; k < 3; k++) {
+    EXPECT(fmbd_csr_create(big, big, big, &A[k]) == FMBD_OK, "csr");
+    if (!A[k]) return;
+    for (int64_t i = 0; i <= big; i++) A[k]->indptr[i] = i;
+    for (int64_t i = 0; i < big; i++) {
+      A[k]->indices[i] = (i * 7919) % big;  // any column: one entry a row
+      s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+      A[k]->data[i] = k == 0   ? (double)(i % 7 == 0 ? 3 : 1) * 0.1  // whole doubles repeated
+                      : k == 1 ? 1.0 + (double)i * 0x1p-20 +
+                                     (double)(s >> 40) * 0x1p-52          // 1.5:1, shuffled 2.6:1
+                               : (double)(s >> 11) / 9007199254740992.0;  // incompressible
+    }
+    EXPECT(fmbd_h5_write_csr(f, path[k], A[k]) == FMBD_OK, "write %s", path[k]);
+  }
+  EXPECT(fmbd_csr_create(small, small, small, &S) == FMBD_OK, "csr");
+  for (int64_t i = 0; i <= small; i++) S->indptr[i] = i;
+  for (int64_t i = 0; i < small; i++) S->indices[i] = small - 1 - i, S->data[i] = 0.5 * (i % 3);
+  EXPECT(fmbd_h5_write_csr(f, "/small", S) == FMBD_OK, "write small");
+  // a 2-D array in chunks of whole rows (43690 rows of 3: 2 whole chunks and 12623 rows)
+  const int64_t nr = 100003;
+  int64_t *rows = malloc((size_t)nr * 3 * sizeof *rows), rdims[2] = {nr, 3};
+  for (int64_t q = 0; rows && q < nr * 3; q++) rows[q] = (q * 2654435761) % 1000003;
+  EXPECT(rows && fmbd_h5_write_i64(f, "/rows", 2, rdims, rows) == FMBD_OK, "write rows");
+  EXPECT(fmbd_h5_commit(&f, 0, 0) == FMBD_OK, "commit");
+  hid_t fid = H5Fopen(name, H5F_ACC_RDONLY, H5P_DEFAULT);
+  bool sh;
+  unsigned lv;
+  int nf;
+  const int want_nf[3] = {1, 2, 0};
+  const bool want_sh[3] = {false, true, false};
+  char p[64];
+  for (int k = 0; k < 3; k++) {
+    snprintf(p, sizeof p, "%s/data", path[k]);
+    filters(fid, p, &sh, &lv, &nf);
+    EXPECT(nf == want_nf[k] && sh == want_sh[k], "%s: %d filters, shuffle %d", p, nf, sh);
+  }
+  filters(fid, "/mass/indices", &sh, &lv, &nf);
+  EXPECT(nf == 2 && sh, "indices: %d filters, shuffle %d", nf, sh);
+  filters(fid, "/rows", &sh, &lv, &nf);
+  EXPECT(nf == 2 && sh, "rows: %d filters, shuffle %d", nf, sh);
+  {
+    hid_t d = H5Dopen2(fid, "/rows", H5P_DEFAULT), pl = H5Dget_create_plist(d);
+    hsize_t cd[2] = {0, 0};
+    EXPECT(H5Pget_chunk(pl, 2, cd) == 2 && cd[0] == 43690 && cd[1] == 3, "rows chunk %llu x %llu",
+           (unsigned long long)cd[0], (unsigned long long)cd[1]);
+    H5Pclose(pl);
+    H5Dclose(d);
+  }
+  // the address of /mass/data's second chunk, for the corruption below
+  haddr_t addr = HADDR_UNDEF;
+  hsize_t csize = 0;
+  {
+    hid_t d = H5Dopen2(fid, "/mass/data", H5P_DEFAULT), sp = H5Dget_space(d);
+    hsize_t off;
+    unsigned mask;
+    for (hsize_t c = 0; c < 3; c++) {
+      if (H5Dget_chunk_info(d, sp, c, &off, &mask, &addr, &csize) >= 0 && off == 131072) break;
+      addr = HADDR_UNDEF;
+    }
+    H5Sclose(sp);
+    H5Dclose(d);
+  }
+  H5Fclose(fid);
+  EXPECT(fmbd_h5_open(name, &f) == FMBD_OK, "open");
+  for (int k = 0; k < 3; k++) {
+    fmbd_csr *B = NULL;
+    EXPECT(fmbd_h5_read_csr(f, path[k], &B) == FMBD_OK && B &&
+               !memcmp(B->indptr, A[k]->indptr, (size_t)(big + 1) * sizeof(int64_t)) &&
+               !memcmp(B->indices, A[k]->indices, (size_t)big * sizeof(int64_t)) &&
+               !memcmp(B->data, A[k]->data, (size_t)big * sizeof(double)),
+           "%s read back", path[k]);
+    fmbd_csr_destroy(&B);
+  }
+  {
+    fmbd_csr *B = NULL;
+    EXPECT(fmbd_h5_read_csr(f, "/small", &B) == FMBD_OK && B &&
+               !memcmp(B->indices, S->indices, (size_t)small * sizeof(int64_t)) &&
+               !memcmp(B->data, S->data, (size_t)small * sizeof(double)),
+           "small read back");
+    fmbd_csr_destroy(&B);
+  }
+  {
+    int64_t *back = NULL, bd[2] = {-1, -1};
+    EXPECT(fmbd_h5_read_i64(f, "/rows", 2, bd, &back) == FMBD_OK && bd[0] == nr && bd[1] == 3 &&
+               rows && !memcmp(back, rows, (size_t)nr * 3 * sizeof *rows),
+           "rows read back");
+    fmbd_free(back);
+  }
+  free(rows);
+  fmbd_h5_close(&f);
+  EXPECT(addr != HADDR_UNDEF && csize > 16, "chunk address");
+  if (addr != HADDR_UNDEF && csize > 16) {
+    int fd = open(name, O_RDWR);
+    unsigned char byte = 0;
+    off_t at = (off_t)(addr + csize / 2);
+    EXPECT(fd >= 0 && pread(fd, &byte, 1, at) == 1, "read a byte");
+    byte ^= 0x5a;
+    EXPECT(pwrite(fd, &byte, 1, at) == 1, "change a byte");
+    if (fd >= 0) close(fd);
+    fmbd_csr *B = NULL;
+    fmbd_err_clear();
+    EXPECT(fmbd_h5_open_unhashed(name, &f) == FMBD_OK, "open");
+    EXPECT(fmbd_h5_read_csr(f, "/mass", &B) == FMBD_ERR_FORMAT && !B, "corrupt chunk read");
+    expect_ctx(name, "/mass/data", "corrupt chunk");
+    EXPECT(strstr(fmbd_err_get()->msg, "cannot read dataset") != NULL, "msg %s",
+           fmbd_err_get()->msg);
+    fmbd_h5_close(&f);
+  }
+  for (int k = 0; k < 3; k++) fmbd_csr_destroy(&A[k]);
+  fmbd_csr_destroy(&S);
+}
+
 int main(void) {
   const char *root = getenv("ROOT"), *build = getenv("BUILD");
   snprintf(g_dir, sizeof g_dir, "%s/%s/test-tmp/t110-h5", root ? root : ".",
@@ -731,6 +864,7 @@ int main(void) {
   test_cm();
   test_csr();
   test_csr_filters();
+  test_csr_chunks();
   test_attrs();
   test_open_errors();
   test_atomic();
