@@ -48,7 +48,7 @@ FMBD_CPPFLAGS := -D_XOPEN_SOURCE=700 -DFMBD_VERSION='"$(VERSION)"' -Icommon $(HD
 # --as-needed: a program records only the shared libraries its own objects call; the programs
 # that do not mesh then do not load gmsh and its 130 libraries (0.1 s at every start)
 FMBD_LDFLAGS  += -Wl,--as-needed
-FMBD_LDLIBS   := $(GMSH_LIBS) $(HDF5_LIBS) -lz -ldeflate $(ARPACK_LIBS) $(CHOLMOD_LIBS) $(LAPACK_LIBS) $(YAML_LIBS) $(CGAL_LIBS) -lm
+FMBD_LDLIBS   := $(GMSH_LIBS) $(HDF5_LIBS) -ldeflate $(ARPACK_LIBS) $(CHOLMOD_LIBS) $(LAPACK_LIBS) $(YAML_LIBS) $(CGAL_LIBS) -lm
 ifeq ($(FUZZ),1)  # the libFuzzer build (make fuzz): clang, coverage and sanitizers everywhere
   SAN := -fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
   FMBD_CFLAGS += $(SAN)

@@ -26,8 +26,9 @@ enum { METIS_ONLY_N = 50000 };
 // the supernodal LDL' and LL' panel's leaf width and product chunk (panel), and the width of
 // the descendants' update blocks (super_factor)
 enum { LDL_LEAF = 16, LDL_KC = 256, LDL_CB = 64 };
-// entries whose places super_prefill finds (and prefetches) before it adds them
-enum { PREFILL_CHUNK = 64 };
+// entries whose places super_prefill finds (and prefetches) before it adds them; the mean run
+// length from which scatter_update subtracts by runs instead of place by place
+enum { PREFILL_CHUNK = 64, SCATTER_RUN = 8 };
 
 struct fmbd_chol {
   int kind;
@@ -674,21 +675,42 @@ static inline void sub_run(double *restrict dst, const double *restrict src, int
 
 // Lsx (supernode s, columns k1.., nsrow rows, map: row -> place) -= C (nr2 x nr1, lower
 // trapezoid), C's rows being the rows rows[0..nr2-1] of s (rows[0..nr1-1] also its columns).
-// The rows come in runs of consecutive places (volume-weighted mean 78 rows at 51 k dofs): the
-// runs are found once (run starts and their places in `runs`, 2 (nr2 + 1) values), then each
-// column subtracts run by run, contiguous on both sides
+// The places of the rows are found once (`runs`: the places, then the starts of the runs of
+// consecutive places, 2 (nr2 + 1) values at most). Where the runs are long (a mean of
+// SCATTER_RUN rows or more), each column subtracts run by run, contiguous on both sides; where
+// they are short, place by place: most runs are short (one 51 k LL' scatters 40.8 M values in
+// 6.1 M runs, 44 % of the values in runs under 8), and a run's start costs more than its
+// values there (0.003-0.008 s less per 51 k factorisation, bench/README.md "The
+// factorisations' prefill"). Either way every place gets the same one subtraction.
 static void scatter_update(int64_t nr1, int64_t nr2, const double *C, const SuiteSparse_long *rows,
                            const int64_t *map, int64_t k1, double *Lsx, int64_t nsrow,
                            int64_t *runs) {
-  int64_t *start = runs, *place = runs + nr2 + 1, nrun = 0;
+  int64_t *place = runs, *start = runs + nr2 + 1, nrun = 0;
   for (int64_t ii = 0; ii < nr2; ii++) {
     int64_t t = map[rows[ii]];
-    if (nrun == 0 || t != place[nrun - 1] + (ii - start[nrun - 1])) {
-      start[nrun] = ii;
-      place[nrun++] = t;
-    }
+    place[ii] = t;
+    if (ii == 0 || t != place[ii - 1] + 1) start[nrun++] = ii;
   }
   start[nrun] = nr2;
+  if (nr2 < SCATTER_RUN * nrun) {
+    for (int64_t jj = 0; jj < nr1; jj++) {
+      double *col = Lsx + (rows[jj] - k1) * nsrow;
+      const double *c = C + jj * nr2;
+      int64_t i = jj;
+      for (; i + 4 <= nr2; i += 4) {
+        // four distinct places: loads first, then the stores
+        double *d0 = col + place[i], *d1 = col + place[i + 1], *d2 = col + place[i + 2];
+        double *d3 = col + place[i + 3];
+        double v0 = *d0 - c[i], v1 = *d1 - c[i + 1], v2 = *d2 - c[i + 2], v3 = *d3 - c[i + 3];
+        *d0 = v0;
+        *d1 = v1;
+        *d2 = v2;
+        *d3 = v3;
+      }
+      for (; i < nr2; i++) col[place[i]] -= c[i];
+    }
+    return;
+  }
   int64_t q = 0;
   for (int64_t jj = 0; jj < nr1; jj++) {
     while (start[q + 1] <= jj) q++;
@@ -696,7 +718,7 @@ static void scatter_update(int64_t nr1, int64_t nr2, const double *C, const Suit
     const double *c = C + jj * nr2;
     for (int64_t r = q; r < nrun; r++) {
       int64_t i0 = r == q ? jj : start[r], len = start[r + 1] - i0;
-      sub_run(col + place[r] + (i0 - start[r]), c + i0, len);
+      sub_run(col + place[i0], c + i0, len);
     }
   }
 }
