@@ -39,6 +39,8 @@ typedef struct fmbd_cb_opts {
   double fmax_hz;     ///< > 0: every mode up to this frequency instead of a count. Default 0
   double rigid_rtol;  ///< reduced chibar <= rigid_rtol * kappa_1 is rigid. Default 1e-6
   double sym_rtol;    ///< K, M symmetric to |Aij - Aji| <= sym_rtol max|A|. Default 1e-10
+  double fixed_tol;   ///< eig.tol of the runs with the boundary held (fixed-interface, nm
+                      ///< hold); free-free runs take eig.tol. Default 1e-11
   fmbd_eig_opts eig;  ///< eigensolver options (nev / lambda_max / free_body are set here)
 } fmbd_cb_opts;
 
