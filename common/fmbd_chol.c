@@ -1662,7 +1662,7 @@ static void ow_free(fmbd_chol *F) {
 // own_solve's and own_op's conditions, and the workspace allocated on first use
 static bool own_fits(const fmbd_chol *F, int64_t nrhs) {
   const cholmod_factor *L = F->L;
-  if (!F->own_solve || nrhs > 16 || nrhs < 2 || !L->is_super || !L->is_ll ||
+  if (!F->own_solve || nrhs > 24 || nrhs < 2 || !L->is_super || !L->is_ll ||
       L->xtype != CHOLMOD_REAL || !__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma"))
     return false;
   return nrhs <= 8 || __builtin_cpu_supports("avx512f");
@@ -1698,7 +1698,7 @@ static bool own_could(const fmbd_chol *F, int64_t nrhs) {
 #endif
 }
 
-// Our solve of nrhs <= 16 columns (8 without AVX-512) (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X;
+// Our solve of nrhs <= 24 columns (8 without AVX-512) (FWD: X <- L^-1 P X; BWD: X <- P' L^-T X;
 // both: the full solve); false when not available here (then CHOLMOD's).
 static bool own_solve(fmbd_chol *F, int fwd, int bwd, int64_t nrhs, double *X, int64_t ldx) {
 #ifdef FMBD_OWN_SOLVE
@@ -1801,12 +1801,16 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   // solve by CHOLMOD, 64 columns at a time; both kept measured a peak 16 MB higher)
   const int64_t block = F->solve_width > 0 ? F->solve_width : 64;
   bool split = block >= 4 && block <= 16 && nrhs > block;  // below: calls of <= block columns
-  if (F->started && (F->X || F->Y || F->E) && own_could(F, split ? block : nrhs)) {
+  // 17-24 columns in one own pass only where the caller's width asks for it (the workspace is
+  // n x 24: fe2cb's 23 Ritz vectors, fmbd_eig.c)
+  bool one = nrhs <= 16 || nrhs <= F->solve_width;
+  if (F->started && (F->X || F->Y || F->E) &&
+      own_could(F, split ? block : (one ? nrhs : 25))) {
     cholmod_l_free_dense(&F->X, &F->c);
     cholmod_l_free_dense(&F->Y, &F->c);
     cholmod_l_free_dense(&F->E, &F->c);
   }
-  if (own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
+  if (one && own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
                 sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
     F->st.t_solve_s += fmbd_wall_s() - t0;
     return FMBD_OK;
@@ -1948,6 +1952,11 @@ void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w) {
 
 int64_t fmbd_chol_solve_width(const fmbd_chol *F) {
   return F ? F->solve_width : 0;
+}
+
+int64_t fmbd_chol_own_width(const fmbd_chol *F) {
+  if (!F || !F->L || !own_could(F, 2)) return 0;
+  return own_could(F, 24) ? 24 : 8;
 }
 
 void fmbd_chol_release_workspace(fmbd_chol *F) {

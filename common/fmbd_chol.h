@@ -132,6 +132,12 @@ const double *fmbd_chol_values(const fmbd_chol *F, int64_t *nvalues);
 void fmbd_chol_set_solve_width(fmbd_chol *F, int64_t w);
 /// @brief The width set by fmbd_chol_set_solve_width (0: the default).
 int64_t fmbd_chol_solve_width(const fmbd_chol *F);
+/// @brief The most columns the library's own supernodal solve takes in one pass over the
+/// factor (24 with AVX-512, 8 with AVX2 alone; 0: CHOLMOD's solve), with one n x w workspace
+/// (w: the columns rounded up to 4, at least 8) instead of CHOLMOD's two. A width set by
+/// fmbd_chol_set_solve_width of up to this many columns is taken in one pass. Each column's
+/// result does not depend on the width (the same operations per column).
+int64_t fmbd_chol_own_width(const fmbd_chol *F);
 /// @brief Free CHOLMOD's solve workspaces (n x nrhs of the largest solve so far, kept for
 /// reuse): before a stage whose solves are narrower (fe2cb's projections after the Lanczos
 /// run's wide back solve; peak memory). The next solve allocates them again.

@@ -85,8 +85,7 @@ static int check_normalise(const fmbd_csr *K, const fmbd_csr *M, int64_t nv, con
   double *mx = kx + n * NB;
   for (int64_t j0 = 0; j0 < nv; j0 += NB) {
     int64_t nb = nv - j0 < NB ? nv - j0 : NB;
-    fmbd_csr_matmat(K, nb, X + j0 * n, n, kx, n);
-    fmbd_csr_matmat(M, nb, X + j0 * n, n, mx, n);
+    fmbd_csr_matmat_pair(K, M, nb, X + j0 * n, n, kx, mx, n);
     for (int64_t j = 0; j < nb; j++) {
       double *x = X + (j0 + j) * n;
       rs[j0 + j] =
@@ -639,10 +638,18 @@ static int block_run(const fmbd_csr *M, fmbd_chol *F, int64_t nreq, int64_t nstr
     // narrower calls (fe2cb below 60 modes: 8); in the fewest calls, of equal widths (23
     // vectors: 12 + 11 instead of 8 + 8 + 7, backward half of the 51 k-dof rod 58 against
     // 73 ms; each column's result may change at round-off with the width)
-    // (given back right after: the residual check follows, with its own blocks)
+    // (given back right after: the residual check follows, with its own blocks). The own
+    // solve's one n x w workspace takes all of them in one pass where it can (AVX-512: up to
+    // 24 columns) and where the freed columns hold it: the factor streamed once (23 vectors at
+    // 51 k dofs: one pass instead of 12 + 11, the same bits: bench/README.md "The Ritz
+    // vectors' back solve in one pass")
     int64_t w0 = fmbd_chol_solve_width(F), wb = (cap - nout) / 2;
-    bool wide = w0 > 0 && wb > w0 && nout > w0;
-    if (wide) {
+    int64_t wo = fmbd_chol_own_width(F);
+    bool one = w0 > 0 && nout > w0 && nout <= wo && nout + 3 <= cap - nout;
+    bool wide = w0 > 0 && (one || wb > w0) && nout > w0;
+    if (one) {
+      fmbd_chol_set_solve_width(F, nout);
+    } else if (wide) {
       int64_t calls = (nout + wb - 1) / wb;
       fmbd_chol_set_solve_width(F, (nout + calls - 1) / calls);
     }
