@@ -1804,14 +1804,13 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   // 17-24 columns in one own pass only where the caller's width asks for it (the workspace is
   // n x 24: fe2cb's 23 Ritz vectors, fmbd_eig.c)
   bool one = nrhs <= 16 || nrhs <= F->solve_width;
-  if (F->started && (F->X || F->Y || F->E) &&
-      own_could(F, split ? block : (one ? nrhs : 25))) {
+  if (F->started && (F->X || F->Y || F->E) && own_could(F, split ? block : (one ? nrhs : 25))) {
     cholmod_l_free_dense(&F->X, &F->c);
     cholmod_l_free_dense(&F->Y, &F->c);
     cholmod_l_free_dense(&F->E, &F->c);
   }
   if (one && own_solve(F, sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_P,
-                sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
+                       sys[0] == CHOLMOD_A || sys[0] == CHOLMOD_Lt, nrhs, X, ldx)) {
     F->st.t_solve_s += fmbd_wall_s() - t0;
     return FMBD_OK;
   }

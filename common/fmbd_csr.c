@@ -415,8 +415,8 @@ __attribute__((target("avx2"))) static void rows8_lower_avx2(const fmbd_csr *A, 
 }
 __attribute__((target("avx512f"))) static void rows8_lower_pair_avx512(const fmbd_csr *A,
                                                                        const double *bd,
-                                                                       const double *xt,
-                                                                       double *yt, double *zt) {
+                                                                       const double *xt, double *yt,
+                                                                       double *zt) {
   vrows8_lower_pair(A, bd, xt, yt, zt);
 }
 __attribute__((target("avx2"))) static void rows8_lower_pair_avx2(const fmbd_csr *A,

@@ -135,6 +135,19 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
                t ? "two patterns" : "one pattern");
       }
     }
+    // lower-stored on one pattern (Kl and Ml, fe2cb's residual check): blocks of 5-8 columns
+    // by one pass for both, the rest as two products; the bits of matvec per column of each
+    for (size_t wi = 0; wi < sizeof widths / sizeof widths[0]; wi++) {
+      int64_t w = widths[wi];
+      bool same = true;
+      fmbd_csr_matmat_pair(Kl, Ml, w, X2, n, Y2, W2, n);
+      for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(Kl, X2 + k * n, Z2 + k * n);
+      same = same && memcmp(Y2, Z2, (size_t)(n * w) * sizeof(double)) == 0;
+      for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(Ml, X2 + k * n, Z2 + k * n);
+      same = same && memcmp(W2, Z2, (size_t)(n * w) * sizeof(double)) == 0;
+      EXPECT(same, "matmat_pair of %lld columns (lower, one pattern) against matvec per column",
+             (long long)w);
+    }
     Ms->indptr = Ms->indices = NULL;  // K's
     fmbd_csr_destroy(&Ms);
     fmbd_free(W2);
@@ -261,8 +274,9 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
 }
 
 // The library's own narrow-block supernodal solves (fmbd_chol_set_own_solve; used for blocks of
-// 2 to 8 right-hand sides where the processor has AVX2 and FMA, 9 to 16 where it has AVX-512)
-// against CHOLMOD's on the same factor: the full solve and both halves, every width 1..17 (the
+// 2 to 8 right-hand sides where the processor has AVX2 and FMA, 9 to 16 where it has AVX-512,
+// 17 to 24 there where the solve width asks for them)
+// against CHOLMOD's on the same factor: the full solve and both halves, every width 1..25 (the
 // kernels' cases: 4-wide rows by one or two vectors, AVX-512 by chunks of 4 columns, groups of
 // fewer than 4 columns and rows not a multiple of 8), a leading dimension above n, and
 // the columns beyond the block untouched. Both are the same substitutions with the sums in
@@ -273,7 +287,7 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
 // cond2(A) comes from A's exact eigenvalues (lam_min, lam_max).
 static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const char *what) {
   int64_t n = A->nrows;
-  const int64_t ld = n + 3, wmax = 17;
+  const int64_t ld = n + 3, wmax = 25;
   fmbd_chol *F = NULL;
   EXPECT(fmbd_chol_create_llt(A, &F) == 0, "%s: LL'", what);
   if (!F) return;
@@ -283,10 +297,13 @@ static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const 
   for (int64_t i = 0; i < ld * (wmax + 1); i++)
     B[i] = sin(0.37 * (double)i) + 0.1 * cos(1.3 * (double)i);
   double cond = lam_max / lam_min, eps = 2.2e-16;
-  // solve width 6 (calls of at most 6 columns: blocks of 7..17 split into nearly equal own
-  // calls of 4 to 6) and the default (64: one own call up to 16 columns, CHOLMOD's above)
-  for (int64_t sw = 0; sw <= 6; sw += 6)
+  // solve width 6 (calls of at most 6 columns: blocks of 7..25 split into nearly equal own
+  // calls of 4 to 6), the default (64: one own call up to 16 columns, CHOLMOD's above) and 24
+  // (one own call up to 24 columns with AVX-512)
+  const int64_t sws[3] = {0, 6, 24};
+  for (int si = 0; si < 3; si++)
     for (int64_t w = 1; w <= wmax; w++) {
+      int64_t sw = sws[si];
       fmbd_chol_set_solve_width(F, sw);
       for (int kind = 0; kind < 3; kind++) {  // full solve, forward half, backward half
         double *out[2] = {X, Y};
@@ -320,8 +337,33 @@ static void own_solves(const fmbd_csr *A, double lam_min, double lam_max, const 
         EXPECT(same, "%s: solve %d width %lld wrote outside the block", what, kind, (long long)w);
       }
     }
-  // the full solve's backward error, as for CHOLMOD's below: a small multiple of eps
+  // with AVX-512, each column's result does not depend on the own solve's width: 23 columns in
+  // one pass (width 24) are the bits of 12 + 11 (width 12) and of 8 + 8 + 7 (width 9) (fe2cb's
+  // Ritz vectors' back solve; the 4-column AVX2 kernels sum in another order)
   fmbd_chol_set_own_solve(F, true);
+  for (int kind = 0; kind < 2 && fmbd_chol_own_width(F) == 24; kind++) {
+    const int64_t sw3[3] = {24, 12, 9};
+    double *out[3] = {X, Y, B};
+    double *B0 = fmbd_malloc((size_t)(ld * 23) * sizeof(double));
+    for (int64_t i = 0; i < ld * 23; i++)
+      B0[i] = sin(0.37 * (double)i) + 0.1 * cos(1.3 * (double)i);
+    for (int k = 0; k < 3; k++) {
+      fmbd_chol_set_solve_width(F, sw3[k]);
+      memcpy(out[k], B0, (size_t)(ld * 23) * sizeof(double));
+      int rc = kind == 0 ? fmbd_chol_solve(F, 23, out[k], ld)
+                         : fmbd_chol_solve_half(F, FMBD_CHOL_BWD, 23, out[k], ld);
+      EXPECT(rc == 0, "%s: 23 columns by width %lld: rc %d", what, (long long)sw3[k], rc);
+    }
+    EXPECT(memcmp(X, Y, (size_t)(ld * 23) * sizeof(double)) == 0 &&
+               memcmp(X, B, (size_t)(ld * 23) * sizeof(double)) == 0,
+           "%s: 23 columns (%s): widths 24, 12 and 4 give other bits", what,
+           kind ? "backward half" : "full solve");
+    for (int64_t i = 0; i < ld * (wmax + 1); i++)
+      B[i] = sin(0.37 * (double)i) + 0.1 * cos(1.3 * (double)i);
+    fmbd_free(B0);
+  }
+  fmbd_chol_set_solve_width(F, 0);
+  // the full solve's backward error, as for CHOLMOD's below: a small multiple of eps
   memcpy(Y, B, (size_t)(ld * 4) * sizeof(double));
   EXPECT(fmbd_chol_solve(F, 4, Y, ld) == 0, "%s: solve", what);
   double amax = 0.0;
