@@ -319,45 +319,6 @@ static inline __attribute__((always_inline)) void vrows8_lower(const fmbd_csr *A
   }
 }
 
-// vrows8_lower for A and B on one pattern (B's values in bd): the pattern and xt read once for
-// both, each sum and each transposed update in vrows8_lower's order (the same bits)
-static inline __attribute__((always_inline)) void vrows8_lower_pair(const fmbd_csr *A,
-                                                                    const double *bd,
-                                                                    const double *xt, double *yt,
-                                                                    double *zt) {
-  const int64_t *ip = A->indptr, *ix = A->indices;
-  const double *d = A->data;
-  int64_t n = A->nrows;
-  memset(yt, 0, (size_t)n * NB * sizeof(double));
-  memset(zt, 0, (size_t)n * NB * sizeof(double));
-  for (int64_t i = 0; i < n; i++) {
-    v4d s0 = {0}, s1 = {0}, t0 = {0}, t1 = {0};
-    v4d x0 = LD4(xt + i * NB), x1 = LD4(xt + i * NB + 4);
-    for (int64_t p = ip[i]; p < ip[i + 1]; p++) {
-      int64_t j = ix[p];
-      double a = d[p], b = bd[p];
-      const double *x = xt + j * NB;
-      v4d xj0 = LD4(x), xj1 = LD4(x + 4);
-      s0 += a * xj0;
-      s1 += a * xj1;
-      t0 += b * xj0;
-      t1 += b * xj1;
-      if (j != i) {
-        double *y = yt + j * NB, *z = zt + j * NB;
-        ST4(y, LD4(y) + a * x0);
-        ST4(y + 4, LD4(y + 4) + a * x1);
-        ST4(z, LD4(z) + b * x0);
-        ST4(z + 4, LD4(z + 4) + b * x1);
-      }
-    }
-    double *y = yt + i * NB, *z = zt + i * NB;
-    ST4(y, LD4(y) + s0);
-    ST4(y + 4, LD4(y + 4) + s1);
-    ST4(z, LD4(z) + t0);
-    ST4(z + 4, LD4(z + 4) + t1);
-  }
-}
-
 // 4 columns row-major in and out (fmbd_csr_matmat_rows4): one 4-wide sum, lower or full
 __attribute__((target("avx2"))) static void rows4_avx2(const fmbd_csr *A, const double *xt,
                                                        double *yt) {
@@ -412,18 +373,6 @@ __attribute__((target("avx512f"))) static void rows8_lower_avx512(const fmbd_csr
 __attribute__((target("avx2"))) static void rows8_lower_avx2(const fmbd_csr *A, const double *xt,
                                                              double *yt) {
   vrows8_lower(A, xt, yt);
-}
-__attribute__((target("avx512f"))) static void rows8_lower_pair_avx512(const fmbd_csr *A,
-                                                                       const double *bd,
-                                                                       const double *xt, double *yt,
-                                                                       double *zt) {
-  vrows8_lower_pair(A, bd, xt, yt, zt);
-}
-__attribute__((target("avx2"))) static void rows8_lower_pair_avx2(const fmbd_csr *A,
-                                                                  const double *bd,
-                                                                  const double *xt, double *yt,
-                                                                  double *zt) {
-  vrows8_lower_pair(A, bd, xt, yt, zt);
 }
 #endif
 
@@ -494,27 +443,6 @@ static void rows8_lower(const fmbd_csr *A, const double *xt, double *yt) {
   rows_lower_rm(A, NB, xt, yt);
 }
 
-// rows8_lower of A and B on one pattern; false: no vector kernel here (two products then)
-static bool rows8_lower_pair(const fmbd_csr *A, const double *bd, const double *xt, double *yt,
-                             double *zt) {
-#ifdef FMBD_VEC8
-  if (__builtin_cpu_supports("avx512f")) {
-    rows8_lower_pair_avx512(A, bd, xt, yt, zt);
-    return true;
-  }
-  if (__builtin_cpu_supports("avx2")) {
-    rows8_lower_pair_avx2(A, bd, xt, yt, zt);
-    return true;
-  }
-#endif
-  (void)A;
-  (void)bd;
-  (void)xt;
-  (void)yt;
-  (void)zt;
-  return false;
-}
-
 void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t ldx, double *Y,
                      int64_t ldy) {
   // up to 8 columns at a time through a row-major copy of X (min(nrhs, 8) columns: no more
@@ -570,51 +498,14 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
   fmbd_free(yt);
 }
 
-// fmbd_csr_matmat_pair for lower-stored A and B on one pattern: a block of 5-8 columns as
-// fmbd_csr_matmat takes it (padded to 8, rows8_lower), both matrices in one pass; a block of
-// 1-4 columns, no vector kernel or no room for the three n x 8 copies: two fmbd_csr_matmat
-static void pair_lower(const fmbd_csr *A, const fmbd_csr *B, int64_t nrhs, const double *X,
-                       int64_t ldx, double *Y, double *Z, int64_t ldy) {
-  int64_t n = A->nrows;
-  double *xt = nrhs >= 5 ? fmbd_malloc((size_t)(n ? n : 1) * 3 * NB * sizeof(double)) : NULL;
-  double *yt = xt ? xt + n * NB : NULL, *zt = xt ? yt + n * NB : NULL;
-  for (int64_t c = 0; c < nrhs; c += NB) {
-    int w = nrhs - c < NB ? (int)(nrhs - c) : NB;
-    bool done = false;
-    if (xt && w >= 5) {
-      for (int64_t j = 0; j < n; j++) {
-        for (int k = 0; k < w; k++) xt[j * NB + k] = X[j + (c + k) * ldx];
-        for (int k = w; k < NB; k++) xt[j * NB + k] = 0.0;
-      }
-      done = rows8_lower_pair(A, B->data, xt, yt, zt);
-      for (int64_t i = 0; done && i < n; i++) {
-        for (int k = 0; k < w; k++) Y[i + (c + k) * ldy] = yt[i * NB + k];
-        for (int k = 0; k < w; k++) Z[i + (c + k) * ldy] = zt[i * NB + k];
-      }
-    }
-    if (!done) {
-      fmbd_csr_matmat(A, w, X + c * ldx, ldx, Y + c * ldy, ldy);
-      fmbd_csr_matmat(B, w, X + c * ldx, ldx, Z + c * ldy, ldy);
-    }
-  }
-  fmbd_free(xt);
-}
-
 void fmbd_csr_matmat_pair(const fmbd_csr *A, const fmbd_csr *B, int64_t nrhs, const double *X,
                           int64_t ldx, double *Y, double *Z, int64_t ldy) {
   // one pattern in memory (an fe body's K and M, fmbd_fe_assemble or fmbd_fe_read): 8 columns
   // a pass, padded with zero columns, the pattern and X read once for both matrices. Otherwise,
   // or without room for the copy of X, two products
   int64_t nc = A->ncols;
-  bool same = A != B && A->indptr == B->indptr && A->indices == B->indices &&
-              A->nrows == B->nrows && A->ncols == B->ncols;
-  if (same && A->lower && B->lower && A->nrows == A->ncols) {
-    // both lower-stored (fe2cb's Ks and Ms, the residual check): blocks of 5-8 columns by
-    // rows8_lower's pass for both (the same bits as two products), the rest as two products
-    pair_lower(A, B, nrhs, X, ldx, Y, Z, ldy);
-    return;
-  }
-  bool one = same && !A->lower && !B->lower;
+  bool one = A != B && !A->lower && !B->lower && A->indptr == B->indptr &&
+             A->indices == B->indices && A->nrows == B->nrows && A->ncols == B->ncols;
   double *xt = one && nrhs > 0 ? fmbd_malloc((size_t)(nc ? nc : 1) * NB * sizeof(double)) : NULL;
   if (!xt) {
     fmbd_csr_matmat(A, nrhs, X, ldx, Y, ldy);

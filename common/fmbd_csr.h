@@ -66,8 +66,7 @@ void fmbd_csr_matmat(const fmbd_csr *A, int64_t nrhs, const double *X, int64_t l
 void fmbd_csr_matmat_rows4(const fmbd_csr *A, const double *xt, double *yt);
 /// @brief Y = A X and Z = B X, the same bits as two fmbd_csr_matmat calls. When A and B are
 /// stored in full on one pattern in memory (the same indptr and indices arrays: an fe body's K
-/// and M), one pass over the pattern serves both; also when both are lower-stored on one
-/// pattern (fe2cb's Ks and Ms), for blocks of 5-8 columns; otherwise two passes.
+/// and M), one pass over the pattern serves both; otherwise two passes.
 void fmbd_csr_matmat_pair(const fmbd_csr *A, const fmbd_csr *B, int64_t nrhs, const double *X,
                           int64_t ldx, double *Y, double *Z, int64_t ldy);
 /// @brief A(rows, cols) as a new matrix. rows/cols are increasing-free index lists.

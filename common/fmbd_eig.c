@@ -85,7 +85,8 @@ static int check_normalise(const fmbd_csr *K, const fmbd_csr *M, int64_t nv, con
   double *mx = kx + n * NB;
   for (int64_t j0 = 0; j0 < nv; j0 += NB) {
     int64_t nb = nv - j0 < NB ? nv - j0 : NB;
-    fmbd_csr_matmat_pair(K, M, nb, X + j0 * n, n, kx, mx, n);
+    fmbd_csr_matmat(K, nb, X + j0 * n, n, kx, n);
+    fmbd_csr_matmat(M, nb, X + j0 * n, n, mx, n);
     for (int64_t j = 0; j < nb; j++) {
       double *x = X + (j0 + j) * n;
       rs[j0 + j] =

@@ -135,19 +135,6 @@ static void lower_storage(const fmbd_csr *K, const fmbd_csr *M, const double *ex
                t ? "two patterns" : "one pattern");
       }
     }
-    // lower-stored on one pattern (Kl and Ml, fe2cb's residual check): blocks of 5-8 columns
-    // by one pass for both, the rest as two products; the bits of matvec per column of each
-    for (size_t wi = 0; wi < sizeof widths / sizeof widths[0]; wi++) {
-      int64_t w = widths[wi];
-      bool same = true;
-      fmbd_csr_matmat_pair(Kl, Ml, w, X2, n, Y2, W2, n);
-      for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(Kl, X2 + k * n, Z2 + k * n);
-      same = same && memcmp(Y2, Z2, (size_t)(n * w) * sizeof(double)) == 0;
-      for (int64_t k = 0; k < w; k++) fmbd_csr_matvec(Ml, X2 + k * n, Z2 + k * n);
-      same = same && memcmp(W2, Z2, (size_t)(n * w) * sizeof(double)) == 0;
-      EXPECT(same, "matmat_pair of %lld columns (lower, one pattern) against matvec per column",
-             (long long)w);
-    }
     Ms->indptr = Ms->indices = NULL;  // K's
     fmbd_csr_destroy(&Ms);
     fmbd_free(W2);
