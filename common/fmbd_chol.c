@@ -1816,7 +1816,8 @@ static int solve_sys(fmbd_chol *F, int nsys, const int *sys, int64_t nrhs, doubl
   }
   // bounded workspace: at most n x (solve width) extra doubles, twice (CHOLMOD's X and Y)
   if (split) {
-    // a width the own solve takes (fe2cb's Ritz vectors' back solve: 12 + 11 columns):
+    // a width the own solve takes (fe2cb's Ritz vectors' back solve without AVX-512's one
+    // pass of 24: 8 + 8 + 7 columns):
     // calls of nearly equal widths (at least block / 2 >= 2 columns), each through own_solve
     // (12 columns 40 against CHOLMOD's 61 ms, bench/README.md "The sweeps' prefetch"), the
     // workspace n x 16 at most
