@@ -387,8 +387,9 @@ static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, 
     if (Mc) FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Mc));
     C = Kc ? *Kc : NULL;
     D = Mc ? *Mc : NULL;
-    // written over: Si over K's indices, Sx over K's values, Tx over M's, Sp over K's row
-    // starts (Sp[r] at or before indptr[interior[r]]: each row's start read before it is)
+    // written over: Si over K's indices, Sx over K's values, Tx over M's (entry nS at or
+    // before the entry p it comes from), Sp over K's row starts (Sp[r + 1] over indptr[r + 1],
+    // r + 1 <= interior[r + 1]: the next row's start is read before that write, its end later)
     fmbd_csr *Kw = *Kt, *Mw = *Mt;  // K and M, written over
     int64_t *Si = Kw->indices, *Sp = Kw->indptr;
     double *Sx = Kw->data, *Tx = Mw->data;
