@@ -343,8 +343,14 @@ static bool one_pattern(const fmbd_csr *K, const fmbd_csr *M) {
 // in the same order, with the same values either way. The one pass saves the full Ks and Ms
 // that the cut makes and the halving shrinks (at 51 k dofs about 0.13 s CPU less and the
 // partition's peak 262 -> 189 MB: bench/README.md "fe2cb's fixed costs").
-static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
-                           const int64_t *interior, int64_t nb, const int64_t *boundary,
+//
+// Kt, Mt (not NULL: the caller's K and M, given up; on success *Kt and *Mt are NULL): where K
+// and M are on the same index arrays, Ks and Ms are written over K's and M's arrays (the kept
+// entries in order: each written at or before the place it is read from) and the arrays shrunk
+// (fmbd_realloc: the pool takes the tails), so that the partition allocates only Kc and Mc.
+// The boundary blocks must be cut before (they read K and M).
+static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd_csr **Mt,
+                           int64_t ns, const int64_t *interior, int64_t nb, const int64_t *boundary,
                            fmbd_csr **Ks, fmbd_csr **Ms, fmbd_csr **Kc, fmbd_csr **Mc) {
   int rc = FMBD_OK;
   int64_t n = K->nrows, *pos = NULL;
@@ -372,6 +378,59 @@ static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, int64_t ns,
       else
         nC += q != INT64_MIN;
     }
+  }
+  bool take =
+      Kt && Mt && *Kt == K && *Mt == M && K->indptr == M->indptr && K->indices == M->indices;
+  if (take) {
+    fmbd_csr *C = NULL, *D = NULL;
+    if (Kc) FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Kc));
+    if (Mc) FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Mc));
+    C = Kc ? *Kc : NULL;
+    D = Mc ? *Mc : NULL;
+    // written over: Si over K's indices, Sx over K's values, Tx over M's (entry nS at or
+    // before the entry p it comes from), Sp over K's row starts (Sp[r + 1] over indptr[r + 1],
+    // r + 1 <= interior[r + 1]: the next row's start is read before that write, its end later)
+    fmbd_csr *Kw = *Kt, *Mw = *Mt;  // K and M, written over
+    int64_t *Si = Kw->indices, *Sp = Kw->indptr;
+    double *Sx = Kw->data, *Tx = Mw->data;
+    int64_t start = ns ? Sp[interior[0]] : 0;
+    nS = nC = 0;
+    Sp[0] = 0;
+    for (int64_t r = 0; r < ns; r++) {
+      int64_t i = interior[r], end = Sp[i + 1];
+      for (int64_t p = start; p < end; p++) {
+        int64_t q = pos[Si[p]];
+        if (q >= 0) {
+          if (q > r) continue;
+          double k = Sx[p], m = Tx[p];
+          Si[nS] = q;
+          Sx[nS] = k;
+          Tx[nS++] = m;
+        } else if (q != INT64_MIN) {
+          if (C) C->indices[nC] = -1 - q, C->data[nC] = Sx[p];
+          if (D) D->indices[nC] = -1 - q, D->data[nC] = Tx[p];
+          nC++;
+        }
+      }
+      if (r + 1 < ns) start = Sp[interior[r + 1]];
+      Sp[r + 1] = nS;
+      if (C) C->indptr[r + 1] = nC;
+      if (D) D->indptr[r + 1] = nC;
+    }
+    // the tails to the pool (a failed shrink keeps the block as it is)
+    void *t;
+    if ((t = fmbd_realloc(Kw->indices, (size_t)(nS ? nS : 1) * sizeof(int64_t)))) Kw->indices = t;
+    if ((t = fmbd_realloc(Kw->data, (size_t)(nS ? nS : 1) * sizeof(double)))) Kw->data = t;
+    if ((t = fmbd_realloc(Mw->data, (size_t)(nS ? nS : 1) * sizeof(double)))) Mw->data = t;
+    if ((t = fmbd_realloc(Kw->indptr, (size_t)(ns + 1) * sizeof(int64_t)))) Kw->indptr = t;
+    *Ks = *Kt;
+    *Ms = *Mt;
+    *Kt = *Mt = NULL;
+    (*Ks)->nrows = (*Ks)->ncols = (*Ms)->nrows = (*Ms)->ncols = ns;
+    (*Ms)->indptr = (*Ks)->indptr;
+    (*Ms)->indices = (*Ks)->indices;
+    (*Ks)->lower = (*Ms)->lower = true;
+    goto done;
   }
   FMBD_GCALL(fmbd_csr_create(ns, ns, nS, Ks));
   FMBD_GALLOC(*Ms = fmbd_calloc(1, sizeof **Ms));
@@ -905,10 +964,10 @@ static int reduce_impl(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, fmbd
       cb->interior[a++] = i;
   }
   cb->nb = nb;
-  FMBD_GCALL(interior_blocks(K, M, ns, cb->interior, nb, cb->boundary, &Ks, &Ms, &Kc, &Mc));
-  bool shared = Ms->indices == Ks->indices;
   FMBD_GCALL(sub(K, nb, cb->boundary, nb, cb->boundary, &Kb));
   FMBD_GCALL(sub(M, nb, cb->boundary, nb, cb->boundary, &Mb));
+  FMBD_GCALL(interior_blocks(K, M, Kt, Mt, ns, cb->interior, nb, cb->boundary, &Ks, &Ms, &Kc, &Mc));
+  bool shared = Ms->indices == Ks->indices;
   if (Kt && Mt) {
     // the caller's full matrices are not needed any more: free them (peak memory); M may be
     // on K's index arrays (fmbd_h5_read_csr_like, fmbd_fe_assemble)
@@ -1152,7 +1211,8 @@ int fmbd_cb_extend(const fmbd_csr *K, const fmbd_csr *M, fmbd_cb *cb, int64_t nd
     FMBD_GCALL(fmbd_cb_update_reduced(cb, 1e-6));
     goto done;
   }
-  FMBD_GCALL(interior_blocks(K, M, ns, cb->interior, cb->nb, cb->boundary, &Ks, &Ms, NULL, NULL));
+  FMBD_GCALL(interior_blocks(K, M, NULL, NULL, ns, cb->interior, cb->nb, cb->boundary, &Ks, &Ms,
+                             NULL, NULL));
   FMBD_GCALL(fmbd_chol_analyze(Ks, NULL, FMBD_CHOL_LLT, &F));
   rc = fmbd_chol_factor(F, 0.0);
   if (rc) FMBD_GCALL(singular_message(rc, F, cb->interior, NULL, cb->nb));

@@ -77,6 +77,31 @@ static double t0_err(const fmbd_cb *cb, const double *A, int64_t n, const double
   return e / rmax;
 }
 
+// K and M as an fmbd-fe file gives them (fmbd_h5_read_csr_like): M's values on K's pattern (zero
+// where M has no entry), both on one pair of index arrays (*Mp's indptr and indices are *Kp's)
+static void shared_pair(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kp, fmbd_csr **Mp) {
+  int64_t n = K->nrows, nnz = K->indptr[n];
+  fmbd_csr_create(n, n, nnz, Kp);
+  memcpy((*Kp)->indptr, K->indptr, (size_t)(n + 1) * sizeof(int64_t));
+  memcpy((*Kp)->indices, K->indices, (size_t)nnz * sizeof(int64_t));
+  memcpy((*Kp)->data, K->data, (size_t)nnz * sizeof(double));
+  *Mp = fmbd_calloc(1, sizeof **Mp);
+  (*Mp)->nrows = (*Mp)->ncols = n;
+  (*Mp)->indptr = (*Kp)->indptr;
+  (*Mp)->indices = (*Kp)->indices;
+  (*Mp)->data = fmbd_calloc((size_t)nnz, sizeof(double));
+  for (int64_t i = 0; i < n; i++)
+    for (int64_t p = K->indptr[i], q = M->indptr[i]; p < K->indptr[i + 1]; p++)
+      if (q < M->indptr[i + 1] && M->indices[q] == K->indices[p]) (*Mp)->data[p] = M->data[q++];
+}
+
+// destroy a pair made by shared_pair (or what fmbd_cb_reduce_take left of it)
+static void shared_free(fmbd_csr **K, fmbd_csr **M) {
+  if (*M && *K && (*M)->indices == (*K)->indices) (*M)->indptr = (*M)->indices = NULL;
+  fmbd_csr_destroy(M);
+  fmbd_csr_destroy(K);
+}
+
 int main(void) {
   const int64_t n = 60;
   fmbd_csr *K = NULL, *M = NULL;
@@ -122,6 +147,48 @@ int main(void) {
       fmbd_cb_destroy(&cs);
     }
   }
+  // fmbd_cb_reduce_take on K and M on one pair of index arrays (fe2cb's case): the interior
+  // blocks written over K's and M's arrays, which must give the same blocks as the reduction
+  // of the same pair left to the caller (the same entries in the same order): the same factor,
+  // so the same constraint modes and projections bit for bit on the dense and the sparse path,
+  // and on the dense path the same modes bit for bit
+  for (int sparse = 0; sparse < 2; sparse++) {
+    fmbd_cb_opts o2 = o;
+    if (sparse) o2.eig.dense_max = 10;
+    fmbd_csr *K2 = NULL, *M2 = NULL;
+    fmbd_cb *ref = NULL, *tk = NULL;
+    shared_pair(K, M, &K2, &M2);
+    rc = fmbd_cb_reduce(K2, M2, NULL, 3, bnd, &o2, &ref);
+    EXPECT(rc == 0 && ref, "shared pattern reduce: rc %d (%s)", rc, fmbd_err_get()->msg);
+    rc = fmbd_cb_reduce_take(&K2, &M2, NULL, 3, bnd, &o2, &tk);
+    EXPECT(rc == 0 && tk && !K2 && !M2, "reduce_take: rc %d (%s)", rc, fmbd_err_get()->msg);
+    if (ref && tk) {
+      size_t bytes = (size_t)(ref->ns * ref->nb) * sizeof(double);
+      // the sparse path's Lanczos run differs in the last bits between fmbd_cb_reduce and
+      // fmbd_cb_reduce_take before this change too (relative 3e-16 here): its eigenvalues are
+      // asked to the Lanczos accuracy, relative 1e-9 as above
+      double e = 0.0;
+      for (int64_t k = 0; k < ref->nd && k < tk->nd; k++)
+        e = fmax(e, fabs(tk->kappa[k] / ref->kappa[k] - 1.0));
+      EXPECT(tk->nd == ref->nd && e < 1e-9, "reduce_take (sparse %d): eigenvalues differ by %.2e",
+             sparse, e);
+      bool same_modes = !memcmp(tk->kappa, ref->kappa, (size_t)ref->nd * sizeof(double)) &&
+                        !memcmp(tk->Phi, ref->Phi, (size_t)(ref->ns * ref->nd) * sizeof(double)) &&
+                        !memcmp(tk->Kr, ref->Kr, (size_t)(ref->nr * ref->nr) * sizeof(double)) &&
+                        !memcmp(tk->Mr, ref->Mr, (size_t)(ref->nr * ref->nr) * sizeof(double));
+      EXPECT(tk->nr == ref->nr && (sparse || same_modes) && !memcmp(tk->Psi, ref->Psi, bytes) &&
+                 !memcmp(tk->A, ref->A, bytes) && !memcmp(tk->KsinvA, ref->KsinvA, bytes) &&
+                 !memcmp(tk->KsinvMsKsinvA, ref->KsinvMsKsinvA, bytes),
+             "reduce_take (sparse %d): the body differs from fmbd_cb_reduce's", sparse);
+      // and the pair is the chain's: the closed form as above
+      double e1 = t0_err(tk, Kd, n, tk->Kr), e2 = t0_err(tk, Md, n, tk->Mr);
+      EXPECT(e1 < 1e-12 && e2 < 1e-12, "reduce_take closed form: K %.2e M %.2e", e1, e2);
+    }
+    fmbd_cb_destroy(&ref);
+    fmbd_cb_destroy(&tk);
+    shared_free(&K2, &M2);
+  }
+
   // one rigid mode of the free chain, flagged
   EXPECT(cb->n_rigid == 1 && cb->rigid[0] == 1 && cb->rigid[1] == 0, "rigid: %lld",
          (long long)cb->n_rigid);
@@ -206,6 +273,21 @@ int main(void) {
     }
     EXPECT(cb == NULL && (rc == FMBD_ERR_NOMEM || rc == FMBD_ERR_EXTERNAL), "countdown %lld: rc %d",
            (long long)c, rc);
+  }
+  // the same with the matrices taken: whatever fails, what is left in K2, M2 is the caller's
+  for (int64_t c = 0; c < 400; c += 7) {
+    fmbd_csr *K2 = NULL, *M2 = NULL;
+    shared_pair(K, M, &K2, &M2);
+    fmbd_alloc_fail_after(c);
+    rc = fmbd_cb_reduce_take(&K2, &M2, NULL, 3, bnd, &o, &cb);
+    fmbd_alloc_fail_after(-1);
+    shared_free(&K2, &M2);
+    if (rc == 0) {
+      fmbd_cb_destroy(&cb);
+      continue;
+    }
+    EXPECT(cb == NULL && (rc == FMBD_ERR_NOMEM || rc == FMBD_ERR_EXTERNAL),
+           "take countdown %lld: rc %d", (long long)c, rc);
   }
   fmbd_csr_destroy(&K);
   fmbd_csr_destroy(&M);
