@@ -384,29 +384,27 @@ void *fmbd_malloc(size_t n) {
   return malloc(n ? n : 1);
 }
 
-void *fmbd_calloc(size_t count, size_t size) {
+// calloc, or (dirty not NULL) a block whose first *dirty bytes are reused pool pages left as
+// they were
+static void *calloc_impl(size_t count, size_t size, size_t *dirty) {
+  if (dirty) *dirty = 0;
   if (size && count > SIZE_MAX / size) return NULL;
   if (should_fail()) return NULL;
 #ifdef FMBD_POOL
   if (g_min && count * size >= g_min) {
-    void *p = pool_alloc(count * size, true, NULL);
+    void *p = pool_alloc(count * size, !dirty, dirty);
     if (p) return p;
   }
 #endif
   return calloc(count ? count : 1, size ? size : 1);
 }
 
+void *fmbd_calloc(size_t count, size_t size) {
+  return calloc_impl(count, size, NULL);
+}
+
 void *fmbd_calloc_dirty(size_t count, size_t size, size_t *dirty) {
-  *dirty = 0;
-  if (size && count > SIZE_MAX / size) return NULL;
-  if (should_fail()) return NULL;
-#ifdef FMBD_POOL
-  if (g_min && count * size >= g_min) {
-    void *p = pool_alloc(count * size, false, dirty);
-    if (p) return p;
-  }
-#endif
-  return calloc(count ? count : 1, size ? size : 1);
+  return calloc_impl(count, size, dirty);
 }
 
 void *fmbd_realloc(void *p, size_t n) {

@@ -381,64 +381,15 @@ static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, 
   }
   bool take =
       Kt && Mt && *Kt == K && *Mt == M && K->indptr == M->indptr && K->indices == M->indices;
-  if (take) {
-    fmbd_csr *C = NULL, *D = NULL;
-    if (Kc) FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Kc));
-    if (Mc) FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Mc));
-    C = Kc ? *Kc : NULL;
-    D = Mc ? *Mc : NULL;
-    // written over: Si over K's indices, Sx over K's values, Tx over M's (entry nS at or
-    // before the entry p it comes from), Sp over K's row starts (Sp[r + 1] over indptr[r + 1],
-    // r + 1 <= interior[r + 1]: the next row's start is read before that write, its end later)
-    fmbd_csr *Kw = *Kt, *Mw = *Mt;  // K and M, written over
-    int64_t *Si = Kw->indices, *Sp = Kw->indptr;
-    double *Sx = Kw->data, *Tx = Mw->data;
-    int64_t start = ns ? Sp[interior[0]] : 0;
-    nS = nC = 0;
-    Sp[0] = 0;
-    for (int64_t r = 0; r < ns; r++) {
-      int64_t i = interior[r], end = Sp[i + 1];
-      for (int64_t p = start; p < end; p++) {
-        int64_t q = pos[Si[p]];
-        if (q >= 0) {
-          if (q > r) continue;
-          double k = Sx[p], m = Tx[p];
-          Si[nS] = q;
-          Sx[nS] = k;
-          Tx[nS++] = m;
-        } else if (q != INT64_MIN) {
-          if (C) C->indices[nC] = -1 - q, C->data[nC] = Sx[p];
-          if (D) D->indices[nC] = -1 - q, D->data[nC] = Tx[p];
-          nC++;
-        }
-      }
-      if (r + 1 < ns) start = Sp[interior[r + 1]];
-      Sp[r + 1] = nS;
-      if (C) C->indptr[r + 1] = nC;
-      if (D) D->indptr[r + 1] = nC;
-    }
-    // the tails to the pool (a failed shrink keeps the block as it is)
-    void *t;
-    if ((t = fmbd_realloc(Kw->indices, (size_t)(nS ? nS : 1) * sizeof(int64_t)))) Kw->indices = t;
-    if ((t = fmbd_realloc(Kw->data, (size_t)(nS ? nS : 1) * sizeof(double)))) Kw->data = t;
-    if ((t = fmbd_realloc(Mw->data, (size_t)(nS ? nS : 1) * sizeof(double)))) Mw->data = t;
-    if ((t = fmbd_realloc(Kw->indptr, (size_t)(ns + 1) * sizeof(int64_t)))) Kw->indptr = t;
-    *Ks = *Kt;
-    *Ms = *Mt;
-    *Kt = *Mt = NULL;
-    (*Ks)->nrows = (*Ks)->ncols = (*Ms)->nrows = (*Ms)->ncols = ns;
+  if (!take) {
+    FMBD_GCALL(fmbd_csr_create(ns, ns, nS, Ks));
+    FMBD_GALLOC(*Ms = fmbd_calloc(1, sizeof **Ms));
+    (*Ms)->nrows = (*Ms)->ncols = ns;
+    FMBD_GALLOC((*Ms)->data = fmbd_malloc((size_t)(nS ? nS : 1) * sizeof(double)));
     (*Ms)->indptr = (*Ks)->indptr;
     (*Ms)->indices = (*Ks)->indices;
     (*Ks)->lower = (*Ms)->lower = true;
-    goto done;
   }
-  FMBD_GCALL(fmbd_csr_create(ns, ns, nS, Ks));
-  FMBD_GALLOC(*Ms = fmbd_calloc(1, sizeof **Ms));
-  (*Ms)->nrows = (*Ms)->ncols = ns;
-  FMBD_GALLOC((*Ms)->data = fmbd_malloc((size_t)(nS ? nS : 1) * sizeof(double)));
-  (*Ms)->indptr = (*Ks)->indptr;
-  (*Ms)->indices = (*Ks)->indices;
-  (*Ks)->lower = (*Ms)->lower = true;
   fmbd_csr *C = NULL, *D = NULL;
   if (Kc) {
     FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Kc));
@@ -448,27 +399,53 @@ static int interior_blocks(const fmbd_csr *K, const fmbd_csr *M, fmbd_csr **Kt, 
     FMBD_GCALL(fmbd_csr_create(ns, nb, nC, Mc));
     D = *Mc;
   }
-  int64_t *Si = (*Ks)->indices, *Sp = (*Ks)->indptr;
-  double *Sx = (*Ks)->data, *Tx = (*Ms)->data;
+  // taken: written over K's and M's own arrays, Si over K's indices, Sx over K's values, Tx over
+  // M's (entry nS at or before the entry p it comes from), Sp over K's row starts (Sp[r + 1]
+  // over indptr[r + 1], r + 1 <= interior[r + 1]: the next row's start is read before that
+  // write, its end later)
+  const int64_t *Kp = K->indptr, *Ki = K->indices;
+  const double *Kx = K->data, *Mx = M->data;
+  int64_t *Si = take ? (*Kt)->indices : (*Ks)->indices, *Sp = take ? (*Kt)->indptr : (*Ks)->indptr;
+  double *Sx = take ? (*Kt)->data : (*Ks)->data, *Tx = take ? (*Mt)->data : (*Ms)->data;
+  int64_t start = ns ? Kp[interior[0]] : 0;
   nS = nC = 0;
+  Sp[0] = 0;
   for (int64_t r = 0; r < ns; r++) {
-    int64_t i = interior[r];
-    for (int64_t p = K->indptr[i]; p < K->indptr[i + 1]; p++) {
-      int64_t q = pos[K->indices[p]];
+    int64_t i = interior[r], end = Kp[i + 1];
+    for (int64_t p = start; p < end; p++) {
+      int64_t q = pos[Ki[p]];
       if (q >= 0) {
         if (q > r) continue;
+        double k = Kx[p], m = Mx[p];
         Si[nS] = q;
-        Sx[nS] = K->data[p];
-        Tx[nS++] = M->data[p];
+        Sx[nS] = k;
+        Tx[nS++] = m;
       } else if (q != INT64_MIN) {
-        if (C) C->indices[nC] = -1 - q, C->data[nC] = K->data[p];
-        if (D) D->indices[nC] = -1 - q, D->data[nC] = M->data[p];
+        if (C) C->indices[nC] = -1 - q, C->data[nC] = Kx[p];
+        if (D) D->indices[nC] = -1 - q, D->data[nC] = Mx[p];
         nC++;
       }
     }
+    if (r + 1 < ns) start = Kp[interior[r + 1]];
     Sp[r + 1] = nS;
     if (C) C->indptr[r + 1] = nC;
     if (D) D->indptr[r + 1] = nC;
+  }
+  if (take) {
+    // the tails to the pool (a failed shrink keeps the block as it is)
+    fmbd_csr *Kw = *Kt, *Mw = *Mt;
+    void *t;
+    if ((t = fmbd_realloc(Kw->indices, (size_t)(nS ? nS : 1) * sizeof(int64_t)))) Kw->indices = t;
+    if ((t = fmbd_realloc(Kw->data, (size_t)(nS ? nS : 1) * sizeof(double)))) Kw->data = t;
+    if ((t = fmbd_realloc(Mw->data, (size_t)(nS ? nS : 1) * sizeof(double)))) Mw->data = t;
+    if ((t = fmbd_realloc(Kw->indptr, (size_t)(ns + 1) * sizeof(int64_t)))) Kw->indptr = t;
+    *Ks = Kw;
+    *Ms = Mw;
+    *Kt = *Mt = NULL;
+    Kw->nrows = Kw->ncols = Mw->nrows = Mw->ncols = ns;
+    Mw->indptr = Kw->indptr;
+    Mw->indices = Kw->indices;
+    Kw->lower = Mw->lower = true;
   }
 done:
   fmbd_free(pos);
